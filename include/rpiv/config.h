@@ -1,0 +1,61 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* rpiv/config.h - the experiment: every parameter of every module, read from an INI file
+ * (libinih) with strict keys, printed back as a complete INI file.
+ *
+ * One table drives parsing, checking, --help and docs/config.md: each key has a section, a
+ * name, a type, a unit, a range, a default (from the modules' *_default()) and a help line. */
+#ifndef RPIV_CONFIG_H
+#define RPIV_CONFIG_H
+
+#include "rpiv/error.h"
+#include "rpiv/flow.h"
+#include "rpiv/imaging.h"
+#include "rpiv/optics.h"
+#include "rpiv/piv.h"
+#include "rpiv/sheet.h"
+#include "rpiv/synth.h"
+
+#include <stddef.h>
+#include <stdio.h>
+
+typedef struct rpiv_output_params {
+    char dir[RPIV_PATH_MAX];   /* output folder ("rpiv-out")                 */
+    int plots;                 /* 1: write PNG plots (1)                     */
+} rpiv_output_params;
+
+typedef struct rpiv_experiment {
+    rpiv_camera camera;
+    rpiv_particles particles;
+    rpiv_channel channel;
+    rpiv_laser laser;
+    rpiv_prism prism;
+    rpiv_sheet_params sheet;
+    rpiv_piv_params piv;
+    rpiv_synth_params synth;
+    rpiv_output_params output;
+} rpiv_experiment;
+
+/* The embedded default: the paper's channel experiment (docs/config.md). */
+rpiv_experiment rpiv_experiment_default(void);
+
+/* Check every module's parameters (the message names section.key and the range). */
+RPIV_NODISCARD rpiv_status rpiv_experiment_check(const rpiv_experiment *e);
+
+/* Read an INI file over *e (keys not in the file keep their value). Unknown sections or keys,
+ * unparsable or out-of-range values: RPIV_ECONFIG with "file:line: ..." naming the key and the
+ * accepted range. Missing file: RPIV_EIO. */
+RPIV_NODISCARD rpiv_status rpiv_config_load(const char *path, rpiv_experiment *e);
+
+/* Set one key from a "section.key=value" or (section, key, value) string, as a command-line
+ * override; `origin` names where it came from in messages (e.g. "--set"). */
+RPIV_NODISCARD rpiv_status rpiv_config_set(rpiv_experiment *e, const char *section,
+                                           const char *key, const char *value,
+                                           const char *origin);
+
+/* Write *e as a complete INI file, every key with its unit and help as a comment. */
+RPIV_NODISCARD rpiv_status rpiv_config_write(const rpiv_experiment *e, FILE *fp);
+
+/* Write the key reference as a Markdown table (docs/config.md). */
+RPIV_NODISCARD rpiv_status rpiv_config_write_doc(FILE *fp);
+
+#endif /* RPIV_CONFIG_H */

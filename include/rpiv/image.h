@@ -1,0 +1,79 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* rpiv/image.h - float32 grey images; reading TIFF/PNG/PGM/BMP/JPEG, writing TIFF/PNG;
+ * image pairs from files, double-frame files, lists and globs.
+ *
+ * Pixel (x, y) is px[y * w + x]; x runs along columns (rightward), y along rows (downward),
+ * pixel centres at integer coordinates. Values keep the file's grey levels (0..255 for 8-bit,
+ * 0..65535 for 16-bit); palette images are mapped to grey through the palette's luminance. */
+#ifndef RPIV_IMAGE_H
+#define RPIV_IMAGE_H
+
+#include "rpiv/error.h"
+
+#include <stddef.h>
+
+typedef struct rpiv_image {
+    int w, h;  /* size in pixels, >= 1 */
+    int bits;  /* bit depth of the source (8, 12, 16, 32 for float), informative */
+    float *px; /* w*h values, row-major, owned by the image */
+} rpiv_image;
+
+/* A new w x h image filled with zeros. Release with rpiv_image_free(). */
+RPIV_NODISCARD rpiv_status rpiv_image_new(int w, int h, rpiv_image **out);
+void rpiv_image_free(rpiv_image *im); /* NULL is a no-op */
+RPIV_NODISCARD rpiv_status rpiv_image_copy(const rpiv_image *im, rpiv_image **out);
+
+/* Read page `page` (0-based; multi-page TIFF) of a grey image; the format is detected from
+ * the file's magic bytes, not its name. RGB input is converted to luminance (Rec. 601) and
+ * *warned is set to 1 if warned is not NULL. Errors: RPIV_EIO (missing/unreadable),
+ * RPIV_EFORMAT (zero-byte, truncated, bad CRC, unsupported depth or sample format). */
+RPIV_NODISCARD rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out,
+                                           int *warned);
+
+/* Number of pages (frames) in an image file: 1 except for multi-page TIFF. */
+RPIV_NODISCARD rpiv_status rpiv_image_count_pages(const char *path, int *npages);
+
+/* Write as 16-bit grey TIFF/PNG (values rounded and clamped to 0..65535), or as 32-bit float
+ * TIFF (rpiv_image_save_tiff_float). The file is written atomically (temporary + rename). */
+RPIV_NODISCARD rpiv_status rpiv_image_save_tiff16(const rpiv_image *im, const char *path);
+RPIV_NODISCARD rpiv_status rpiv_image_save_png16(const rpiv_image *im, const char *path);
+RPIV_NODISCARD rpiv_status rpiv_image_save_tiff_float(const rpiv_image *im, const char *path);
+/* Chooses the writer from the extension: .tif/.tiff (16-bit), .png (16-bit). */
+RPIV_NODISCARD rpiv_status rpiv_image_save(const rpiv_image *im, const char *path);
+
+/* ---- image pairs ------------------------------------------------------------------------ */
+
+/* One pair: frame A and frame B from two files, or from one double-frame file (frame A in the
+ * top half, frame B in the bottom half; or pages 0 and 1 of a multi-page TIFF). */
+typedef struct rpiv_pair_src {
+    char *path_a;    /* owned */
+    char *path_b;    /* owned; NULL for a double-frame file */
+} rpiv_pair_src;
+
+typedef struct rpiv_pairs {
+    size_t n;
+    rpiv_pair_src *pair; /* n entries, owned */
+} rpiv_pairs;
+
+typedef enum rpiv_pairing {
+    RPIV_PAIR_AB = 0,          /* names ending in a/b or _a/_b (A/B, 1/2 accepted): matched */
+    RPIV_PAIR_CONSECUTIVE = 1, /* sorted frames 1-2, 3-4, ...                              */
+    RPIV_PAIR_TIME_RESOLVED = 2 /* sorted frames 1-2, 2-3, ...                             */
+} rpiv_pairing;
+
+/* Build the pair list from command-line words:
+ *   two image files                  -> one pair;
+ *   one image file                   -> a double-frame pair;
+ *   a .txt/.lst file                 -> a list, one pair a line: "A B" or "AB" (double frame),
+ *                                       '#' comments, paths relative to the list's folder;
+ *   a glob pattern (quoted, with * ?) -> files matched and paired by `rule`.
+ * Errors name the word at fault (missing file with its index, odd count, unmatched a/b). */
+RPIV_NODISCARD rpiv_status rpiv_pairs_from_args(int nargs, char *const *args, rpiv_pairing rule,
+                                                rpiv_pairs **out);
+void rpiv_pairs_free(rpiv_pairs *p);
+
+/* Load pair i into two images of equal size (RPIV_ESIZE if they differ, naming both files). */
+RPIV_NODISCARD rpiv_status rpiv_pairs_load(const rpiv_pairs *p, size_t i, rpiv_image **a,
+                                           rpiv_image **b);
+
+#endif /* RPIV_IMAGE_H */

@@ -1,0 +1,523 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* The experiment's key table drives the INI reader, the writer and the key reference. */
+#include "rpiv/config.h"
+
+#include <errno.h>
+#include <ini.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+typedef enum {
+    KEY_INT,
+    KEY_LONG,
+    KEY_ULONG,
+    KEY_DOUBLE,
+    KEY_BOOL,
+    KEY_STRING,
+    KEY_ENUM,
+    KEY_WINDOWS, /* piv windows: "64,32,32" or "64x48,32"; also sets npass */
+    KEY_ROI      /* four integers x0,y0,x1,y1 */
+} key_type;
+
+typedef struct key_spec {
+    const char *section, *key;
+    key_type type;
+    size_t off;
+    double min, max;  /* in file units */
+    double scale;     /* struct value = file value * scale (e.g. mm -> m: 1e-3) */
+    const char *unit; /* unit in the file */
+    const char *help;
+    const char *const *names; /* KEY_ENUM: names in enum order, NULL-terminated */
+} key_spec;
+
+#define OFF(m) offsetof(rpiv_experiment, m)
+
+static const char *const sheet_kinds[] = {"gauss", "selfsim", "uniform", NULL};
+static const char *const polars[] = {"p", "s", "unpolarised", NULL};
+static const char *const subpixels[] = {"gauss", "parabola", "centroid", NULL};
+static const char *const backgrounds[] = {"none", "min", "mean", NULL};
+
+static const key_spec keys[] = {
+    /* [camera] */
+    {"camera", "width_px", KEY_INT, OFF(camera.width_px), 8, 65536, 1, "px", "sensor width", 0},
+    {"camera", "height_px", KEY_INT, OFF(camera.height_px), 8, 65536, 1, "px", "sensor height", 0},
+    {"camera", "sensor_w_mm", KEY_DOUBLE, OFF(camera.sensor_w_m), 0.1, 1000, 1e-3, "mm",
+     "sensor width (pixel pitch = sensor_w_mm / width_px)", 0},
+    {"camera", "sensor_h_mm", KEY_DOUBLE, OFF(camera.sensor_h_m), 0.1, 1000, 1e-3, "mm",
+     "sensor height", 0},
+    {"camera", "focal_mm", KEY_DOUBLE, OFF(camera.focal_m), 1, 10000, 1e-3, "mm",
+     "lens focal length f", 0},
+    {"camera", "fnumber", KEY_DOUBLE, OFF(camera.fnumber), 0.5, 128, 1, "-", "aperture number f#",
+     0},
+    {"camera", "magnification", KEY_DOUBLE, OFF(camera.magnification), 0.001, 100, 1, "-",
+     "magnification M", 0},
+    {"camera", "working_distance_mm", KEY_DOUBLE, OFF(camera.s0_m), 1, 100000, 1e-3, "mm",
+     "distance s0 from the camera to the object plane", 0},
+    {"camera", "zop", KEY_DOUBLE, OFF(camera.zop_star), -10, 10, 1, "h",
+     "object plane height z*_OP", 0},
+    {"camera", "lambda_nm", KEY_DOUBLE, OFF(camera.lambda_p_m), 100, 2000, 1e-9, "nm",
+     "wavelength of the light recorded (fluorescence)", 0},
+    {"camera", "beta2", KEY_DOUBLE, OFF(camera.beta2), 0.1, 100, 1, "-",
+     "beta^2 of the Gaussian approximation of the Airy disc (Olsen & Adrian)", 0},
+    /* [particles] */
+    {"particles", "diameter_um", KEY_DOUBLE, OFF(particles.dp_m), 0.01, 10000, 1e-6, "um",
+     "mean particle diameter d_p", 0},
+    {"particles", "diameter_spread_um", KEY_DOUBLE, OFF(particles.dp_sigma_m), 0, 10000, 1e-6,
+     "um", "half-range of the uniform diameter distribution (d_p +- spread)", 0},
+    {"particles", "density_ppp", KEY_DOUBLE, OFF(particles.density_ppp), 0, 1, 1, "1/px",
+     "particle images per pixel (all heights)", 0},
+    /* [channel] */
+    {"channel", "height_mm", KEY_DOUBLE, OFF(channel.h_m), 0.01, 10000, 1e-3, "mm",
+     "side h of the square duct", 0},
+    {"channel", "reynolds", KEY_DOUBLE, OFF(channel.reynolds), 0, 1e6, 1, "-",
+     "Reynolds number on the bulk velocity and h", 0},
+    {"channel", "nu_m2s", KEY_DOUBLE, OFF(channel.nu_m2s), 1e-9, 1, 1, "m^2/s",
+     "kinematic viscosity", 0},
+    {"channel", "x0", KEY_DOUBLE, OFF(channel.x0_star), 0, 1000, 1, "h",
+     "distance from the sheet's emerging point (x* = 0) to the channel end", 0},
+    {"channel", "fov_x0", KEY_DOUBLE, OFF(channel.fov_x0_star), -1000, 1000, 1, "h",
+     "x* of the left image edge", 0},
+    {"channel", "fov_y0", KEY_DOUBLE, OFF(channel.fov_y0_star), -1000, 1000, 1, "h",
+     "y* of the top image edge", 0},
+    /* [laser] */
+    {"laser", "lambda_nm", KEY_DOUBLE, OFF(laser.lambda_m), 100, 2000, 1e-9, "nm",
+     "laser wavelength", 0},
+    {"laser", "beam_diameter_mm", KEY_DOUBLE, OFF(laser.beam_d_m), 0.01, 1000, 1e-3, "mm",
+     "beam diameter at 1/e^2 at the laser output", 0},
+    {"laser", "expander", KEY_DOUBLE, OFF(laser.expander), 0.01, 100, 1, "-",
+     "beam expander factor", 0},
+    {"laser", "divergence_mrad", KEY_DOUBLE, OFF(laser.divergence_rad), 0, 500, 1e-3, "mrad",
+     "full divergence angle of the beam", 0},
+    {"laser", "lens_focal_mm", KEY_DOUBLE, OFF(laser.lens_f_m), 1, 100000, 1e-3, "mm",
+     "spherical converging lens focal length", 0},
+    {"laser", "lens_distance_mm", KEY_DOUBLE, OFF(laser.lens_dist_m), 0, 100000, 1e-3, "mm",
+     "lens to the prism's inclined face", 0},
+    {"laser", "beta1_deg", KEY_DOUBLE, OFF(laser.beta1_deg), -45, 45, 1, "deg",
+     "incidence on the inclined face, from its normal", 0},
+    {"laser", "rays", KEY_LONG, OFF(laser.nrays), 1, 1e8, 1, "-", "number of rays traced", 0},
+    {"laser", "polarisation", KEY_ENUM, OFF(laser.polar), 0, 0, 1, "-",
+     "Fresnel transmission: p (paper), s or unpolarised", polars},
+    /* [prism] */
+    {"prism", "inclination_deg", KEY_DOUBLE, OFF(prism.theta_p_deg), 1, 89, 1, "deg",
+     "inclination theta_p of the inclined face", 0},
+    {"prism", "thickness_mm", KEY_DOUBLE, OFF(prism.thickness_m), 0.1, 10000, 1e-3, "mm",
+     "thickness of the PMMA block", 0},
+    {"prism", "n_pmma", KEY_DOUBLE, OFF(prism.n_pmma), 1, 4, 1, "-", "refractive index of PMMA",
+     0},
+    {"prism", "n_water", KEY_DOUBLE, OFF(prism.n_water), 1, 4, 1, "-",
+     "refractive index of the fluid", 0},
+    {"prism", "n_air", KEY_DOUBLE, OFF(prism.n_air), 1, 4, 1, "-", "refractive index of air", 0},
+    /* [sheet] */
+    {"sheet", "kind", KEY_ENUM, OFF(sheet.kind), 0, 0, 1, "-",
+     "gauss (P-PIV), selfsim (R-PIV) or uniform (volume)", sheet_kinds},
+    {"sheet", "zb", KEY_DOUBLE, OFF(sheet.zb_star), -10, 10, 1, "h", "gauss: centre z*_B", 0},
+    {"sheet", "thickness", KEY_DOUBLE, OFF(sheet.e_star), 1e-4, 100, 1, "h",
+     "gauss: thickness e* at a quarter of the maximum", 0},
+    {"sheet", "e0", KEY_DOUBLE, OFF(sheet.e0), 0, 100, 1, "h", "selfsim: e*(x*) = e0 + e1 x*", 0},
+    {"sheet", "e1", KEY_DOUBLE, OFF(sheet.e1), -10, 10, 1, "-", "selfsim: thickness growth", 0},
+    {"sheet", "zm0", KEY_DOUBLE, OFF(sheet.zm0), -10, 10, 1, "h",
+     "selfsim: z*_max(x*) = zm0 + zm1 x*", 0},
+    {"sheet", "zm1", KEY_DOUBLE, OFF(sheet.zm1), -10, 10, 1, "-",
+     "selfsim: slope of the sheet's peak", 0},
+    {"sheet", "skew", KEY_DOUBLE, OFF(sheet.skew), 0.05, 20, 1, "-",
+     "selfsim default shape: lower/upper half-width ratio", 0},
+    {"sheet", "profile", KEY_STRING, OFF(sheet.profile), 0, 0, 1, "path",
+     "selfsim: shape table from rpiv raytrace or rpiv calib (empty = default shape)", 0},
+    /* [piv] */
+    {"piv", "windows", KEY_WINDOWS, OFF(piv), 0, 0, 1, "px",
+     "window size per pass, e.g. 64,32,32 or 64x48,32", 0},
+    {"piv", "overlap", KEY_DOUBLE, OFF(piv.overlap), 0, 0.95, 1, "-", "window overlap fraction",
+     0},
+    {"piv", "step_px", KEY_INT, OFF(piv.step_px), 0, 1024, 1, "px",
+     "grid step (0 = from overlap)", 0},
+    {"piv", "ensemble", KEY_BOOL, OFF(piv.ensemble), 0, 1, 1, "-",
+     "sum of correlation over all pairs", 0},
+    {"piv", "subpixel", KEY_ENUM, OFF(piv.subpixel), 0, 0, 1, "-",
+     "peak fit: gauss, parabola or centroid", subpixels},
+    {"piv", "median_threshold", KEY_DOUBLE, OFF(piv.median_thr), 0, 100, 1, "-",
+     "normalised median test threshold (0 = off)", 0},
+    {"piv", "median_eps_px", KEY_DOUBLE, OFF(piv.median_eps), 0, 10, 1, "px",
+     "normalised median test epsilon", 0},
+    {"piv", "background", KEY_ENUM, OFF(piv.background), 0, 0, 1, "-",
+     "subtract the series' min or mean image, or none", backgrounds},
+    {"piv", "roi", KEY_ROI, OFF(piv.roi), 0, 65536, 1, "px",
+     "region of interest x0,y0,x1,y1 (0,0,0,0 = whole image)", 0},
+    {"piv", "mask", KEY_STRING, OFF(piv.mask), 0, 0, 1, "path", "mask image, 0 = masked", 0},
+    {"piv", "threads", KEY_INT, OFF(piv.threads), 0, 1024, 1, "-", "threads (0 = all cores)", 0},
+    {"piv", "scale_mm_per_px", KEY_DOUBLE, OFF(piv.scale_mm_per_px), 0, 1e6, 1, "mm/px",
+     "physical scale for mm and m/s columns (0 = unset)", 0},
+    {"piv", "dt_s", KEY_DOUBLE, OFF(piv.dt_s), 0, 1e6, 1, "s",
+     "pulse separation for m/s columns (0 = unset)", 0},
+    {"piv", "deform", KEY_BOOL, OFF(piv.deform), 0, 1, 1, "-",
+     "deform the images by the predictor between passes", 0},
+    {"piv", "max_mem_mb", KEY_DOUBLE, OFF(piv.max_mem_mb), 1, 1e9, 1, "MB",
+     "refuse runs that would need more memory", 0},
+    /* [synth] */
+    {"synth", "width_px", KEY_INT, OFF(synth.width_px), 0, 65536, 1, "px",
+     "image width (0 = camera sensor)", 0},
+    {"synth", "height_px", KEY_INT, OFF(synth.height_px), 0, 65536, 1, "px",
+     "image height (0 = camera sensor)", 0},
+    {"synth", "pairs", KEY_INT, OFF(synth.pairs), 1, 1e7, 1, "-", "number of image pairs", 0},
+    {"synth", "seed", KEY_ULONG, OFF(synth.seed), 0, 4294967295.0, 1, "-", "random seed", 0},
+    {"synth", "dt_s", KEY_DOUBLE, OFF(synth.dt_s), 1e-9, 100, 1, "s", "pulse separation", 0},
+    {"synth", "bits", KEY_INT, OFF(synth.bits), 8, 16, 1, "bit", "bit depth: 8, 12 or 16", 0},
+    {"synth", "peak_counts", KEY_DOUBLE, OFF(synth.peak_counts), 1e-6, 1e9, 1, "counts",
+     "grey level of an in-focus particle at I0 = 1", 0},
+    {"synth", "background", KEY_DOUBLE, OFF(synth.background), 0, 1e9, 1, "counts",
+     "constant background", 0},
+    {"synth", "read_noise", KEY_DOUBLE, OFF(synth.read_noise), 0, 1e9, 1, "counts",
+     "Gaussian read noise (sigma)", 0},
+    {"synth", "shot_noise", KEY_BOOL, OFF(synth.shot_noise), 0, 1, 1, "-", "Poisson shot noise",
+     0},
+    {"synth", "margin_px", KEY_DOUBLE, OFF(synth.margin_px), 0, 1024, 1, "px",
+     "particles placed this far outside the image too", 0},
+    {"synth", "w", KEY_DOUBLE, OFF(synth.w_star), -1, 1, 1, "h",
+     "out-of-plane displacement between frames", 0},
+    {"synth", "double_frame", KEY_BOOL, OFF(synth.double_frame), 0, 1, 1, "-",
+     "write frame A above frame B in one file", 0},
+    /* [output] */
+    {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
+    {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
+};
+static const size_t nkeys = sizeof keys / sizeof keys[0];
+
+rpiv_experiment rpiv_experiment_default(void)
+{
+    rpiv_experiment e;
+    memset(&e, 0, sizeof e);
+    e.camera = rpiv_camera_default();
+    e.particles = rpiv_particles_default();
+    e.channel = rpiv_channel_default();
+    e.laser = rpiv_laser_default();
+    e.prism = rpiv_prism_default();
+    e.sheet = rpiv_sheet_params_default();
+    e.piv = rpiv_piv_params_default();
+    e.synth = rpiv_synth_params_default();
+    strcpy(e.output.dir, "rpiv-out");
+    e.output.plots = 1;
+    return e;
+}
+
+rpiv_status rpiv_experiment_check(const rpiv_experiment *e)
+{
+    rpiv_status st;
+    if ((st = rpiv_camera_check(&e->camera)) || (st = rpiv_particles_check(&e->particles)) ||
+        (st = rpiv_channel_check(&e->channel)) || (st = rpiv_laser_check(&e->laser)) ||
+        (st = rpiv_prism_check(&e->prism)) || (st = rpiv_sheet_params_check(&e->sheet)) ||
+        (st = rpiv_piv_params_check(&e->piv)) || (st = rpiv_synth_params_check(&e->synth)))
+        return st;
+    return RPIV_OK;
+}
+
+static const key_spec *find_key(const char *section, const char *key, int *section_known)
+{
+    *section_known = 0;
+    for (size_t i = 0; i < nkeys; i++) {
+        if (strcmp(keys[i].section, section))
+            continue;
+        *section_known = 1;
+        if (!strcmp(keys[i].key, key))
+            return &keys[i];
+    }
+    return NULL;
+}
+
+static int parse_num(const char *s, double *v)
+{
+    char *end;
+    errno = 0;
+    while (*s == ' ' || *s == '\t')
+        s++;
+    *v = strtod(s, &end);
+    while (*end == ' ' || *end == '\t')
+        end++;
+    return end != s && !*end && !errno && isfinite(*v);
+}
+
+static void range_text(const key_spec *k, char *buf, size_t n)
+{
+    if (k->type == KEY_ENUM) {
+        size_t used = 0;
+        buf[0] = '\0';
+        for (int i = 0; k->names[i]; i++)
+            used += (size_t)snprintf(buf + used, used < n ? n - used : 0, "%s%s", i ? "|" : "",
+                                     k->names[i]);
+    } else if (k->type == KEY_BOOL) {
+        snprintf(buf, n, "0|1|true|false|yes|no");
+    } else if (k->type == KEY_STRING) {
+        snprintf(buf, n, "text up to %d characters", RPIV_PATH_MAX - 1);
+    } else if (k->type == KEY_WINDOWS) {
+        snprintf(buf, n, "1..%d sizes of 8..1024 px, W or WxH", RPIV_PIV_MAX_PASSES);
+    } else {
+        snprintf(buf, n, "%g..%g %s", k->min, k->max, k->unit);
+    }
+}
+
+/* Parse windows "64,32,32" / "64x48,32" into piv params. */
+static int parse_windows(const char *s, rpiv_piv_params *p)
+{
+    int n = 0;
+    const char *c = s;
+    while (*c) {
+        char *end;
+        while (*c == ' ')
+            c++;
+        long w = strtol(c, &end, 10), h = w;
+        if (end == c)
+            return 0;
+        c = end;
+        if (*c == 'x' || *c == 'X') {
+            c++;
+            h = strtol(c, &end, 10);
+            if (end == c)
+                return 0;
+            c = end;
+        }
+        while (*c == ' ')
+            c++;
+        if (n >= RPIV_PIV_MAX_PASSES || w < 8 || h < 8 || w > 1024 || h > 1024)
+            return 0;
+        p->win_w[n] = (int)w;
+        p->win_h[n] = (int)h;
+        n++;
+        if (*c == ',')
+            c++;
+        else if (*c)
+            return 0;
+    }
+    if (n == 0)
+        return 0;
+    p->npass = n;
+    return 1;
+}
+
+static rpiv_status set_value(rpiv_experiment *e, const key_spec *k, const char *value,
+                             const char *where)
+{
+    char *base = (char *)e + k->off;
+    char range[256];
+    double v;
+    range_text(k, range, sizeof range);
+    switch (k->type) {
+    case KEY_STRING:
+        if (strlen(value) >= RPIV_PATH_MAX)
+            break;
+        strcpy(base, value);
+        return RPIV_OK;
+    case KEY_ENUM:
+        for (int i = 0; k->names[i]; i++)
+            if (!strcasecmp(value, k->names[i])) {
+                *(int *)base = i;
+                return RPIV_OK;
+            }
+        break;
+    case KEY_BOOL:
+        if (!strcasecmp(value, "1") || !strcasecmp(value, "true") || !strcasecmp(value, "yes") ||
+            !strcasecmp(value, "on")) {
+            *(int *)base = 1;
+            return RPIV_OK;
+        }
+        if (!strcasecmp(value, "0") || !strcasecmp(value, "false") || !strcasecmp(value, "no") ||
+            !strcasecmp(value, "off")) {
+            *(int *)base = 0;
+            return RPIV_OK;
+        }
+        break;
+    case KEY_WINDOWS:
+        if (parse_windows(value, (rpiv_piv_params *)base))
+            return RPIV_OK;
+        break;
+    case KEY_ROI: {
+        int r[4];
+        char tail;
+        if (sscanf(value, " %d , %d , %d , %d %c", &r[0], &r[1], &r[2], &r[3], &tail) != 4)
+            break;
+        if (r[0] < 0 || r[1] < 0 || r[2] < 0 || r[3] < 0 ||
+            ((r[2] || r[3]) && (r[2] <= r[0] || r[3] <= r[1])))
+            break;
+        memcpy(base, r, sizeof r);
+        return RPIV_OK;
+    }
+    case KEY_INT:
+    case KEY_LONG:
+    case KEY_ULONG:
+    case KEY_DOUBLE:
+        if (!parse_num(value, &v) || v < k->min || v > k->max)
+            break;
+        if (k->type != KEY_DOUBLE && v != floor(v))
+            break;
+        if (k->type == KEY_INT)
+            *(int *)base = (int)v;
+        else if (k->type == KEY_LONG)
+            *(long *)base = (long)v;
+        else if (k->type == KEY_ULONG)
+            *(unsigned long *)base = (unsigned long)v;
+        else
+            *(double *)base = v * k->scale;
+        return RPIV_OK;
+    }
+    return rpiv_fail(RPIV_ECONFIG, "%s: bad value '%s' for %s.%s (accepted: %s)", where, value,
+                     k->section, k->key, range);
+}
+
+rpiv_status rpiv_config_set(rpiv_experiment *e, const char *section, const char *key,
+                            const char *value, const char *origin)
+{
+    int known;
+    const key_spec *k = find_key(section, key, &known);
+    if (!k) {
+        if (!known)
+            return rpiv_fail(RPIV_ECONFIG, "%s: unknown section [%s]", origin, section);
+        return rpiv_fail(RPIV_ECONFIG, "%s: unknown key '%s' in [%s]", origin, key, section);
+    }
+    return set_value(e, k, value, origin);
+}
+
+/* Debian's libinih is built without INI_HANDLER_LINENO: the reader counts lines itself and
+ * the handler, called right after its line is read, reports that count. */
+typedef struct load_ctx {
+    const char *path;
+    rpiv_experiment *e;
+    rpiv_status st;
+    FILE *fp;
+    int lineno;
+} load_ctx;
+
+static char *read_line(char *str, int num, void *stream)
+{
+    load_ctx *c = stream;
+    char *r = fgets(str, num, c->fp);
+    if (r)
+        c->lineno++;
+    return r;
+}
+
+static int on_ini(void *user, const char *section, const char *name, const char *value)
+{
+    load_ctx *c = user;
+    int lineno = c->lineno;
+    char where[RPIV_PATH_MAX + 32];
+    if (c->st)
+        return 0;
+    snprintf(where, sizeof where, "%s:%d", c->path, lineno);
+    if (!name) /* a section header with no key yet: checked when its keys come */
+        return 1;
+    c->st = rpiv_config_set(c->e, section, name, value, where);
+    return c->st == RPIV_OK;
+}
+
+rpiv_status rpiv_config_load(const char *path, rpiv_experiment *e)
+{
+    FILE *fp = fopen(path, "r");
+    if (!fp)
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    load_ctx c = {path, e, RPIV_OK, fp, 0};
+    int r = ini_parse_stream(read_line, &c, on_ini, &c);
+    fclose(fp);
+    if (c.st)
+        return c.st;
+    if (r > 0)
+        return rpiv_fail(RPIV_ECONFIG, "%s:%d: syntax error (expected [section] or key = value)",
+                         path, r);
+    if (r < 0)
+        return rpiv_fail(RPIV_EIO, "%s: cannot read", path);
+    rpiv_status st = rpiv_experiment_check(e);
+    if (st)
+        return rpiv_fail(st, "%s: %s", path, rpiv_errmsg());
+    return RPIV_OK;
+}
+
+static void write_value(const rpiv_experiment *e, const key_spec *k, FILE *fp)
+{
+    const char *base = (const char *)e + k->off;
+    switch (k->type) {
+    case KEY_STRING:
+        fprintf(fp, "%s", base);
+        break;
+    case KEY_ENUM:
+        fprintf(fp, "%s", k->names[*(const int *)base]);
+        break;
+    case KEY_BOOL:
+    case KEY_INT:
+        fprintf(fp, "%d", *(const int *)base);
+        break;
+    case KEY_LONG:
+        fprintf(fp, "%ld", *(const long *)base);
+        break;
+    case KEY_ULONG:
+        fprintf(fp, "%lu", *(const unsigned long *)base);
+        break;
+    case KEY_DOUBLE: {
+        /* the shortest form that reads back to the same double */
+        double v = *(const double *)base / k->scale;
+        char buf[40];
+        for (int prec = 6; prec <= 17; prec++) {
+            snprintf(buf, sizeof buf, "%.*g", prec, v);
+            if (strtod(buf, NULL) * k->scale == *(const double *)base)
+                break;
+        }
+        fputs(buf, fp);
+        break;
+    }
+    case KEY_WINDOWS: {
+        const rpiv_piv_params *p = (const rpiv_piv_params *)base;
+        for (int i = 0; i < p->npass; i++) {
+            if (p->win_w[i] == p->win_h[i])
+                fprintf(fp, "%s%d", i ? "," : "", p->win_w[i]);
+            else
+                fprintf(fp, "%s%dx%d", i ? "," : "", p->win_w[i], p->win_h[i]);
+        }
+        break;
+    }
+    case KEY_ROI: {
+        const int *r = (const int *)base;
+        fprintf(fp, "%d,%d,%d,%d", r[0], r[1], r[2], r[3]);
+        break;
+    }
+    }
+}
+
+rpiv_status rpiv_config_write(const rpiv_experiment *e, FILE *fp)
+{
+    const char *sec = "";
+    fprintf(fp, "# rpiv configuration (complete; feed back with --config)\n");
+    for (size_t i = 0; i < nkeys; i++) {
+        const key_spec *k = &keys[i];
+        if (strcmp(sec, k->section)) {
+            sec = k->section;
+            fprintf(fp, "\n[%s]\n", sec);
+        }
+        fprintf(fp, "; %s [%s]\n%s = ", k->help, k->unit, k->key);
+        write_value(e, k, fp);
+        fputc('\n', fp);
+    }
+    if (ferror(fp))
+        return rpiv_fail(RPIV_EIO, "cannot write the configuration");
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_config_write_doc(FILE *fp)
+{
+    rpiv_experiment d = rpiv_experiment_default();
+    const char *sec = "";
+    char range[256];
+    for (size_t i = 0; i < nkeys; i++) {
+        const key_spec *k = &keys[i];
+        if (strcmp(sec, k->section)) {
+            sec = k->section;
+            fprintf(fp, "\n### [%s]\n\n| key | unit | default | accepted | meaning |\n"
+                        "|---|---|---|---|---|\n",
+                    sec);
+        }
+        range_text(k, range, sizeof range);
+        fprintf(fp, "| `%s` | %s | `", k->key, k->unit);
+        write_value(&d, k, fp);
+        fprintf(fp, "` | %s | %s |\n", range, k->help);
+    }
+    if (ferror(fp))
+        return rpiv_fail(RPIV_EIO, "cannot write the key reference");
+    return RPIV_OK;
+}

@@ -1,0 +1,52 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+#include "rpiv/piv.h"
+
+#include <math.h>
+
+rpiv_piv_params rpiv_piv_params_default(void)
+{
+    return (rpiv_piv_params){.npass = 3,
+                             .win_w = {64, 32, 32},
+                             .win_h = {64, 32, 32},
+                             .overlap = 0.5,
+                             .step_px = 0,
+                             .ensemble = 0,
+                             .subpixel = RPIV_SUBPIXEL_GAUSS,
+                             .median_thr = 2.0,
+                             .median_eps = 0.1,
+                             .background = RPIV_BACKGROUND_NONE,
+                             .roi = {0, 0, 0, 0},
+                             .mask = "",
+                             .threads = 0,
+                             .scale_mm_per_px = 0,
+                             .dt_s = 0,
+                             .deform = 1,
+                             .max_mem_mb = 4096};
+}
+
+rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
+{
+    if (p->npass < 1 || p->npass > RPIV_PIV_MAX_PASSES)
+        return rpiv_fail(RPIV_EINVAL, "piv.windows: %d passes outside 1..%d", p->npass,
+                         RPIV_PIV_MAX_PASSES);
+    for (int i = 0; i < p->npass; i++)
+        if (p->win_w[i] < 8 || p->win_h[i] < 8 || p->win_w[i] > 1024 || p->win_h[i] > 1024)
+            return rpiv_fail(RPIV_EINVAL, "piv.windows: window %dx%d of pass %d outside 8..1024",
+                             p->win_w[i], p->win_h[i], i + 1);
+    if (!(p->overlap >= 0 && p->overlap <= 0.95))
+        return rpiv_fail(RPIV_EINVAL, "piv.overlap: %g outside 0..0.95", p->overlap);
+    if (p->step_px < 0 || p->step_px > 1024)
+        return rpiv_fail(RPIV_EINVAL, "piv.step_px: %d outside 0..1024", p->step_px);
+    if (!(p->median_thr >= 0 && p->median_thr <= 100))
+        return rpiv_fail(RPIV_EINVAL, "piv.median_threshold: %g outside 0..100", p->median_thr);
+    if (!(p->median_eps >= 0 && p->median_eps <= 10))
+        return rpiv_fail(RPIV_EINVAL, "piv.median_eps_px: %g outside 0..10", p->median_eps);
+    if (!(p->scale_mm_per_px >= 0 && isfinite(p->scale_mm_per_px)) ||
+        !(p->dt_s >= 0 && isfinite(p->dt_s)))
+        return rpiv_fail(RPIV_EINVAL, "piv: scale and dt must be >= 0");
+    if (p->threads < 0)
+        return rpiv_fail(RPIV_EINVAL, "piv.threads: %d < 0", p->threads);
+    if (!(p->max_mem_mb > 0))
+        return rpiv_fail(RPIV_EINVAL, "piv.max_mem_mb: %g must be > 0", p->max_mem_mb);
+    return RPIV_OK;
+}

@@ -1,0 +1,121 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+#include "check.h"
+#include "rpiv/config.h"
+
+#include <string.h>
+#include <unistd.h>
+
+static char tmpdir[] = "/tmp/rpiv-test-config.XXXXXX";
+
+static const char *write_file(const char *name, const char *text)
+{
+    static char path[256];
+    snprintf(path, sizeof path, "%s/%s", tmpdir, name);
+    FILE *fp = fopen(path, "w");
+    fputs(text, fp);
+    fclose(fp);
+    return path;
+}
+
+static void default_is_the_papers_experiment(void)
+{
+    rpiv_experiment e = rpiv_experiment_default();
+    CHECK_OK(rpiv_experiment_check(&e));
+    CHECK_NEAR(e.channel.h_m, 8e-3, 1e-15);
+    CHECK_NEAR(e.channel.reynolds, 465, 0);
+    CHECK_NEAR(e.prism.theta_p_deg, 64, 0);
+    CHECK_NEAR(e.camera.magnification, 0.39, 0);
+    CHECK_NEAR(e.camera.zop_star, 0.45, 0);
+    CHECK(e.piv.npass == 3 && e.piv.win_w[0] == 64 && e.piv.win_w[2] == 32);
+}
+
+static void file_values_are_read_with_units(void)
+{
+    const char *p = write_file("ok.ini", "[camera]\nfocal_mm = 105\nfnumber = 8\n"
+                                         "[piv]\nwindows = 96x64, 48 ,24\nsubpixel = parabola\n"
+                                         "ensemble = yes\nroi = 10, 20, 300, 400\n");
+    rpiv_experiment e = rpiv_experiment_default();
+    CHECK_OK(rpiv_config_load(p, &e));
+    CHECK_NEAR(e.camera.focal_m, 0.105, 1e-15);
+    CHECK_NEAR(e.camera.fnumber, 8, 0);
+    CHECK(e.piv.npass == 3 && e.piv.win_w[0] == 96 && e.piv.win_h[0] == 64 && e.piv.win_h[2] == 24);
+    CHECK(e.piv.subpixel == RPIV_SUBPIXEL_PARABOLA && e.piv.ensemble == 1);
+    CHECK(e.piv.roi[0] == 10 && e.piv.roi[3] == 400);
+}
+
+static void unknown_key_names_file_line_and_key(void)
+{
+    const char *p = write_file("bad.ini", "[piv]\noverlap = 0.5\n\noverlapp = 0.5\n");
+    rpiv_experiment e = rpiv_experiment_default();
+    CHECK_FAILS(rpiv_config_load(p, &e), RPIV_ECONFIG);
+    CHECK(strstr(rpiv_errmsg(), "bad.ini:4") != NULL);
+    CHECK(strstr(rpiv_errmsg(), "overlapp") != NULL);
+}
+
+static void unknown_section_is_an_error(void)
+{
+    const char *p = write_file("sec.ini", "[pivv]\noverlap = 0.5\n");
+    rpiv_experiment e = rpiv_experiment_default();
+    CHECK_FAILS(rpiv_config_load(p, &e), RPIV_ECONFIG);
+    CHECK(strstr(rpiv_errmsg(), "sec.ini:2") && strstr(rpiv_errmsg(), "pivv"));
+}
+
+static void out_of_range_and_nan_values_are_errors(void)
+{
+    const char *cases[] = {"[camera]\nfnumber = 0\n", "[camera]\nfnumber = -2\n",
+                           "[camera]\nfnumber = nan\n", "[piv]\noverlap = 0.99\n",
+                           "[piv]\nwindows = 64,4\n", "[piv]\nsubpixel = spline\n",
+                           "[synth]\npairs = 2.5\n", "[camera]\nfnumber = 5.6mm\n",
+                           "[piv]\nroi = 10,10,5,5\n", "just text\n"};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        const char *p = write_file("range.ini", cases[i]);
+        rpiv_experiment e = rpiv_experiment_default();
+        rpiv_status st = rpiv_config_load(p, &e);
+        CHECK(st == RPIV_ECONFIG);
+        CHECK(strstr(rpiv_errmsg(), "range.ini:") != NULL);
+    }
+}
+
+static void missing_file_is_an_io_error(void)
+{
+    rpiv_experiment e = rpiv_experiment_default();
+    CHECK_FAILS(rpiv_config_load("/nonexistent/x.ini", &e), RPIV_EIO);
+    CHECK(strstr(rpiv_errmsg(), "/nonexistent/x.ini") != NULL);
+}
+
+static void written_config_reads_back_identically(void)
+{
+    rpiv_experiment e = rpiv_experiment_default(), back = rpiv_experiment_default();
+    e.camera.fnumber = 2.385;
+    e.piv.win_w[1] = 48;
+    e.sheet.kind = RPIV_SHEET_GAUSS;
+    e.synth.seed = 4000000000UL;
+    strcpy(e.sheet.profile, "some/profile.txt");
+    char path[256];
+    snprintf(path, sizeof path, "%s/round.ini", tmpdir);
+    FILE *fp = fopen(path, "w");
+    CHECK_OK(rpiv_config_write(&e, fp));
+    fclose(fp);
+    back.camera.fnumber = 11;
+    CHECK_OK(rpiv_config_load(path, &back));
+    CHECK(memcmp(&e.camera, &back.camera, sizeof e.camera) == 0);
+    CHECK(memcmp(&e.piv, &back.piv, sizeof e.piv) == 0);
+    CHECK(memcmp(&e.sheet, &back.sheet, sizeof e.sheet) == 0);
+    CHECK(e.synth.seed == back.synth.seed);
+    CHECK(memcmp(&e.laser, &back.laser, sizeof e.laser) == 0);
+}
+
+int main(void)
+{
+    rpiv_init();
+    if (!mkdtemp(tmpdir))
+        return 1;
+    RUN_TEST(default_is_the_papers_experiment);
+    RUN_TEST(file_values_are_read_with_units);
+    RUN_TEST(unknown_key_names_file_line_and_key);
+    RUN_TEST(unknown_section_is_an_error);
+    RUN_TEST(out_of_range_and_nan_values_are_errors);
+    RUN_TEST(missing_file_is_an_io_error);
+    RUN_TEST(written_config_reads_back_identically);
+    return check_summary();
+}
