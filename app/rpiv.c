@@ -15,6 +15,7 @@ rpiv_status cmd_duct(int argc, char **argv);
 rpiv_status cmd_compare(int argc, char **argv);
 rpiv_status cmd_demo(int argc, char **argv);
 rpiv_status cmd_config(int argc, char **argv);
+rpiv_status cmd_info(int argc, char **argv);
 
 const cli_cmd cli_commands[] = {
     {"piv", cmd_piv, "image pairs -> displacement fields (multi-pass, ensemble)"},
@@ -26,6 +27,7 @@ const cli_cmd cli_commands[] = {
     {"compare", cmd_compare, "E1 error between two profiles or vector files"},
     {"demo", cmd_demo, "the paper's study end to end, with report and plots"},
     {"config", cmd_config, "print the effective configuration as an INI file"},
+    {"info", cmd_info, "describe image files: size, bit depth, pages, grey levels"},
 };
 const size_t cli_ncommands = sizeof cli_commands / sizeof cli_commands[0];
 
