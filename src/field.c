@@ -331,6 +331,19 @@ rpiv_status rpiv_field_save(const rpiv_field *f, const rpiv_meta *meta, const ch
 
 /* ---- text columns ----------------------------------------------------------- */
 
+/* The shortest %g form (6 to 9 digits) that reads back as the same float, so text files
+ * round-trip exactly and stay readable (0.3187, not 0.318699986). */
+static void put_float(FILE *fp, float v)
+{
+    char buf[32];
+    for (int p = 6; p <= 9; p++) {
+        snprintf(buf, sizeof buf, "%.*g", p, (double)v);
+        if (strtof(buf, NULL) == v)
+            break;
+    }
+    fputs(buf, fp);
+}
+
 rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
                             const char *path)
 {
@@ -351,8 +364,14 @@ rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp
         for (int i = 0; i < f->nx; i++) {
             size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
             double x = f->x0 + i * f->dx, y = f->y0 + j * f->dy;
-            fprintf(fp, "%.10g %.10g %.9g %.9g %d %.9g %.9g", x, y, (double)f->u[k],
-                    (double)f->v[k], f->flag[k], (double)f->peak_ratio[k], (double)f->corr[k]);
+            fprintf(fp, "%.10g %.10g ", x, y);
+            put_float(fp, f->u[k]);
+            fputc(' ', fp);
+            put_float(fp, f->v[k]);
+            fprintf(fp, " %d ", f->flag[k]);
+            put_float(fp, f->peak_ratio[k]);
+            fputc(' ', fp);
+            put_float(fp, f->corr[k]);
             if (phys) {
                 double s = f->scale_mm_per_px, ms = s * 1e-3 / f->dt_s;
                 fprintf(fp, " %.10g %.10g %.9g %.9g", x * s, y * s, (double)f->u[k] * ms,
