@@ -284,3 +284,128 @@ out_free:
     fclose(fp);
     return st;
 }
+
+/* ---- profiles ----------------------------------------------------------------- */
+
+void rpiv_profile_free(rpiv_profile *p)
+{
+    if (!p)
+        return;
+    free(p->alpha);
+    free(p->value);
+    free(p);
+}
+
+rpiv_status rpiv_text_columns(const char *path, int *ncol)
+{
+    FILE *fp = fopen(path, "r");
+    if (!fp)
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    char *line = NULL;
+    size_t cap = 0;
+    long lineno = 0;
+    rpiv_status st = rpiv_fail(RPIV_EFORMAT, "%s: no data lines", path);
+    while (getline(&line, &cap, fp) >= 0) {
+        lineno++;
+        char *s = line + strspn(line, " \t\r\n");
+        if (*s == '#' || *s == '\0')
+            continue;
+        double val[MAXCOL];
+        int nc = split_numbers(s, path, lineno, val, &st);
+        if (nc >= 0) {
+            *ncol = nc;
+            st = RPIV_OK;
+        }
+        break;
+    }
+    free(line);
+    fclose(fp);
+    return st;
+}
+
+rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out)
+{
+    *out = NULL;
+    FILE *fp = fopen(path, "r");
+    if (!fp)
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    rpiv_profile *p = calloc(1, sizeof *p);
+    char *line = NULL;
+    size_t cap = 0, pcap = 0;
+    long lineno = 0;
+    rpiv_status st = RPIV_OK;
+    int dir = 0; /* +1 increasing, -1 decreasing */
+    if (!p) {
+        st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
+        goto out_close;
+    }
+    while (getline(&line, &cap, fp) >= 0) {
+        lineno++;
+        char *s = line + strspn(line, " \t\r\n");
+        if (*s == '#' || *s == '\0')
+            continue;
+        double val[MAXCOL];
+        int nc = split_numbers(s, path, lineno, val, &st);
+        if (nc < 0)
+            goto out_close;
+        if (nc < 2) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: 1 column, a profile needs 2 (alpha value)",
+                           path, lineno);
+            goto out_close;
+        }
+        if (p->n) {
+            double prev = p->alpha[p->n - 1];
+            int d = val[0] > prev ? 1 : val[0] < prev ? -1 : 0;
+            if (!dir)
+                dir = d;
+            if (!d || d != dir) {
+                st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: alpha %g is not %s (previous %g)", path,
+                               lineno, val[0], dir < 0 ? "decreasing" : "increasing", prev);
+                goto out_close;
+            }
+        }
+        if (p->n == pcap) {
+            size_t nc2 = pcap ? 2 * pcap : 128;
+            double *a = realloc(p->alpha, nc2 * sizeof *a);
+            if (a)
+                p->alpha = a;
+            double *v = a ? realloc(p->value, nc2 * sizeof *v) : NULL;
+            if (v)
+                p->value = v;
+            if (!a || !v) {
+                st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory at line %ld", path, lineno);
+                goto out_close;
+            }
+            pcap = nc2;
+        }
+        p->alpha[p->n] = val[0];
+        p->value[p->n] = val[1];
+        p->n++;
+    }
+    if (ferror(fp)) {
+        st = rpiv_fail(RPIV_EIO, "%s: read error: %s", path, strerror(errno));
+        goto out_close;
+    }
+    if (p->n < 2) {
+        st = rpiv_fail(RPIV_EFORMAT, "%s: %zu point%s, a profile needs at least 2", path, p->n,
+                       p->n == 1 ? "" : "s");
+        goto out_close;
+    }
+    if (dir < 0) {
+        for (size_t a = 0, b = p->n - 1; a < b; a++, b--) {
+            double t = p->alpha[a];
+            p->alpha[a] = p->alpha[b];
+            p->alpha[b] = t;
+            t = p->value[a];
+            p->value[a] = p->value[b];
+            p->value[b] = t;
+        }
+    }
+    *out = p;
+    p = NULL;
+out_close:
+    rpiv_profile_free(p);
+    free(line);
+    fclose(fp);
+    return st;
+}
