@@ -143,7 +143,8 @@ static rpiv_status infer_axis(const double *v, size_t n, double *o0, double *ste
         }
     }
     *count = lround(c) + 1;
-    *step = span / (double)(*count - 1);
+    /* off the grid: report the step that was tried */
+    *step = *bad < n ? gap : span / (double)(*count - 1);
     return RPIV_OK;
 }
 

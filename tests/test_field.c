@@ -248,6 +248,151 @@ static void load_errors_name_file_and_line(void)
     expect_load_error("missing.txt", NULL, RPIV_EIO, 0, "cannot open");
 }
 
+
+static void profile_load_reads_and_reverses(void)
+{
+    write_text(tpath("p.txt"), "# z* U*\n1 0.5 7\n0.6 0.25\n\n0.2 0.125\n");
+    rpiv_profile *p = NULL;
+    CHECK_OK(rpiv_profile_load(tpath("p.txt"), &p));
+    if (p) {
+        CHECK(p->n == 3);
+        CHECK(p->alpha[0] == 0.2 && p->alpha[2] == 1 && p->value[0] == 0.125 && p->value[2] == 0.5);
+    }
+    rpiv_profile_free(p);
+    int nc = 0;
+    CHECK_OK(rpiv_text_columns(tpath("p.txt"), &nc));
+    CHECK(nc == 3);
+    write_text(tpath("p1.txt"), "0.5\n");
+    rpiv_profile *q = (rpiv_profile *)1;
+    CHECK_FAILS(rpiv_profile_load(tpath("p1.txt"), &q), RPIV_EFORMAT);
+    CHECK(q == NULL && strstr(rpiv_errmsg(), "p1.txt:1: 1 column"));
+    write_text(tpath("p2.txt"), "0 1\n0.5 2\n0.5 3\n");
+    CHECK_FAILS(rpiv_profile_load(tpath("p2.txt"), &q), RPIV_EFORMAT);
+    CHECK(strstr(rpiv_errmsg(), "p2.txt:3: alpha 0.5 is not increasing"));
+    write_text(tpath("p3.txt"), "1 1\n0.5 2\n0.7 3\n");
+    CHECK_FAILS(rpiv_profile_load(tpath("p3.txt"), &q), RPIV_EFORMAT);
+    CHECK(strstr(rpiv_errmsg(), "p3.txt:3: alpha 0.7 is not decreasing"));
+    write_text(tpath("p4.txt"), "# nothing\n0.5 1\n");
+    CHECK_FAILS(rpiv_profile_load(tpath("p4.txt"), &q), RPIV_EFORMAT);
+    CHECK(strstr(rpiv_errmsg(), "p4.txt: 1 point, a profile needs at least 2"));
+    write_text(tpath("p5.txt"), "0 1\n0.5 inf\n");
+    CHECK_FAILS(rpiv_profile_load(tpath("p5.txt"), &q), RPIV_EFORMAT);
+    CHECK(strstr(rpiv_errmsg(), "p5.txt:2: column 2 is infinite"));
+    CHECK_FAILS(rpiv_profile_load(tpath("nope.txt"), &q), RPIV_EIO);
+    CHECK_OK(rpiv_text_columns(tpath("p4.txt"), &nc));
+    CHECK(nc == 2);
+    write_text(tpath("p6.txt"), "# only\n");
+    CHECK_FAILS(rpiv_text_columns(tpath("p6.txt"), &nc), RPIV_EFORMAT);
+}
+
+/* A profile with n samples of a + b alpha + c alpha^2 from alpha0 in steps of h. */
+static rpiv_profile *poly(size_t n, double alpha0, double h, double a, double b, double c)
+{
+    rpiv_profile *p = calloc(1, sizeof *p);
+    p->n = n;
+    p->alpha = malloc(n * sizeof(double));
+    p->value = malloc(n * sizeof(double));
+    for (size_t k = 0; k < n; k++) {
+        double x = alpha0 + h * (double)k;
+        p->alpha[k] = x;
+        p->value[k] = a + b * x + c * x * x;
+    }
+    return p;
+}
+
+static void profile_compare_interpolates_and_scales(void)
+{
+    rpiv_compare r;
+    /* a straight line is interpolated exactly from another grid: E1 = 0 on the overlap */
+    rpiv_profile *ref = poly(11, 0, 0.1, 0.4, 1.3187, 0), *cmp = poly(4, 0.05, 0.3, 0.4, 1.3187, 0);
+    CHECK_OK(rpiv_profile_compare(ref, cmp, &r));
+    CHECK(r.n == 9); /* 0.1 .. 0.9 lie in 0.05 .. 0.95 */
+    CHECK_NEAR(r.alpha0, 0.1, 1e-12);
+    CHECK_NEAR(r.alpha1, 0.9, 1e-12);
+    CHECK_NEAR(r.e1, 0, 1e-14);
+    CHECK_NEAR(r.max_abs, 0, 1e-14);
+    rpiv_profile_free(cmp);
+    /* uniform reference, 10 % larger copy on another grid: E1 = 0.1, RMS = max = 0.1 * 2.5 */
+    rpiv_profile *u = poly(5, 0, 0.25, 2.5, 0, 0), *u11 = poly(3, 0, 0.5, 2.75, 0, 0);
+    CHECK_OK(rpiv_profile_compare(u, u11, &r));
+    CHECK_NEAR(r.e1, 0.1, 1e-14);
+    CHECK_NEAR(r.rms, 0.25, 1e-14);
+    CHECK_NEAR(r.max_abs, 0.25, 1e-14);
+    /* the unit of alpha does not matter: the same profiles over 0 .. 8 mm */
+    for (size_t k = 0; k < u->n; k++)
+        u->alpha[k] *= 8;
+    for (size_t k = 0; k < u11->n; k++)
+        u11->alpha[k] *= 8;
+    CHECK_OK(rpiv_profile_compare(u, u11, &r));
+    CHECK_NEAR(r.e1, 0.1, 1e-14);
+    /* Poiseuille 6 a (1 - a) against 1.1 times itself: E1 = 0.1 sqrt(int U^2) / int U; the
+     * trapezoid sums over 101 samples, computed here independently */
+    rpiv_profile *p = poly(101, 0, 0.01, 0, 6, -6), *p11 = poly(101, 0, 0.01, 0, 6.6, -6.6);
+    double s1 = 0, s2 = 0;
+    for (size_t k = 1; k < 101; k++) {
+        s1 += 0.005 * (p->value[k - 1] + p->value[k]);
+        s2 += 0.005 * (p->value[k - 1] * p->value[k - 1] + p->value[k] * p->value[k]);
+    }
+    CHECK_OK(rpiv_profile_compare(p, p11, &r));
+    CHECK_NEAR(r.e1, 0.1 * sqrt(s2) / s1, 1e-12);
+    CHECK_NEAR(r.e1, 0.1 * sqrt(1.2), 2e-4); /* the continuous value */
+    /* no overlap */
+    rpiv_profile *far = poly(3, 2, 0.5, 1, 0, 0);
+    CHECK_FAILS(rpiv_profile_compare(ref, far, &r), RPIV_ESIZE);
+    CHECK(strstr(rpiv_errmsg(), "do not overlap") != NULL);
+    /* zero reference */
+    rpiv_profile *zero = poly(3, 0, 0.5, 0, 0, 0);
+    CHECK_FAILS(rpiv_profile_compare(zero, u11, &r), RPIV_EINVAL);
+    rpiv_profile_free(zero);
+    rpiv_profile_free(far);
+    rpiv_profile_free(p);
+    rpiv_profile_free(p11);
+    rpiv_profile_free(u);
+    rpiv_profile_free(u11);
+    rpiv_profile_free(ref);
+}
+
+static void field_compare_components_and_masks(void)
+{
+    rpiv_field *a = NULL, *b = NULL, *c = NULL;
+    rpiv_compare r;
+    CHECK_OK(rpiv_field_new(4, 3, 8, 8, 16, 16, &a));
+    CHECK_OK(rpiv_field_new(4, 3, 8, 8, 16, 16, &b));
+    CHECK_OK(rpiv_field_new(3, 4, 8, 8, 16, 16, &c));
+    if (!a || !b || !c)
+        goto out;
+    for (int k = 0; k < 12; k++) {
+        a->u[k] = 3.0f;
+        a->v[k] = -4.0f; /* |u| = 5 */
+        b->u[k] = 3.3f;
+        b->v[k] = -4.4f; /* 1.1 times */
+    }
+    /* a masked point with a wild value is left out */
+    b->u[7] = 100.0f;
+    b->flag[7] = RPIV_FLAG_MASKED;
+    CHECK_OK(rpiv_field_compare(a, b, RPIV_COMPONENT_MAG, &r));
+    CHECK(r.n == 11);
+    CHECK_NEAR(r.e1, 0.1, 1e-6);
+    CHECK_NEAR(r.rms, 0.5, 1e-6);
+    CHECK_OK(rpiv_field_compare(a, b, RPIV_COMPONENT_V, &r));
+    CHECK_NEAR(r.e1, 0.1, 1e-6); /* |mean v| is the denominator */
+    CHECK_NEAR(r.max_abs, 0.4, 1e-6);
+    CHECK_OK(rpiv_field_compare(a, a, RPIV_COMPONENT_U, &r));
+    CHECK(r.e1 == 0 && r.rms == 0 && r.n == 12);
+    CHECK_FAILS(rpiv_field_compare(a, c, RPIV_COMPONENT_U, &r), RPIV_ESIZE);
+    CHECK(strstr(rpiv_errmsg(), "grids differ: 4 x 3") != NULL);
+    for (int k = 0; k < 12; k++)
+        a->u[k] = k < 6 ? 1.0f : -1.0f;
+    b->flag[7] = RPIV_FLAG_VALID;
+    CHECK_FAILS(rpiv_field_compare(a, b, RPIV_COMPONENT_U, &r), RPIV_EINVAL);
+    memset(b->flag, RPIV_FLAG_MASKED, 12);
+    CHECK_FAILS(rpiv_field_compare(a, b, RPIV_COMPONENT_U, &r), RPIV_ESIZE);
+out:
+    rpiv_field_free(a);
+    rpiv_field_free(b);
+    rpiv_field_free(c);
+}
+
 static void save_rejects_unknown_extension(void)
 {
     rpiv_field *f = sample();
@@ -563,6 +708,9 @@ int main(void)
     RUN_TEST(txt_without_units_has_seven_columns);
     RUN_TEST(load_reads_openpiv_style_columns);
     RUN_TEST(load_errors_name_file_and_line);
+    RUN_TEST(profile_load_reads_and_reverses);
+    RUN_TEST(profile_compare_interpolates_and_scales);
+    RUN_TEST(field_compare_components_and_masks);
     RUN_TEST(save_rejects_unknown_extension);
     RUN_TEST(netcdf_layout_reads_back);
     RUN_TEST(netcdf_series_of_three_along_t);
