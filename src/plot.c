@@ -123,7 +123,7 @@ static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn d
     memset(&call, 0, sizeof call);
     current = &call;
     if (setjmp(call.env)) {
-        plend();
+        plend1();
         plsexit(NULL);
         current = NULL;
         atomic_abort(&af);
@@ -143,7 +143,9 @@ static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn d
     plschr(0, 0.9);
     plcol0(COL_FG);
     rpiv_status dst = draw(ctx, o);
-    plend();
+    /* plend1, not plend: the stream closes (the file is complete) but the driver stays
+     * loaded for the next plot; plend would dlopen it again each time and leak the handle */
+    plend1();
     plsexit(NULL);
     current = NULL;
     if (dst) {
@@ -192,11 +194,15 @@ static void colour_bar(double zmin, double zmax, const char *label)
     PLCHAR_VECTOR axis_opts[1] = {"bcvtm"};
     PLFLT ticks[1] = {0};
     PLINT sub_ticks[1] = {0};
-    PLINT n_values[1] = {2};
-    PLFLT v[2] = {zmin, zmax};
+    enum { NV = 128 };
+    PLINT n_values[1] = {NV};
+    PLFLT v[NV];
+    for (int k = 0; k < NV; k++)
+        v[k] = zmin + (zmax - zmin) * k / (NV - 1);
     const PLFLT *values[1] = {v};
     plcol0(COL_FG);
-    plcolorbar(&w, &h, PL_COLORBAR_GRADIENT, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0,
+    /* an image bar: PLplot's cairo gradient (PL_COLORBAR_GRADIENT) leaks its pattern */
+    plcolorbar(&w, &h, PL_COLORBAR_IMAGE, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0,
                0.03, 0.9, COL_BG, COL_FG, 1, 0, 0, 0, 0, 1, label_opts, labels, 1, axis_opts,
                ticks, sub_ticks, n_values, values);
 }

@@ -14,6 +14,15 @@
 
 static char dir[256];
 
+/* Under AddressSanitizer: fontconfig (through cairo and pango) keeps its font caches for the
+ * life of the process and never frees them; that is not rpiv's leak. LeakSanitizer calls this
+ * hook, when it is linked in, for its default suppressions. */
+const char *__lsan_default_suppressions(void);
+const char *__lsan_default_suppressions(void)
+{
+    return "leak:libfontconfig.so\n";
+}
+
 static const char *tpath(const char *name)
 {
     static char buf[512];

@@ -8,6 +8,10 @@ set -u
 bin=${RPIV_BIN:?}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+# sanitizer builds: fontconfig's process-lifetime font caches (reached through PLplot's cairo
+# driver) are never freed; they are not rpiv's leaks
+printf 'leak:libfontconfig.so\n' >"$tmp/lsan.supp"
+export LSAN_OPTIONS="suppressions=$tmp/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
 fail=0; pass=0
 ok() { pass=$((pass + 1)); }
 ko() { echo "FAIL: $*" >&2; fail=$((fail + 1)); }
