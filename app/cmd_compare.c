@@ -58,9 +58,8 @@ static rpiv_status compare_profiles(const char *ref_path, const char *cmp_path, 
     if (png) {
         char title[64];
         snprintf(title, sizeof title, "E#d1#u = %.4g", r.e1);
-        rpiv_plot_series s[2] = {
-            {ref->alpha, ref->value, ref->n, ref_path, RPIV_PLOT_LINE},
-            {cmp->alpha, cmp->value, cmp->n, cmp_path, RPIV_PLOT_POINTS}};
+        rpiv_plot_series s[2] = {{ref->alpha, ref->value, ref->n, ref_path, RPIV_PLOT_LINE},
+                                 {cmp->alpha, cmp->value, cmp->n, cmp_path, RPIV_PLOT_POINTS}};
         st = rpiv_plot_lines(png, title, "#ga", "value", s, 2, NULL);
     }
 out:
@@ -157,33 +156,35 @@ rpiv_status cmd_compare(int argc, char **argv)
             else if (!strcmp(optarg, "mag"))
                 comp = RPIV_COMPONENT_MAG;
             else
-                return cli_usage_error("compare", "--component: '%s' is not u, v or mag",
-                                       optarg);
+                return cli_usage_error("compare", "--component: '%s' is not u, v or mag", optarg);
         } else {
             return cli_usage_error("compare", "unknown option '%s'", argv[optind - 1]);
         }
     }
     if (argc - optind != 2)
-        return cli_usage_error("compare", "need two files, REF and CMP (got %d)",
-                               argc - optind);
+        return cli_usage_error("compare", "need two files, REF and CMP (got %d)", argc - optind);
     const char *ref = argv[optind], *cmp = argv[optind + 1];
     int nref, ncmp;
     if ((st = rpiv_text_columns(ref, &nref)) || (st = rpiv_text_columns(cmp, &ncmp)))
         return st;
     if (nref == 2 || nref == 3) {
         if (ncmp < 2 || ncmp > 3)
-            return rpiv_fail(RPIV_EFORMAT, "%s: %d columns, but %s is a profile (alpha value)",
-                             cmp, ncmp, ref);
+            return rpiv_fail(RPIV_EFORMAT, "%s: %d columns, but %s is a profile (alpha value)", cmp,
+                             ncmp, ref);
         if (cname)
-            return cli_usage_error("compare", "--component applies to vector files, and %s is "
-                                              "a profile", ref);
+            return cli_usage_error("compare",
+                                   "--component applies to vector files, and %s is "
+                                   "a profile",
+                                   ref);
         return compare_profiles(ref, cmp, png);
     }
     if (nref < 2)
-        return rpiv_fail(RPIV_EFORMAT, "%s: 1 column: neither a profile (alpha value) nor a "
-                                       "vector file (x y u v ...)", ref);
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: 1 column: neither a profile (alpha value) nor a "
+                         "vector file (x y u v ...)",
+                         ref);
     if (ncmp < 4)
-        return rpiv_fail(RPIV_EFORMAT, "%s: %d columns, but %s is a vector file (x y u v ...)",
-                         cmp, ncmp, ref);
+        return rpiv_fail(RPIV_EFORMAT, "%s: %d columns, but %s is a vector file (x y u v ...)", cmp,
+                         ncmp, ref);
     return compare_fields(ref, cmp, comp, cname ? cname : "mag", png);
 }

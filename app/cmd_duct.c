@@ -62,8 +62,8 @@ static rpiv_status parse_range(const char *opt, const char *arg, double **vals, 
         *is_range = 0;
     } else {
         if (!c2 || strchr(c2 + 1, ':'))
-            return cli_usage_error("duct", "%s: '%s' is neither a value nor START:STOP:STEP",
-                                   opt, arg);
+            return cli_usage_error("duct", "%s: '%s' is neither a value nor START:STOP:STEP", opt,
+                                   arg);
         *c1 = *c2 = '\0';
         if ((st = number(opt, "start", buf, &a)) || (st = number(opt, "stop", c1 + 1, &b)) ||
             (st = number(opt, "step", c2 + 1, &s)))
@@ -75,12 +75,11 @@ static rpiv_status parse_range(const char *opt, const char *arg, double **vals, 
         *is_range = 1;
     }
     if (a < 0 || b > 1)
-        return cli_usage_error("duct", "%s: '%s' leaves the duct: coordinates are 0..1", opt,
-                               arg);
+        return cli_usage_error("duct", "%s: '%s' leaves the duct: coordinates are 0..1", opt, arg);
     double count = floor((b - a) / s + 1e-9) + 1;
     if (count > MAX_POINTS)
-        return cli_usage_error("duct", "%s: '%s' gives %.0f points, more than %d", opt, arg,
-                               count, MAX_POINTS);
+        return cli_usage_error("duct", "%s: '%s' gives %.0f points, more than %d", opt, arg, count,
+                               MAX_POINTS);
     *n = (size_t)count;
     *vals = malloc(*n * sizeof **vals);
     if (!*vals)
@@ -137,8 +136,8 @@ rpiv_status cmd_duct(int argc, char **argv)
         (st = parse_range("--z", zarg, &zs, &nz, &zr)))
         goto out;
     if (yr && zr) {
-        st = cli_usage_error("duct", "--y %s and --z %s are both ranges: give one as a value",
-                             yarg, zarg);
+        st = cli_usage_error("duct", "--y %s and --z %s are both ranges: give one as a value", yarg,
+                             zarg);
         goto out;
     }
     /* the range is the abscissa; a single point counts as a range along z */
@@ -167,8 +166,7 @@ rpiv_status cmd_duct(int argc, char **argv)
         snprintf(title, sizeof title, "Square duct, %s* = %.4g", along_y ? "z" : "y", fixed);
         snprintf(label, sizeof label, "U*(%s* = %.4g)", along_y ? "z" : "y", fixed);
         rpiv_plot_series s = {al, u, n, label, n > 1 ? RPIV_PLOT_LINE : RPIV_PLOT_POINTS};
-        st = rpiv_plot_lines(png, title, along_y ? "y*" : "z*", "U* = U / U#dbulk#u", &s, 1,
-                             NULL);
+        st = rpiv_plot_lines(png, title, along_y ? "y*" : "z*", "U* = U / U#dbulk#u", &s, 1, NULL);
     }
 out:
     free(ys);

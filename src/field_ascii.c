@@ -47,8 +47,7 @@ rpiv_status field_write_tecplot(const rpiv_field *f, const rpiv_meta *meta, FILE
     return write_check(fp, path);
 }
 
-rpiv_status field_write_vtk(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
-                            const char *path)
+rpiv_status field_write_vtk(const rpiv_field *f, const rpiv_meta *meta, FILE *fp, const char *path)
 {
     (void)meta; /* legacy VTK has one title line and no place for key = value pairs */
     size_t n = (size_t)f->nx * (size_t)f->ny;

@@ -23,8 +23,9 @@ rpiv_status rpiv_profile_compare(const rpiv_profile *ref, const rpiv_profile *cm
         b++;
     size_t n = b - a;
     if (n < 2)
-        return rpiv_fail(RPIV_ESIZE, "profiles do not overlap: reference alpha %g..%g has %zu "
-                                     "sample%s in the compared range %g..%g",
+        return rpiv_fail(RPIV_ESIZE,
+                         "profiles do not overlap: reference alpha %g..%g has %zu "
+                         "sample%s in the compared range %g..%g",
                          ref->alpha[0], ref->alpha[ref->n - 1], n, n == 1 ? "" : "s", c0, c1);
     double *x = malloc(n * sizeof *x), *y = malloc(n * sizeof *y);
     gsl_interp *it = gsl_interp_alloc(gsl_interp_linear, cmp->n);
@@ -78,11 +79,12 @@ static double component(const rpiv_field *f, size_t k, rpiv_component c)
 rpiv_status rpiv_field_compare(const rpiv_field *ref, const rpiv_field *cmp, rpiv_component c,
                                rpiv_compare *out)
 {
-    if (ref->nx != cmp->nx || ref->ny != cmp->ny ||
-        fabs(ref->x0 - cmp->x0) > 1e-6 * ref->dx || fabs(ref->y0 - cmp->y0) > 1e-6 * ref->dy ||
-        fabs(ref->dx - cmp->dx) > 1e-6 * ref->dx || fabs(ref->dy - cmp->dy) > 1e-6 * ref->dy)
-        return rpiv_fail(RPIV_ESIZE, "compare: grids differ: %d x %d from (%g, %g) step (%g, %g) "
-                                     "vs %d x %d from (%g, %g) step (%g, %g)",
+    if (ref->nx != cmp->nx || ref->ny != cmp->ny || fabs(ref->x0 - cmp->x0) > 1e-6 * ref->dx ||
+        fabs(ref->y0 - cmp->y0) > 1e-6 * ref->dy || fabs(ref->dx - cmp->dx) > 1e-6 * ref->dx ||
+        fabs(ref->dy - cmp->dy) > 1e-6 * ref->dy)
+        return rpiv_fail(RPIV_ESIZE,
+                         "compare: grids differ: %d x %d from (%g, %g) step (%g, %g) "
+                         "vs %d x %d from (%g, %g) step (%g, %g)",
                          ref->nx, ref->ny, ref->x0, ref->y0, ref->dx, ref->dy, cmp->nx, cmp->ny,
                          cmp->x0, cmp->y0, cmp->dx, cmp->dy);
     size_t np = (size_t)ref->nx * (size_t)ref->ny, n = 0;
@@ -100,7 +102,9 @@ rpiv_status rpiv_field_compare(const rpiv_field *ref, const rpiv_field *cmp, rpi
         return rpiv_fail(RPIV_ESIZE, "compare: every point is masked in one of the fields");
     if (!(fabs(sumr) > 0))
         return rpiv_fail(RPIV_EINVAL, "compare: the reference %s averages to zero: E1 undefined",
-                         c == RPIV_COMPONENT_U ? "u" : c == RPIV_COMPONENT_V ? "v" : "|u|");
+                         c == RPIV_COMPONENT_U   ? "u"
+                         : c == RPIV_COMPONENT_V ? "v"
+                                                 : "|u|");
     out->rms = sqrt(sum2 / (double)n);
     out->e1 = out->rms / fabs(sumr / (double)n);
     out->max_abs = mx;

@@ -161,11 +161,15 @@ static rpiv_status build_field(const rows *r, const char *path, double scale, do
         return rpiv_fail(RPIV_EFORMAT, "%s: not a regular grid (coordinate steps too uneven)",
                          path);
     if (badx < r->n)
-        return rpiv_fail(RPIV_EFORMAT, "%s:%ld: not a regular grid: x = %g is not on x0 + i*dx "
-                                       "(x0 = %g, dx = %g)", path, r->line[badx], r->x[badx], x0, dx);
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s:%ld: not a regular grid: x = %g is not on x0 + i*dx "
+                         "(x0 = %g, dx = %g)",
+                         path, r->line[badx], r->x[badx], x0, dx);
     if (bady < r->n)
-        return rpiv_fail(RPIV_EFORMAT, "%s:%ld: not a regular grid: y = %g is not on y0 + j*dy "
-                                       "(y0 = %g, dy = %g)", path, r->line[bady], r->y[bady], y0, dy);
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s:%ld: not a regular grid: y = %g is not on y0 + j*dy "
+                         "(y0 = %g, dy = %g)",
+                         path, r->line[bady], r->y[bady], y0, dy);
     if ((double)nx * (double)ny != (double)r->n)
         return rpiv_fail(RPIV_EFORMAT, "%s: not a regular grid: %zu vectors for %ld x %ld points",
                          path, r->n, nx, ny);
@@ -187,8 +191,10 @@ static rpiv_status build_field(const rows *r, const char *path, double scale, do
         long i = lround((r->x[k] - x0) / dx), j = lround((r->y[k] - y0) / dy);
         size_t idx = (size_t)j * (size_t)nx + (size_t)i;
         if (seen[idx]) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: not a regular grid: point (%g, %g) repeats "
-                                         "line %ld", path, r->line[k], r->x[k], r->y[k], seen[idx]);
+            st = rpiv_fail(RPIV_EFORMAT,
+                           "%s:%ld: not a regular grid: point (%g, %g) repeats "
+                           "line %ld",
+                           path, r->line[k], r->x[k], r->y[k], seen[idx]);
             break;
         }
         seen[idx] = r->line[k];
@@ -250,8 +256,8 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
             goto out_free;
         }
         if (nc >= 5 && (val[4] < 0 || val[4] > 255 || val[4] != floor(val[4]))) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: flag %g is not an integer 0..255", path,
-                           lineno, val[4]);
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: flag %g is not an integer 0..255", path, lineno,
+                           val[4]);
             goto out_free;
         }
         if (!rows_push(&r)) {
@@ -350,8 +356,8 @@ rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out)
         if (nc < 0)
             goto out_close;
         if (nc < 2) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: 1 column, a profile needs 2 (alpha value)",
-                           path, lineno);
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: 1 column, a profile needs 2 (alpha value)", path,
+                           lineno);
             goto out_close;
         }
         if (p->n) {

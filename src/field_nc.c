@@ -83,9 +83,8 @@ static int define(rpiv_field_series *s, const rpiv_field *g, const rpiv_meta *me
         (e = put_text(ncid, NC_GLOBAL, "source", "rpiv " RPIV_VERSION_STRING)) ||
         (e = put_text(ncid, NC_GLOBAL, "rpiv_format", "rpiv vector field 1")))
         return e;
-    if (g->scale_mm_per_px > 0 &&
-        (e = nc_put_att_double(ncid, NC_GLOBAL, "scale_mm_per_px", NC_DOUBLE, 1,
-                               &g->scale_mm_per_px)))
+    if (g->scale_mm_per_px > 0 && (e = nc_put_att_double(ncid, NC_GLOBAL, "scale_mm_per_px",
+                                                         NC_DOUBLE, 1, &g->scale_mm_per_px)))
         return e;
     if (g->dt_s > 0 && (e = nc_put_att_double(ncid, NC_GLOBAL, "dt_s", NC_DOUBLE, 1, &g->dt_s)))
         return e;
@@ -108,8 +107,8 @@ static int define(rpiv_field_series *s, const rpiv_field *g, const rpiv_meta *me
     return e;
 }
 
-rpiv_status rpiv_field_series_open(const char *path, const rpiv_field *grid,
-                                   const rpiv_meta *meta, rpiv_field_series **out)
+rpiv_status rpiv_field_series_open(const char *path, const rpiv_field *grid, const rpiv_meta *meta,
+                                   rpiv_field_series **out)
 {
     *out = NULL;
     rpiv_field_series *s = calloc(1, sizeof *s);
@@ -155,9 +154,10 @@ rpiv_status rpiv_field_series_append(rpiv_field_series *s, const rpiv_field *f, 
     const char *path = s->af.path;
     if (f->nx != s->nx || f->ny != s->ny || !same(f->x0, s->x0) || !same(f->y0, s->y0) ||
         !same(f->dx, s->dx) || !same(f->dy, s->dy))
-        return rpiv_fail(RPIV_ESIZE, "%s: field %d: grid %d x %d differs from the series' %d x %d "
-                                     "(or its origin/step)", path, (int)s->nt, f->nx, f->ny, s->nx,
-                         s->ny);
+        return rpiv_fail(RPIV_ESIZE,
+                         "%s: field %d: grid %d x %d differs from the series' %d x %d "
+                         "(or its origin/step)",
+                         path, (int)s->nt, f->nx, f->ny, s->nx, s->ny);
     size_t start[3] = {s->nt, 0, 0}, count[3] = {1, (size_t)s->ny, (size_t)s->nx};
     int e = nc_put_var1_double(s->ncid, s->vt, start, &t);
     if (!e)

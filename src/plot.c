@@ -36,8 +36,6 @@ rpiv_plot_opts rpiv_plot_opts_default(void)
                             .height_px = 600,
                             .xlabel = "x (px)",
                             .ylabel = "y (px)",
-                            .y_down = 1,
-                            .equal_aspect = 1,
                             .cmap = RPIV_PLOT_CMAP_VIRIDIS,
                             .background = 1,
                             .stride = 1};
@@ -52,21 +50,32 @@ static rpiv_status opts_check(const rpiv_plot_opts *o, const char *path)
         return rpiv_fail(RPIV_EINVAL, "%s: plot stride %d must be >= 1", path, o->stride);
     if (!(o->arrow_scale >= 0) || !isfinite(o->arrow_scale))
         return rpiv_fail(RPIV_EINVAL, "%s: arrow scale %g must be >= 0", path, o->arrow_scale);
+    if (o->y_axis < 0 || o->y_axis > RPIV_PLOT_DOWN || o->aspect < 0 || o->aspect > RPIV_PLOT_FREE)
+        return rpiv_fail(RPIV_EINVAL, "%s: y_axis %d / aspect %d not AUTO, 1 or 2", path, o->y_axis,
+                         o->aspect);
     if ((unsigned)o->cmap > RPIV_PLOT_CMAP_DIVERGING)
         return rpiv_fail(RPIV_EINVAL, "%s: unknown colour map %d", path, (int)o->cmap);
     return RPIV_OK;
 }
 
+/* Replace RPIV_PLOT_AUTO by what suits the kind of plot. */
+static void resolve_auto(rpiv_plot_opts *o, int y_axis, int aspect)
+{
+    if (o->y_axis == RPIV_PLOT_AUTO)
+        o->y_axis = y_axis;
+    if (o->aspect == RPIV_PLOT_AUTO)
+        o->aspect = aspect;
+}
+
 /* ---- colours ---------------------------------------------------------------- */
 
-enum { COL_BG = 0, COL_FG = 1, COL_SERIES = 2, NSERIES_COL = 10, COL_REPLACED = 12,
-       NCOL0 = 16 };
+enum { COL_BG = 0, COL_FG = 1, COL_SERIES = 2, NSERIES_COL = 10, COL_REPLACED = 12, NCOL0 = 16 };
 
 static void set_cmap0(void)
 {
     /* a qualitative palette of ten distinguishable colours for curves */
     static const PLINT rgb[NSERIES_COL][3] = {
-        {31, 119, 180}, {255, 127, 14}, {44, 160, 44},  {214, 39, 40},   {148, 103, 189},
+        {31, 119, 180}, {255, 127, 14},  {44, 160, 44},   {214, 39, 40},  {148, 103, 189},
         {140, 86, 75},  {227, 119, 194}, {127, 127, 127}, {188, 189, 34}, {23, 190, 207}};
     plscmap0n(NCOL0);
     plscol0(COL_BG, 255, 255, 255);
@@ -169,15 +178,15 @@ static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn d
 }
 
 /* The viewport (leaving room for a colour bar on the right when cbar) and world window. */
-static void frame(const rpiv_plot_opts *o, double x0, double x1, double y0, double y1,
-                  int cbar, const char *xl, const char *yl, const char *title)
+static void frame(const rpiv_plot_opts *o, double x0, double x1, double y0, double y1, int cbar,
+                  const char *xl, const char *yl, const char *title)
 {
     double right = cbar ? 0.80 : 0.95;
-    if (o->equal_aspect)
+    if (o->aspect == RPIV_PLOT_EQUAL)
         plvpas(0.10, right, 0.11, 0.92, (y1 - y0) / (x1 - x0));
     else
         plvpor(0.10, right, 0.11, 0.92);
-    if (o->y_down)
+    if (o->y_axis == RPIV_PLOT_DOWN)
         plwind(x0, x1, y1, y0);
     else
         plwind(x0, x1, y0, y1);
@@ -202,9 +211,9 @@ static void colour_bar(double zmin, double zmax, const char *label)
     const PLFLT *values[1] = {v};
     plcol0(COL_FG);
     /* an image bar: PLplot's cairo gradient (PL_COLORBAR_GRADIENT) leaks its pattern */
-    plcolorbar(&w, &h, PL_COLORBAR_IMAGE, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0,
-               0.03, 0.9, COL_BG, COL_FG, 1, 0, 0, 0, 0, 1, label_opts, labels, 1, axis_opts,
-               ticks, sub_ticks, n_values, values);
+    plcolorbar(&w, &h, PL_COLORBAR_IMAGE, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0, 0.03,
+               0.9, COL_BG, COL_FG, 1, 0, 0, 0, 0, 1, label_opts, labels, 1, axis_opts, ticks,
+               sub_ticks, n_values, values);
 }
 
 static void zrange(const double *z, size_t n, const rpiv_plot_opts *o, double *lo, double *hi)
@@ -300,8 +309,8 @@ static rpiv_status draw_map(const void *vctx, const rpiv_plot_opts *o)
         y1 = o->ymax;
     }
     frame(o, x0, x1, y0, y1, 1, o->xlabel, o->ylabel, c->title);
-    rpiv_status st = draw_cells(c->z, c->nx, c->ny, c->ext[0], c->ext[1], c->ext[2], c->ext[3],
-                                zlo, zhi, o->width_px, o->height_px);
+    rpiv_status st = draw_cells(c->z, c->nx, c->ny, c->ext[0], c->ext[1], c->ext[2], c->ext[3], zlo,
+                                zhi, o->width_px, o->height_px);
     if (st)
         return st;
     plcol0(COL_FG);
@@ -317,6 +326,7 @@ rpiv_status rpiv_plot_map(const char *path, const char *title, const double *z, 
     rpiv_status st = opts_check(&o, path);
     if (st)
         return st;
+    resolve_auto(&o, RPIV_PLOT_DOWN, RPIV_PLOT_EQUAL);
     if (nx < 1 || ny < 1)
         return rpiv_fail(RPIV_EINVAL, "%s: map size %d x %d is empty", path, nx, ny);
     map_ctx c = {z, nx, ny, {-0.5, nx - 0.5, -0.5, ny - 0.5}, title};
@@ -368,8 +378,8 @@ static rpiv_status draw_quiver(const void *vctx, const rpiv_plot_opts *o)
     }
     double umax = 0;
     for (size_t k = 0; k < n; k++) {
-        mag[k] = f->flag[k] == RPIV_FLAG_MASKED ? (double)NAN
-                                                : hypot((double)f->u[k], (double)f->v[k]);
+        mag[k] =
+            f->flag[k] == RPIV_FLAG_MASKED ? (double)NAN : hypot((double)f->u[k], (double)f->v[k]);
         if (isfinite(mag[k]))
             umax = fmax(umax, mag[k]);
     }
@@ -401,7 +411,8 @@ static rpiv_status draw_quiver(const void *vctx, const rpiv_plot_opts *o)
             cols[(size_t)l * (size_t)mx + (size_t)i] = uv[l] + (size_t)i * (size_t)my;
     for (int i = 0; i < mx; i++)
         for (int j = 0; j < my; j++) {
-            size_t k = (size_t)(j * s) * (size_t)nx + (size_t)(i * s), q = (size_t)i * (size_t)my + (size_t)j;
+            size_t k = (size_t)(j * s) * (size_t)nx + (size_t)(i * s),
+                   q = (size_t)i * (size_t)my + (size_t)j;
             int layer = f->flag[k] == RPIV_FLAG_REPLACED ? 2 : 0;
             if (f->flag[k] == RPIV_FLAG_MASKED)
                 continue;
@@ -431,6 +442,7 @@ rpiv_status rpiv_plot_quiver(const rpiv_field *f, const char *path, const char *
     rpiv_status st = opts_check(&o, path);
     if (st)
         return st;
+    resolve_auto(&o, RPIV_PLOT_DOWN, RPIV_PLOT_EQUAL);
     quiver_ctx c = {f, title};
     return run_plot(path, &o, draw_quiver, &c);
 }
@@ -512,10 +524,10 @@ static rpiv_status draw_lines(const void *vctx, const rpiv_plot_opts *o)
         }
         PLFLT w, h;
         plcol0(COL_FG);
-        pllegend(&w, &h, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX, PL_POSITION_TOP |
-                 PL_POSITION_RIGHT | PL_POSITION_INSIDE, 0.02, 0.02, 0.08, COL_BG, COL_FG, 1, 0,
-                 0, (PLINT)nleg, opt, 0.8, 0.8, 2.0, 0, tcol, text, NULL, NULL, NULL, NULL, col,
-                 lsty, lw, col, ssc, nsym, sym);
+        pllegend(&w, &h, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
+                 PL_POSITION_TOP | PL_POSITION_RIGHT | PL_POSITION_INSIDE, 0.02, 0.02, 0.08, COL_BG,
+                 COL_FG, 1, 0, 0, (PLINT)nleg, opt, 0.8, 0.8, 2.0, 0, tcol, text, NULL, NULL, NULL,
+                 NULL, col, lsty, lw, col, ssc, nsym, sym);
         free(opt), free(col), free(lsty), free(tcol), free(nsym), free(lw), free(ssc);
         free(text), free(sym);
     }
@@ -526,14 +538,11 @@ rpiv_status rpiv_plot_lines(const char *path, const char *title, const char *xla
                             const char *ylabel, const rpiv_plot_series *series, size_t nseries,
                             const rpiv_plot_opts *opts)
 {
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.y_down = 0;
-    o.equal_aspect = 0;
-    if (opts)
-        o = *opts;
+    rpiv_plot_opts o = opts ? *opts : rpiv_plot_opts_default();
     rpiv_status st = opts_check(&o, path);
     if (st)
         return st;
+    resolve_auto(&o, RPIV_PLOT_UP, RPIV_PLOT_FREE);
     if (nseries == 0)
         return rpiv_fail(RPIV_EINVAL, "%s: no series to plot", path);
     double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;

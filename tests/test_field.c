@@ -248,7 +248,6 @@ static void load_errors_name_file_and_line(void)
     expect_load_error("missing.txt", NULL, RPIV_EIO, 0, "cannot open");
 }
 
-
 static void profile_load_reads_and_reverses(void)
 {
     write_text(tpath("p.txt"), "# z* U*\n1 0.5 7\n0.6 0.25\n\n0.2 0.125\n");
@@ -534,7 +533,9 @@ static void tecplot_header_and_values_parse_back(void)
         }
         if (strncmp(line, "VARIABLES = ", 12) == 0) {
             nvar = strcmp(line, "VARIABLES = \"x\",\"y\",\"u\",\"v\",\"flag\",\"peak_ratio\","
-                                "\"correlation\"\n") == 0 ? 7 : -1;
+                                "\"correlation\"\n") == 0
+                       ? 7
+                       : -1;
             continue;
         }
         if (strncmp(line, "ZONE", 4) == 0) {

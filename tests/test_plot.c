@@ -152,7 +152,6 @@ static void lines_writes_png_with_legend(void)
     CHECK(png_size(tpath("lines.png"), &w, &h, &ink) && w == 800 && h == 600);
     CHECK(ink > 2000);
     rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.y_down = 0;
     o.width_px = 400;
     o.height_px = 1000;
     o.ymin = -1;
@@ -164,6 +163,10 @@ static void lines_writes_png_with_legend(void)
     rpiv_plot_series bad = {nan2, nan2, 2, "all nan", RPIV_PLOT_LINE};
     CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", &bad, 1, NULL), RPIV_EINVAL);
     CHECK(strstr(rpiv_errmsg(), "all nan") != NULL);
+    o.aspect = 3;
+    CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", s, 1, &o), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "aspect 3") != NULL);
+    o.aspect = RPIV_PLOT_AUTO;
     o.width_px = 20;
     CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", s, 1, &o), RPIV_EINVAL);
     CHECK(access(tpath("bad.png"), F_OK) != 0);
@@ -193,7 +196,8 @@ static void map_writes_png_for_image_and_scalar(void)
     double ext[4] = {0, 1.2, -0.35, 0.35};
     o = rpiv_plot_opts_default();
     o.cmap = RPIV_PLOT_CMAP_DIVERGING;
-    o.y_down = 0;
+    o.y_axis = RPIV_PLOT_UP;
+    o.aspect = RPIV_PLOT_FREE;
     o.xlabel = "x*";
     o.ylabel = "z*";
     CHECK_OK(rpiv_plot_map(tpath("map.png"), "map", m, 12, 7, ext, &o));
@@ -209,8 +213,7 @@ static void plot_into_missing_folder_fails_with_path(void)
 {
     double x[2] = {0, 1};
     rpiv_plot_series s = {x, x, 2, "a", RPIV_PLOT_LINE};
-    CHECK_FAILS(rpiv_plot_lines(tpath("no/such/lines.png"), "t", "x", "y", &s, 1, NULL),
-                RPIV_EIO);
+    CHECK_FAILS(rpiv_plot_lines(tpath("no/such/lines.png"), "t", "x", "y", &s, 1, NULL), RPIV_EIO);
     CHECK(strstr(rpiv_errmsg(), "no/such/lines.png") != NULL);
 }
 

@@ -24,13 +24,13 @@ enum {
 };
 
 typedef struct rpiv_field {
-    int nx, ny;       /* grid size                                   */
-    double x0, y0;    /* centre of point (0,0), px                   */
-    double dx, dy;    /* grid step, px                               */
-    float *u, *v;     /* displacement, px                            */
+    int nx, ny;    /* grid size                                   */
+    double x0, y0; /* centre of point (0,0), px                   */
+    double dx, dy; /* grid step, px                               */
+    float *u, *v;  /* displacement, px                            */
     unsigned char *flag;
-    float *peak_ratio; /* highest / second-highest correlation peak (0 if unknown) */
-    float *corr;       /* normalised correlation value at the peak   */
+    float *peak_ratio;      /* highest / second-highest correlation peak (0 if unknown) */
+    float *corr;            /* normalised correlation value at the peak   */
     double scale_mm_per_px; /* 0 = not set; with dt_s gives mm and m/s columns */
     double dt_s;            /* 0 = not set */
 } rpiv_field;
@@ -82,8 +82,7 @@ RPIV_NODISCARD rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **ou
  * temporary file next to it. grid gives the grid, scale and dt (its data are not written). */
 typedef struct rpiv_field_series rpiv_field_series;
 RPIV_NODISCARD rpiv_status rpiv_field_series_open(const char *path, const rpiv_field *grid,
-                                                  const rpiv_meta *meta,
-                                                  rpiv_field_series **out);
+                                                  const rpiv_meta *meta, rpiv_field_series **out);
 /* Append f at time t (s). RPIV_ESIZE if f's grid differs from the series'; RPIV_EIO. */
 RPIV_NODISCARD rpiv_status rpiv_field_series_append(rpiv_field_series *s, const rpiv_field *f,
                                                     double t);
@@ -125,8 +124,8 @@ typedef struct rpiv_compare {
  * before Eq. "E1" is applied, so that E1 = RMS difference / mean reference whatever the unit
  * of alpha (the paper's alpha spans [0, 1]). RPIV_ESIZE if fewer than 2 reference samples lie
  * in cmp's range ("do not overlap"); RPIV_EINVAL if the reference integrates to zero. */
-RPIV_NODISCARD rpiv_status rpiv_profile_compare(const rpiv_profile *ref,
-                                                const rpiv_profile *cmp, rpiv_compare *out);
+RPIV_NODISCARD rpiv_status rpiv_profile_compare(const rpiv_profile *ref, const rpiv_profile *cmp,
+                                                rpiv_compare *out);
 
 typedef enum rpiv_component {
     RPIV_COMPONENT_MAG = 0, /* |(u, v)| */

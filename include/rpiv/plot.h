@@ -20,29 +20,41 @@
 #include <stddef.h>
 
 typedef enum rpiv_plot_cmap {
-    RPIV_PLOT_CMAP_VIRIDIS = 0, /* perceptually uniform, dark blue -> yellow (default) */
-    RPIV_PLOT_CMAP_GRAY = 1,    /* black -> white, for camera images                */
+    RPIV_PLOT_CMAP_VIRIDIS = 0,  /* perceptually uniform, dark blue -> yellow (default) */
+    RPIV_PLOT_CMAP_GRAY = 1,     /* black -> white, for camera images                */
     RPIV_PLOT_CMAP_DIVERGING = 2 /* blue -> white -> red, for signed quantities     */
 } rpiv_plot_cmap;
+
+enum {
+    RPIV_PLOT_AUTO = 0,
+    RPIV_PLOT_UP = 1,    /* y_axis */
+    RPIV_PLOT_DOWN = 2,  /* y_axis */
+    RPIV_PLOT_EQUAL = 1, /* aspect */
+    RPIV_PLOT_FREE = 2   /* aspect */
+};
 
 /* Options shared by all plots. Start from rpiv_plot_opts_default() and change what you need. */
 typedef struct rpiv_plot_opts {
     int width_px, height_px; /* image size (800 x 600)                                     */
     const char *xlabel;      /* axis labels of quiver plots and maps ("x (px)", "y (px)")  */
     const char *ylabel;
-    int y_down;              /* 1: y axis grows downward like image rows (quiver, map: 1)   */
-    int equal_aspect;        /* 1: one unit in x is as long as one in y (quiver, map: 1)   */
+    int y_axis; /* RPIV_PLOT_AUTO (0): downward like image rows for quiver
+                   plots and maps, upward for line plots; RPIV_PLOT_UP;
+                   RPIV_PLOT_DOWN                                              */
+    int aspect; /* RPIV_PLOT_AUTO (0): equal for quiver plots and maps (one
+                   unit of x as long as one of y), free for line plots;
+                   RPIV_PLOT_EQUAL; RPIV_PLOT_FREE                             */
     /* axis limits: used when lo < hi, otherwise the data's range */
     double xmin, xmax, ymin, ymax;
     /* colour scale (maps and quiver backgrounds) */
     rpiv_plot_cmap cmap;
-    double zmin, zmax;       /* colour range; automatic (data min/max) unless zmin < zmax  */
-    const char *zlabel;      /* colour bar label (NULL: none)                               */
+    double zmin, zmax;  /* colour range; automatic (data min/max) unless zmin < zmax  */
+    const char *zlabel; /* colour bar label (NULL: none)                               */
     /* quiver */
-    int background;          /* 1: colour map of |(u, v)| behind the arrows (1)             */
-    double arrow_scale;      /* arrow length in axis units per px of displacement; 0: the
-                                longest arrow spans one drawn grid step (0)                 */
-    int stride;              /* draw every stride-th vector in x and y (1)                  */
+    int background;     /* 1: colour map of |(u, v)| behind the arrows (1)             */
+    double arrow_scale; /* arrow length in axis units per px of displacement; 0: the
+                           longest arrow spans one drawn grid step (0)                 */
+    int stride;         /* draw every stride-th vector in x and y (1)                  */
 } rpiv_plot_opts;
 
 rpiv_plot_opts rpiv_plot_opts_default(void);
@@ -65,19 +77,17 @@ typedef enum rpiv_plot_style {
 typedef struct rpiv_plot_series {
     const double *x, *y;
     size_t n;
-    const char *label;     /* legend entry; NULL or "" leaves the series out of the legend */
+    const char *label; /* legend entry; NULL or "" leaves the series out of the legend */
     rpiv_plot_style style;
 } rpiv_plot_series;
 
 /* Curves on common axes, each in its own colour (and marker), with a legend in the top right
  * corner when any series has a label. Axis ranges cover all finite points unless set in opts
- * (opts->xlabel/ylabel are ignored: the labels are arguments here). opts may be NULL, in
- * which case y_down = 0 and equal_aspect = 0. RPIV_EINVAL if nseries is 0, a series has
- * n = 0 or no finite point at all. */
-RPIV_NODISCARD rpiv_status rpiv_plot_lines(const char *path, const char *title,
-                                           const char *xlabel, const char *ylabel,
-                                           const rpiv_plot_series *series, size_t nseries,
-                                           const rpiv_plot_opts *opts);
+ * (opts->xlabel/ylabel are ignored: the labels are arguments here). opts may be NULL.
+ * RPIV_EINVAL if nseries is 0 or a series has no finite point at all. */
+RPIV_NODISCARD rpiv_status rpiv_plot_lines(const char *path, const char *title, const char *xlabel,
+                                           const char *ylabel, const rpiv_plot_series *series,
+                                           size_t nseries, const rpiv_plot_opts *opts);
 
 /* A scalar map z[j * nx + i] (row-major, j along y) drawn as cells covering
  * extent = {xmin, xmax, ymin, ymax} (the outer edges: cell (i, j) spans
