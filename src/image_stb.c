@@ -98,7 +98,9 @@ rpiv_status img_stb_load(const char *path, rpiv_image_format fmt, const unsigned
     if (!stbi_info_from_memory(buf, (int)n, &w, &h, &comp))
         return rpiv_fail(RPIV_EFORMAT, "%s: cannot decode %s header: %s", path,
                          rpiv_image_format_name(fmt), stbi_failure_reason());
-    st = img_check_size(path, (uint64_t)(w < 0 ? 0 : w), (uint64_t)(h < 0 ? 0 : h));
+    /* stb reports a top-down BMP's height as negative */
+    st = img_check_size(path, (uint64_t)(w < 0 ? -(int64_t)w : w),
+                        (uint64_t)(h < 0 ? -(int64_t)h : h));
     if (st)
         return st;
     unsigned char *p = stbi_load_from_memory(buf, (int)n, &w, &h, &comp, 0);

@@ -81,7 +81,8 @@ rpiv_status img_tiff_pages(const char *path, int *npages)
 typedef struct tinfo {
     uint32_t w, h;
     uint16_t bps, spp, sf, photo, planar, nextra;
-    int nch; /* colour channels used: 1 (grey, palette) or 3 (RGB) */
+    int extra_alpha; /* every extra sample is declared alpha (and so may be ignored) */
+    int nch;         /* colour channels used: 1 (grey, palette) or 3 (RGB) */
 } tinfo;
 
 /* Sample k of a decoded row (host byte order, as libtiff returns it). */
@@ -130,6 +131,10 @@ static rpiv_status read_info(TIFF *t, const char *path, int page, tinfo *ti)
         ti->photo = ti->spp >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK;
     if (ti->sf == SAMPLEFORMAT_VOID)
         ti->sf = SAMPLEFORMAT_UINT;
+    ti->extra_alpha = 1;
+    for (uint16_t i = 0; i < ti->nextra; i++)
+        if (!extra || (extra[i] != EXTRASAMPLE_ASSOCALPHA && extra[i] != EXTRASAMPLE_UNASSALPHA))
+            ti->extra_alpha = 0;
     return RPIV_OK;
 }
 
@@ -170,6 +175,13 @@ static rpiv_status check_layout(const char *path, tinfo *ti)
                          "(%d colour sample%s expected)",
                          path, ti->spp, ti->nextra, colour ? "RGB" : "grey", ti->nch,
                          ti->nch > 1 ? "s" : "");
+    /* An extra sample of unknown meaning may be data (two frames interleaved, say): refuse
+     * it rather than drop it. libtiff declares undeclared extra samples "unspecified". */
+    if (ti->nextra && !ti->extra_alpha)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: %u samples per pixel in a %s TIFF, %u of them neither colour nor "
+                         "alpha: not supported",
+                         path, ti->spp, colour ? "RGB" : "grey", ti->nextra);
     if (colour && ti->bps < 8)
         return rpiv_fail(RPIV_EFORMAT, "%s: %u-bit RGB TIFF not supported", path, ti->bps);
     return RPIV_OK;
