@@ -54,7 +54,8 @@ static TIFF *topen(const char *path, const char *mode, int fd, tctx *c)
 static rpiv_status tfail(const char *path, const tctx *c, const char *what)
 {
     if (strstr(c->msg, "Read error") || strstr(c->msg, "Not enough data") ||
-        strstr(c->msg, "Cannot read") || strstr(c->msg, "Incorrect count") ||
+        strstr(c->msg, "Cannot read") || strstr(c->msg, "Can not read") ||
+        strstr(c->msg, "Incorrect count") ||
         strstr(c->msg, "end of file"))
         return rpiv_fail(RPIV_EFORMAT, "%s: truncated or corrupt TIFF (%s: %s)", path, what,
                          c->msg);
@@ -232,9 +233,10 @@ static rpiv_status read_blocks(TIFF *t, tctx *c, const char *path, const tinfo *
                 }
                 if (got < 0 || (uint64_t)got < (uint64_t)(rows - 1) * rowbytes +
                                                    ((uint64_t)cols * nsp * ti->bps + 7) / 8) {
-                    char what[64];
-                    snprintf(what, sizeof what, "%s %u of %u", tiled ? "tile" : "strip",
-                             idx + 1, tiled ? TIFFNumberOfTiles(t) : TIFFNumberOfStrips(t));
+                    char what[96];
+                    snprintf(what, sizeof what, "%s %u of %u, rows %u-%u", tiled ? "tile" : "strip",
+                             idx + 1, tiled ? TIFFNumberOfTiles(t) : TIFFNumberOfStrips(t), y0,
+                             y0 + rows - 1);
                     if (got >= 0 && !c->msg[0])
                         snprintf(c->msg, sizeof c->msg, "Read error: short block");
                     st = tfail(path, c, what);
@@ -295,7 +297,8 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     float *rgb = NULL, *lut = NULL;
     rpiv_status st;
     *out = NULL;
-    TIFF *t = topen(path, "r", -1, &c);
+    /* "c": no strip chopping, so strip numbers in messages are the file's own */
+    TIFF *t = topen(path, "rc", -1, &c);
     if (!t)
         return tfail(path, &c, "cannot open as TIFF");
     if (page > 0 && !TIFFSetDirectory(t, (tdir_t)page)) {

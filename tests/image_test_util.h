@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <tiffio.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static char tu_dir[256];
