@@ -326,23 +326,23 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
     return st;
 }
 
+void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src)
+{
+    *src = (piv_source){pv->ia, pv->ib, pred, 0, piv_shift(pv, k)};
+    if (pred && src->shift == 0) /* window offsets: pass 0, or deformation off */
+        src->offsets = 1;
+}
+
 rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src)
 {
     if (pv->state == PIV_EMPTY)
         return rpiv_fail(RPIV_EINVAL, "piv: no pair loaded");
-    *src = (piv_source){pv->ia, pv->ib, pred, 0, piv_shift(pv, k)};
-    if (!pred) {
-        if (pv->state == PIV_RAW)
-            return RPIV_OK;
-        /* the raw frames are gone (prefiltered): sample the coefficients without shift */
-        return rpiv_fail(RPIV_EINVAL, "piv: pass %d without a predictor after a deforming pass; "
-                         "load the pair again", k + 1);
-    }
-    if (piv_shift(pv, k) == 0) { /* window offsets: pass 0, or deformation off */
+    piv_source_of(pv, k, pred, src);
+    if (!pred || src->offsets) {
+        /* windows straight from the loaded frames */
         if (pv->state != PIV_RAW)
-            return rpiv_fail(RPIV_EINVAL, "piv: the loaded frames were prefiltered; load the "
-                             "pair again");
-        src->offsets = 1;
+            return rpiv_fail(RPIV_EINVAL, "piv: pass %d reads the loaded frames, which a "
+                             "deforming pass has prefiltered: load the pair again", k + 1);
         return RPIV_OK;
     }
     if (pv->state == PIV_RAW) {
@@ -378,29 +378,44 @@ static void copy_window(const float *f, int w, int h, int x0, int y0, int ww, in
         }
 }
 
+/* The window pair's origins and the displacement it is shifted by. */
+static void window_place(const piv_pass *ps, const piv_source *src, size_t win, int *ax, int *ay,
+                         int *bx, int *by, double *pu, double *pv_)
+{
+    int i = (int)(win % (size_t)ps->nx), j = (int)(win / (size_t)ps->nx);
+    int x0 = ps->ox + i * ps->sx, y0 = ps->oy + j * ps->sy;
+    *ax = *bx = x0;
+    *ay = *by = y0;
+    *pu = *pv_ = 0;
+    if (!src->pred)
+        return;
+    const double c = src->offsets ? 0 : src->shift;
+    rpiv_deform_pred_eval(src->pred, x0 + 0.5 * (ps->ww - 1) + c, y0 + 0.5 * (ps->wh - 1) + c, pu,
+                          pv_);
+    if (src->offsets) {
+        /* window offset: A moved back by half the rounded predictor, B forward */
+        int su = (int)lround(*pu), sv = (int)lround(*pv_);
+        *ax -= (int)floor(0.5 * su);
+        *ay -= (int)floor(0.5 * sv);
+        *bx = *ax + su;
+        *by = *ay + sv;
+        *pu = su;
+        *pv_ = sv;
+    }
+}
+
+void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, double *pu,
+                      double *pv_)
+{
+    int ax, ay, bx, by;
+    window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
+}
+
 void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src,
                 rpiv_xcorr_work *ws, size_t win, double *ea, double *eb, double *pu, double *pv_)
 {
-    const double c = src->offsets ? 0 : src->shift;
-    int i = (int)(win % (size_t)ps->nx), j = (int)(win / (size_t)ps->nx);
-    int x0 = ps->ox + i * ps->sx, y0 = ps->oy + j * ps->sy;
-    int ax = x0, ay = y0, bx = x0, by = y0;
-    *pu = *pv_ = 0;
-    if (src->pred) {
-        rpiv_deform_pred_eval(src->pred, x0 + 0.5 * (ps->ww - 1) + c, y0 + 0.5 * (ps->wh - 1) + c,
-                              pu, pv_);
-        if (src->offsets) {
-            /* window offset: A moved back by half the rounded predictor, B forward */
-            int su = (int)lround(*pu), sv = (int)lround(*pv_);
-            int hu = (int)floor(0.5 * su), hv = (int)floor(0.5 * sv);
-            ax -= hu;
-            ay -= hv;
-            bx = ax + su;
-            by = ay + sv;
-            *pu = su;
-            *pv_ = sv;
-        }
-    }
+    int ax, ay, bx, by;
+    window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
     copy_window(src->fa, pv->w, pv->h, ax, ay, ps->ww, ps->wh, pv->fill_a, ws->a);
     copy_window(src->fb, pv->w, pv->h, bx, by, ps->ww, ps->wh, pv->fill_b, ws->b);
     rpiv_xcorr_run(ps->xc, ws, RPIV_XCORR_RAW, ea, eb);

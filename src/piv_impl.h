@@ -55,6 +55,9 @@ double piv_shift(const rpiv_piv *pv, int k);
 RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
                                         double shift, rpiv_deform_pred **out);
 
+/* The source of pass k without touching the frames (predictor, shift, offsets mode). */
+void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);
+
 /* Prepare the loaded pair for pass k with predictor pred (may be NULL): prefilter and deform
  * when the pass deforms. */
 RPIV_NODISCARD rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
@@ -66,6 +69,10 @@ RPIV_NODISCARD rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pr
 void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src,
                 rpiv_xcorr_work *ws, size_t win, double *ea, double *eb, double *pu,
                 double *pv_);
+
+/* Just the displacement window `win` is shifted by (as piv_window gives it). */
+void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, double *pu,
+                      double *pv_);
 
 /* The vector of window `win` from its (raw or summed) plane and energies: into f at win. */
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, double ea,
