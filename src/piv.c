@@ -439,48 +439,57 @@ rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
         }
         return RPIV_OK;
     }
-    /* strips: buffers of one window height, full frame width */
+    /* Strips, without any synchronisation: the rows of windows are cut into chunks handed
+     * out dynamically; a thread deforms the rows under its chunk into its own buffer of one
+     * window height, rolling it down one row of windows at a time (the overlap kept, only the
+     * new rows computed; the first strip of a chunk is computed whole, so a chunk
+     * recomputes the overlap rows of the previous one). A pixel's deformed value does not
+     * depend on who computes it, so results are the same for any chunking and threads. */
     const int x0 = ps->rect[0], x1 = ps->rect[2], wh = ps->wh, nt = pv->nthreads;
+    const int chunk = ps->ny / (4 * nt) > 4 ? ps->ny / (4 * nt) : 4;
+    const int nchunks = (ps->ny + chunk - 1) / chunk;
     const size_t sw = (size_t)pv->w, per = deform_row_scratch(pred, x0, x1);
-    float *sa = malloc((2 * (size_t)wh * sw + (size_t)nt * per) * sizeof *sa);
-    if (!sa)
+    const size_t mine_n = 2 * (size_t)wh * sw + per;
+    float *buf = malloc((size_t)nt * mine_n * sizeof *buf);
+    if (!buf)
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the deformation strips");
-    float *sb = sa + (size_t)wh * sw, *scr = sb + (size_t)wh * sw;
-    src.fa = sa;
-    src.fb = sb;
 #pragma omp parallel num_threads(nt)
     {
-        float *mine = scr + (size_t)omp_get_thread_num() * per;
+        float *sa = buf + (size_t)omp_get_thread_num() * mine_n, *sb = sa + (size_t)wh * sw;
+        float *scr = sb + (size_t)wh * sw;
         rpiv_xcorr_work *ws = ps->ws[omp_get_thread_num()];
-        int prev_s = 0, prev_e = 0; /* rows held: [prev_s, prev_e) */
-        for (int j = 0; j < ps->ny; j++) {
-            const int s = ps->oy + j * ps->sy, e = s + wh, keep = prev_e > s ? prev_e - s : 0;
-#pragma omp single
-            {
+        piv_source my = src;
+        my.fa = sa;
+        my.fb = sb;
+#pragma omp for schedule(dynamic, 1)
+        for (int c = 0; c < nchunks; c++) {
+            int prev_s = 0, prev_e = 0; /* rows held: [prev_s, prev_e) */
+            int j1 = (c + 1) * chunk < ps->ny ? (c + 1) * chunk : ps->ny;
+            for (int j = c * chunk; j < j1; j++) {
+                const int s = ps->oy + j * ps->sy, e = s + wh, keep = prev_e > s ? prev_e - s : 0;
                 if (keep) { /* the overlap with the previous strip moves to the top */
                     memmove(sa, sa + (size_t)(s - prev_s) * sw, (size_t)keep * sw * sizeof *sa);
                     memmove(sb, sb + (size_t)(s - prev_s) * sw, (size_t)keep * sw * sizeof *sb);
                 }
-                src.row0 = s;
+                for (int y = s + keep; y < e; y++)
+                    deform_row(pv->ia, pv->ib, pv->w, pv->h, pred, x0, x1, y, pv->fill_a,
+                               pv->fill_b, sa + (size_t)(y - s) * sw, sb + (size_t)(y - s) * sw,
+                               scr);
+                my.row0 = s;
+                for (int i = 0; i < ps->nx; i++) {
+                    size_t win = (size_t)j * (size_t)ps->nx + (size_t)i;
+                    if (ps->masked && ps->masked[win])
+                        continue;
+                    double ea, eb, pu, pv_;
+                    piv_window(pv, ps, &my, ws, win, &ea, &eb, &pu, &pv_);
+                    fn(ctx, ws, win, ea, eb, pu, pv_);
+                }
+                prev_s = s;
+                prev_e = e;
             }
-#pragma omp for schedule(static)
-            for (int y = s + keep; y < e; y++)
-                deform_row(pv->ia, pv->ib, pv->w, pv->h, pred, x0, x1, y, pv->fill_a, pv->fill_b,
-                           sa + (size_t)(y - s) * sw, sb + (size_t)(y - s) * sw, mine);
-#pragma omp for schedule(dynamic, 4)
-            for (int i = 0; i < ps->nx; i++) {
-                size_t win = (size_t)j * (size_t)ps->nx + (size_t)i;
-                if (ps->masked && ps->masked[win])
-                    continue;
-                double ea, eb, pu, pv_;
-                piv_window(pv, ps, &src, ws, win, &ea, &eb, &pu, &pv_);
-                fn(ctx, ws, win, ea, eb, pu, pv_);
-            }
-            prev_s = s;
-            prev_e = e;
         }
     }
-    free(sa);
+    free(buf);
     return RPIV_OK;
 }
 

@@ -55,9 +55,9 @@ typedef void (*piv_win_fn)(void *ctx, const rpiv_xcorr_work *ws, size_t win, dou
 
 /* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
  * NULL), calling fn for each. A deforming pass works strip by strip: the rows under one row
- * of windows are deformed into a buffer of a window's height (the overlap with the previous
- * strip moved up, only the new rows computed), then that row of windows is correlated; no
- * deformed frame is ever held whole. */
+ * of windows are deformed into a thread's buffer of a window's height (the overlap with the
+ * previous strip moved up, only the new rows computed), then that row of windows is
+ * correlated; no deformed frame is ever held whole, and threads never wait for each other. */
 RPIV_NODISCARD rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
                                         piv_win_fn fn, void *ctx);
 
