@@ -34,7 +34,7 @@ rpiv_status rpiv_ccm_scenario_check(const rpiv_ccm_scenario *s)
 {
     if (s->kind < RPIV_CCM_PPIV_SCAN || s->kind > RPIV_CCM_RPIV)
         return rpiv_fail(RPIV_EINVAL, "ccm: unknown scenario kind %d", (int)s->kind);
-    if (!(s->e_star > 0 && s->e_star < 100))
+    if (s->kind != RPIV_CCM_RPIV && !(s->e_star > 0 && s->e_star < 100))
         return rpiv_fail(RPIV_EINVAL, "ccm: sheet thickness %g outside (0, 100)", s->e_star);
     if (!isfinite(s->zop_star))
         return rpiv_fail(RPIV_EINVAL, "ccm: object plane must be finite");
