@@ -2,6 +2,7 @@
 /* The correlation as a sum of Gaussians and its peak; the model's inputs; Eq. "CCM_gen" and
  * Eq. "CCM_simp". */
 #include "ccm_impl.h"
+#include "rpiv/config.h"
 
 #include <errno.h>
 #include <float.h>
@@ -57,6 +58,40 @@ rpiv_status rpiv_ccm_params_check(const rpiv_ccm_params *p)
 rpiv_status ccm_gsl_fail(int gsl_status, const char *what)
 {
     return rpiv_fail(RPIV_ENUMERIC, "ccm: %s failed: %s", what, gsl_strerror(gsl_status));
+}
+
+rpiv_status ccm_file_begin(const char *path, char *tmp, FILE **fp)
+{
+    *fp = NULL;
+    if (snprintf(tmp, RPIV_PATH_MAX + 16, "%s.tmp", path) >= RPIV_PATH_MAX + 16)
+        return rpiv_fail(RPIV_EINVAL, "%s: path too long", path);
+    *fp = fopen(tmp, "w");
+    if (!*fp)
+        return rpiv_fail(RPIV_EIO, "%s: cannot create: %s", path, strerror(errno));
+    return RPIV_OK;
+}
+
+rpiv_status ccm_file_end(FILE *fp, const char *tmp, const char *path)
+{
+    int bad = ferror(fp);
+    bad |= fclose(fp) != 0;
+    if (bad || rename(tmp, path) != 0) {
+        remove(tmp);
+        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
+    }
+    return RPIV_OK;
+}
+
+void ccm_file_header(FILE *fp, const char *hdr)
+{
+    const char *s = hdr;
+    while (s && *s) {
+        size_t len = strcspn(s, "\n");
+        fprintf(fp, "# %.*s\n", (int)len, s);
+        s += len;
+        if (*s == '\n')
+            s++;
+    }
 }
 
 unsigned long ccm_seed(unsigned long seed, unsigned long index)
@@ -509,6 +544,16 @@ rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m)
         return rpiv_fail(RPIV_EINVAL, "ccm: %zu breakpoints, at most %d", m->nbreaks,
                          RPIV_CCM_MAX_BREAKS);
     return RPIV_OK;
+}
+
+rpiv_ccm_model rpiv_ccm_model_of(const struct rpiv_experiment *e, double dt_s)
+{
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.camera = e->camera;
+    m.h_m = e->channel.h_m;
+    m.dp_m = e->particles.dp_m;
+    m.scale_px = rpiv_ccm_scale_px(&e->camera, &e->channel, dt_s);
+    return m;
 }
 
 double rpiv_ccm_scale_px(const rpiv_camera *cam, const rpiv_channel *ch, double dt_s)

@@ -74,6 +74,7 @@ typedef struct inv {
     size_t nm, ncoef, np;
     meas *m;
     const double *umeas;
+    double *wt;      /* sqrt of the weight of each measurement */
     double scale, slam;
     int *map;        /* coefficient k -> unknown, -1 = fixed 0 */
     double *coef;    /* full coefficient vector */
@@ -152,7 +153,7 @@ static int res_f(const gsl_vector *x, void *u, gsl_vector *f)
     if (gs)
         return gs;
     for (size_t j = 0; j < v->nm; j++)
-        gsl_vector_set(f, j, v->m[j].delta / v->scale - v->umeas[j]);
+        gsl_vector_set(f, j, v->wt[j] * (v->m[j].delta / v->scale - v->umeas[j]));
     for (size_t k = 0; k + 2 < v->ncoef; k++)
         gsl_vector_set(f, v->nm + k,
                        v->slam * (v->coef[k] - 2 * v->coef[k + 1] + v->coef[k + 2]));
@@ -184,7 +185,7 @@ static int res_df(const gsl_vector *x, void *u, gsl_matrix *J)
         for (size_t n = 0; n < m->corr->n; n++) {
             const rpiv_ccm_gauss *g = &m->corr->g[n];
             double e = g->dx - d, t = g->amp * exp(-g->c * e * e) * 2 * g->c;
-            double dn = -t * (1 - 2 * g->c * e * e) / r2;
+            double dn = -v->wt[j] * t * (1 - 2 * g->c * e * e) / r2;
             const double *b = m->b + ORDER * n;
             for (int q = 0; q < ORDER; q++) {
                 int col = v->map[m->i0[n] + (size_t)q];
@@ -308,7 +309,8 @@ static rpiv_status alloc_result(size_t nout, size_t nm, size_t ncoef, rpiv_ccm_i
 }
 
 rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
-                            const double *xstar, const double *umeas, size_t n,
+                            const double *xstar, const double *umeas, const double *usigma,
+                            size_t n,
                             const rpiv_ccm_invert_params *ip, const rpiv_ccm_params *p,
                             const rpiv_progress *progress, rpiv_ccm_invert_result **out)
 {
@@ -322,8 +324,11 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     if (!(fabs(base->scale_px) > 0))
         return rpiv_fail(RPIV_EINVAL, "ccm invert: the displacement scale is zero");
     for (size_t j = 0; j < n; j++)
-        if (!isfinite(xstar[j]) || !isfinite(umeas[j]))
-            return rpiv_fail(RPIV_EINVAL, "ccm invert: measurement %zu is not finite", j);
+        if (!isfinite(xstar[j]) || !isfinite(umeas[j]) ||
+            (usigma && !(usigma[j] > 0 && isfinite(usigma[j]))))
+            return rpiv_fail(RPIV_EINVAL,
+                             "ccm invert: measurement %zu is not finite or its sigma not > 0",
+                             j);
 
     inv v;
     memset(&v, 0, sizeof v);
@@ -347,13 +352,20 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     v.map = malloc(ip->ncoef * sizeof *v.map);
     v.coef = calloc(ip->ncoef, sizeof *v.coef);
     v.sts = calloc(n, sizeof *v.sts);
+    v.wt = malloc(n * sizeof *v.wt);
     v.msg = calloc(n, sizeof *v.msg);
     pairs = malloc(4 * n * sizeof *pairs);
-    if (!bw || !bk || !bfull || !v.m || !v.map || !v.coef || !v.sts || !v.msg || !pairs) {
+    if (!bw || !bk || !bfull || !v.m || !v.map || !v.coef || !v.sts || !v.wt || !v.msg ||
+        !pairs) {
         st = rpiv_fail(RPIV_ENOMEM, "ccm invert: out of memory");
         goto out_free;
     }
     gsl_bspline_knots_uniform(0, 1, bw);
+    double sbar = 0;
+    for (size_t j = 0; j < n; j++)
+        sbar += usigma ? usigma[j] / (double)n : 0;
+    for (size_t j = 0; j < n; j++)
+        v.wt[j] = usigma ? sbar / usigma[j] : 1;
     /* unknowns: the interior coefficients (the end ones are U at the walls, 0) */
     size_t nc = ip->ncoef, np = 0;
     for (size_t k = 0; k < nc; k++) {
@@ -473,7 +485,7 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     double chi2 = 0, edf = 0;
     for (size_t j = 0; j < n; j++) {
         res->ufit[j] = v.m[j].delta / v.scale;
-        double d = res->ufit[j] - umeas[j];
+        double d = v.wt[j] * (res->ufit[j] - umeas[j]);
         chi2 += d * d;
         /* effective degrees of freedom: trace of J_d C J_d^T */
         gsl_vector_const_view row = gsl_matrix_const_row(J, j);
@@ -482,7 +494,7 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
         gsl_blas_ddot(&row.vector, tmpv, &q);
         edf += q;
     }
-    double sigma = ip->sigma;
+    double sigma = ip->sigma > 0 ? ip->sigma : sbar;
     if (!(sigma > 0))
         sigma = (double)n > edf + 0.5 ? sqrt(chi2 / ((double)n - edf)) : sqrt(chi2);
     res->sigma = sigma;
@@ -517,6 +529,7 @@ out_free:
     free(v.coef);
     free(v.cached);
     free(v.sts);
+    free(v.wt);
     free(v.msg);
     free(pairs);
     if (nw)
@@ -530,5 +543,85 @@ out_free:
         gsl_bspline_free(bw);
     rpiv_ccm_work_free(w);
     rpiv_ccm_invert_free(res);
+    return st;
+}
+
+rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hdr,
+                                 const char *path)
+{
+    char tmp[RPIV_PATH_MAX + 16];
+    FILE *fp;
+    rpiv_status st = ccm_file_begin(path, tmp, &fp);
+    if (st)
+        return st;
+    fprintf(fp, "# rpiv-ccm-invert 1\n");
+    ccm_file_header(fp, hdr);
+    fprintf(fp, "# sigma = %.6g\n# chi2 = %.6g\n# iterations = %zu\n", r->sigma, r->chi2,
+            r->iterations);
+    fprintf(fp, "# measurements: #m x* z*_max U*_meas U*_fit\n");
+    for (size_t j = 0; j < r->nmeas; j++)
+        fprintf(fp, "#m %.8g %.8g %.10g %.10g\n", r->xstar[j], r->zmax[j], r->umeas[j],
+                r->ufit[j]);
+    fprintf(fp, "# columns: z* U* std_U*\n");
+    for (size_t i = 0; i < r->nout; i++)
+        fprintf(fp, "%.8g %.10g %.6e\n", r->z[i], r->u[i], r->u_std[i]);
+    return ccm_file_end(fp, tmp, path);
+}
+
+static int cmp_triple(const void *a, const void *b)
+{
+    double x = ((const double *)a)[0], y = ((const double *)b)[0];
+    return (x > y) - (x < y);
+}
+
+rpiv_status rpiv_ccm_invert_e1(const rpiv_ccm_invert_result *r, rpiv_ccm_func ref, int mirror,
+                               double *e1_assoc, double *e1_corr)
+{
+    size_t n = r->nmeas, k = 0;
+    rpiv_status st = RPIV_OK;
+    double *t = malloc(3 * 2 * n * sizeof *t); /* (z, U_assoc, U_corr) */
+    double *z = malloc(2 * n * sizeof *z), *a = malloc(2 * n * sizeof *a),
+           *c = malloc(2 * n * sizeof *c), *f = malloc(2 * n * sizeof *f);
+    gsl_bspline_workspace *bw = gsl_bspline_alloc(ORDER, r->ncoef - ORDER + 2);
+    gsl_vector *b = gsl_vector_alloc(r->ncoef);
+    if (!t || !z || !a || !c || !f || !bw || !b) {
+        st = rpiv_fail(RPIV_ENOMEM, "ccm invert: out of memory");
+        goto out_free;
+    }
+    gsl_bspline_knots_uniform(0, 1, bw);
+    for (size_t j = 0; j < n; j++) {
+        double zz[2] = {r->zmax[j], 1 - r->zmax[j]};
+        for (int q = 0; q < (mirror && r->zmax[j] < 0.5 - 1e-9 ? 2 : 1); q++) {
+            if (!(zz[q] >= 0 && zz[q] <= 1))
+                continue;
+            gsl_bspline_eval(zz[q], b, bw);
+            double u = 0;
+            for (size_t i = 0; i < r->ncoef; i++)
+                u += gsl_vector_get(b, i) * r->coef[i];
+            t[3 * k] = zz[q];
+            t[3 * k + 1] = r->umeas[j];
+            t[3 * k + 2] = u;
+            k++;
+        }
+    }
+    qsort(t, k, 3 * sizeof *t, cmp_triple);
+    for (size_t i = 0; i < k; i++) {
+        z[i] = t[3 * i];
+        a[i] = t[3 * i + 1];
+        c[i] = t[3 * i + 2];
+        f[i] = ref.fn(ref.user, z[i]);
+    }
+    if ((st = rpiv_e1(z, f, a, k, e1_assoc)))
+        goto out_free;
+    st = rpiv_e1(z, f, c, k, e1_corr);
+out_free:
+    free(t);
+    free(z);
+    free(a);
+    free(c);
+    free(f);
+    gsl_vector_free(b);
+    if (bw)
+        gsl_bspline_free(bw);
     return st;
 }

@@ -245,3 +245,26 @@ out_free:
     free(smp.cdf);
     return st;
 }
+
+rpiv_status rpiv_ccm_mc_save(const rpiv_ccm_mc_result *r, double scale_px, double dx_int,
+                             double dx_sub_int, const char *hdr, const char *path)
+{
+    if (!(fabs(scale_px) > 0))
+        return rpiv_fail(RPIV_EINVAL, "ccm: displacement scale is zero");
+    char tmp[RPIV_PATH_MAX + 16];
+    FILE *fp;
+    rpiv_status st = ccm_file_begin(path, tmp, &fp);
+    if (st)
+        return st;
+    fprintf(fp, "# rpiv-ccm-mc 1\n");
+    ccm_file_header(fp, hdr);
+    fprintf(fp, "# repetitions = %zu\n", r->repeats);
+    fprintf(fp, "# integral U* = %.10g (continuous peak), %.10g (sub-pixel estimator)\n",
+            dx_int / scale_px, dx_sub_int / scale_px);
+    fprintf(fp, "# columns: N_im mean_U* std_U* mean_U*_subpixel std_U*_subpixel\n");
+    for (size_t k = 0; k < r->nnim; k++)
+        fprintf(fp, "%zu %.10g %.6e %.10g %.6e\n", r->nim[k], r->mean[k] / scale_px,
+                r->std[k] / fabs(scale_px), r->mean_sub[k] / scale_px,
+                r->std_sub[k] / fabs(scale_px));
+    return ccm_file_end(fp, tmp, path);
+}

@@ -225,22 +225,12 @@ out_free:
 rpiv_status rpiv_ccm_table_save(const rpiv_ccm_table *t, const char *hdr, const char *path)
 {
     char tmp[RPIV_PATH_MAX + 16];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp)
-        return rpiv_fail(RPIV_EINVAL, "%s: path too long", path);
-    FILE *fp = fopen(tmp, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create: %s", path, strerror(errno));
+    FILE *fp;
+    rpiv_status st = ccm_file_begin(path, tmp, &fp);
+    if (st)
+        return st;
     fprintf(fp, "# rpiv-ccm 1\n");
-    if (hdr) {
-        const char *s = hdr;
-        while (*s) {
-            size_t len = strcspn(s, "\n");
-            fprintf(fp, "# %.*s\n", (int)len, s);
-            s += len;
-            if (*s == '\n')
-                s++;
-        }
-    }
+    ccm_file_header(fp, hdr);
     fprintf(fp, "# E1 = %.6g (continuous peak), %.6g (sub-pixel estimator)\n", t->e1, t->e1_sub);
     fprintf(fp, "# max |relative error| = %.6g (continuous peak), %.6g (sub-pixel estimator)\n",
             t->maxerr, t->maxerr_sub);
@@ -250,11 +240,5 @@ rpiv_status rpiv_ccm_table_save(const rpiv_ccm_table *t, const char *hdr, const 
         fprintf(fp, "%.8g %.8g %.10g %.10g %.10g %.6e %.6e %d\n", r->xstar, r->zstar, r->uref,
                 r->umodel, r->usub, r->err, r->err_sub, r->mirrored);
     }
-    int bad = ferror(fp);
-    bad |= fclose(fp) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        remove(tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    }
-    return RPIV_OK;
+    return ccm_file_end(fp, tmp, path);
 }

@@ -613,29 +613,11 @@ static void invert_halves_the_association_error(void)
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
     ip.symmetric = 1;
     rpiv_ccm_invert_result *r = NULL;
-    CHECK_OK(rpiv_ccm_invert(&m, s, x, um, NM, &ip, &P, NULL, &r));
+    CHECK_OK(rpiv_ccm_invert(&m, s, x, um, NULL, NM, &ip, &P, NULL, &r));
     if (r) {
-        /* both profiles on the same heights: z*_max(x_j) and their mirrors */
-        double z[2 * NM], ref[2 * NM], assoc[2 * NM], corr[2 * NM];
-        size_t n = 0;
-        for (int j = 0; j < NM; j++) {
-            z[n] = r->zmax[j];
-            assoc[n++] = um[j];
-        }
-        for (int j = NM - 1; j >= 0; j--)
-            if (r->zmax[j] < 0.5 - 1e-9) {
-                z[n] = 1 - r->zmax[j];
-                assoc[n++] = um[j];
-            }
-        for (size_t i = 0; i < n; i++) {
-            ref[i] = rpiv_duct_u(0.5, z[i]);
-            double f = z[i] * (double)(r->nout - 1);
-            size_t a = (size_t)f < r->nout - 1 ? (size_t)f : r->nout - 2;
-            corr[i] = r->u[a] + (f - (double)a) * (r->u[a + 1] - r->u[a]);
-        }
         double e1a = 0, e1c = 0;
-        CHECK_OK(rpiv_e1(z, ref, assoc, n, &e1a));
-        CHECK_OK(rpiv_e1(z, ref, corr, n, &e1c));
+        rpiv_ccm_func duct = {rpiv_ccm_duct_fn, NULL};
+        CHECK_OK(rpiv_ccm_invert_e1(r, duct, 1, &e1a, &e1c));
         printf("  E1 association %.5f, corrected %.5f (ratio %.3f), sigma %.5f, %zu iterations\n",
                e1a, e1c, e1c / e1a, r->sigma, r->iterations);
         CHECK(e1c <= 0.5 * e1a);
@@ -656,9 +638,9 @@ static void invert_halves_the_association_error(void)
     }
     rpiv_ccm_invert_free(r);
     /* errors */
-    CHECK_FAILS(rpiv_ccm_invert(&m, s, x, um, 2, &ip, &P, NULL, &r), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_ccm_invert(&m, s, x, um, NULL, 2, &ip, &P, NULL, &r), RPIV_EINVAL);
     ip.ncoef = 3;
-    CHECK_FAILS(rpiv_ccm_invert(&m, s, x, um, NM, &ip, &P, NULL, &r), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_ccm_invert(&m, s, x, um, NULL, NM, &ip, &P, NULL, &r), RPIV_EINVAL);
     rpiv_ccm_work_free(w);
     rpiv_sheet_free(s);
 }
@@ -749,9 +731,9 @@ static void error_paths(void)
     double xs[4] = {1, 2, 3, 4}, us[4] = {1, 1.5, 1.8, 2};
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
     rpiv_ccm_invert_result *ir = NULL;
-    CHECK_FAILS(rpiv_ccm_invert(&m, s, xs, us, 4, &ip, &P, &stop, &ir), RPIV_EINTR);
+    CHECK_FAILS(rpiv_ccm_invert(&m, s, xs, us, NULL, 4, &ip, &P, &stop, &ir), RPIV_EINTR);
     us[2] = NAN;
-    CHECK_FAILS(rpiv_ccm_invert(&m, s, xs, us, 4, &ip, &P, NULL, &ir), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_ccm_invert(&m, s, xs, us, NULL, 4, &ip, &P, NULL, &ir), RPIV_EINVAL);
     ip.lambda = -1;
     CHECK_FAILS(rpiv_ccm_invert_params_check(&ip), RPIV_EINVAL);
 

@@ -120,6 +120,11 @@ typedef struct rpiv_ccm_model {
 rpiv_ccm_model rpiv_ccm_model_default(void);
 RPIV_NODISCARD rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m);
 
+struct rpiv_experiment;
+/* The default model with the experiment's camera, channel height, particle diameter and
+ * scale_px of dt_s (config.h); I0, U*, P stay the defaults. */
+rpiv_ccm_model rpiv_ccm_model_of(const struct rpiv_experiment *e, double dt_s);
+
 /* Displacement scale U_b dt M / pixel, px per unit U*. */
 double rpiv_ccm_scale_px(const rpiv_camera *cam, const rpiv_channel *ch, double dt_s);
 
@@ -245,6 +250,13 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_mc_run(const rpiv_ccm_model *m, const rpiv_c
                                            rpiv_ccm_mc_result **out);
 void rpiv_ccm_mc_free(rpiv_ccm_mc_result *r);
 
+/* Write a Monte-Carlo result as text: "# rpiv-ccm-mc 1", header lines hdr (may be NULL), the
+ * integral's peak (dx_int, dx_sub_int, px; NAN if not computed), then rows
+ * "N_im mean std mean_sub std_sub" in U* (px / scale_px). Atomic; RPIV_EIO. */
+RPIV_NODISCARD rpiv_status rpiv_ccm_mc_save(const rpiv_ccm_mc_result *r, double scale_px,
+                                            double dx_int, double dx_sub_int, const char *hdr,
+                                            const char *path);
+
 /* ---- the paper's scenarios --------------------------------------------------------------- */
 
 typedef enum rpiv_ccm_kind {
@@ -306,7 +318,8 @@ typedef struct rpiv_ccm_invert_params {
                           walls) (16)                                                          */
     double lambda;     /* weight of the second-difference penalty on the coefficients (1e-4)   */
     int symmetric;     /* 1: U(z*) = U(1 - z*) (0)                                             */
-    double sigma;      /* measurement standard deviation in U*; 0 = estimate from the fit (0)  */
+    double sigma;      /* measurement standard deviation in U* (the mean one if usigma is
+                          given); 0 = the mean of usigma, else estimated from the fit (0)      */
     size_t max_iter;   /* Levenberg-Marquardt iterations (100)                                 */
     double xtol;       /* gsl_multifit_nlinear_driver tolerances (1e-10, 1e-10, 1e-12)         */
     double gtol;
@@ -333,18 +346,33 @@ typedef struct rpiv_ccm_invert_result {
 } rpiv_ccm_invert_result;
 
 /* Reconstruct U*(z*) from R-PIV measurements umeas[j] at sections xstar[j] (U* units, i.e.
- * measured displacement / scale_px): minimise sum_j (U_pred(x_j) - umeas_j)^2 + lambda
- * |D2 c|^2 over the B-spline coefficients c, where U_pred(x_j) is the peak of Eq. "statform"
+ * measured displacement / scale_px), with standard deviations usigma[j] (NULL: all equal):
+ * minimise sum_j w_j (U_pred(x_j) - umeas_j)^2 + lambda |D2 c|^2 over the B-spline
+ * coefficients c, w_j = (mean sigma / sigma_j)^2, where U_pred(x_j) is the peak of Eq. "statform"
  * with the sheet at x_j (gsl_multifit_nlinear, trust region Levenberg-Marquardt, analytic
  * Jacobian by implicit differentiation of the peak condition). base gives the camera (object
  * plane), h, d_p, scale_px, P; its u, v and illum are ignored. The band is the Bayesian
  * covariance sigma^2 (J^T J + lambda D^T D)^-1 mapped to U(z). *out: rpiv_ccm_invert_free. */
 RPIV_NODISCARD rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
-                                           const double *xstar, const double *umeas, size_t n,
+                                           const double *xstar, const double *umeas,
+                                           const double *usigma, size_t n,
                                            const rpiv_ccm_invert_params *ip,
                                            const rpiv_ccm_params *p,
                                            const rpiv_progress *progress,
                                            rpiv_ccm_invert_result **out);
 void rpiv_ccm_invert_free(rpiv_ccm_invert_result *r);
+
+/* E1 (Eq. "E1") against a reference profile ref(z*) of the paper's association (the measured
+ * U* placed at z*_max(x*)) and of the reconstructed profile, both on the same heights: the
+ * z*_max of the measurements and, with mirror = 1, their mirrors 1 - z*_max for z*_max < 0.5
+ * (the paper's symmetric extension). */
+RPIV_NODISCARD rpiv_status rpiv_ccm_invert_e1(const rpiv_ccm_invert_result *r, rpiv_ccm_func ref,
+                                              int mirror, double *e1_assoc, double *e1_corr);
+
+/* Write an inversion as text: "# rpiv-ccm-invert 1", header lines hdr (may be NULL), sigma,
+ * chi2, then the profile rows "z* U* std" and, as '#m' lines, the measurements
+ * "x* z*_max U_meas U_fit". Atomic; RPIV_EIO. */
+RPIV_NODISCARD rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r,
+                                                const char *hdr, const char *path);
 
 #endif /* RPIV_CCM_H */
