@@ -29,7 +29,8 @@ rpiv_ccm_params rpiv_ccm_params_default(void)
                              .xtol_px = 1e-7,
                              .max_iter = 500,
                              .max_range_px = 4096,
-                             .subpixel = RPIV_SUBPIXEL_GAUSS};
+                             .subpixel = RPIV_SUBPIXEL_GAUSS,
+                             .utab = 4097};
 }
 
 rpiv_status rpiv_ccm_params_check(const rpiv_ccm_params *p)
@@ -50,6 +51,8 @@ rpiv_status rpiv_ccm_params_check(const rpiv_ccm_params *p)
         return rpiv_fail(RPIV_EINVAL, "ccm.max_iter: %d outside 1..1e6", p->max_iter);
     if (p->max_range_px < 3 || p->max_range_px > 1000000)
         return rpiv_fail(RPIV_EINVAL, "ccm.max_range_px: %d outside 3..1e6", p->max_range_px);
+    if ((p->utab > 0 && p->utab < 5) || p->utab > 10000000)
+        return rpiv_fail(RPIV_EINVAL, "ccm.utab: %zu nodes: 0 or 5..1e7", p->utab);
     if (p->subpixel < RPIV_SUBPIXEL_GAUSS || p->subpixel > RPIV_SUBPIXEL_CENTROID)
         return rpiv_fail(RPIV_EINVAL, "ccm.subpixel: unknown estimator %d", (int)p->subpixel);
     return RPIV_OK;
@@ -584,26 +587,51 @@ static double sheet_neg(double z, void *u)
     return -rpiv_ccm_sheet_fn(u, z);
 }
 
+/* Scan [a, b] with n + 1 samples; return the index of the largest and its value. */
+static size_t scan_max(const rpiv_ccm_sheet_at *at, double a, double b, size_t n, double *best)
+{
+    size_t k = 0;
+    *best = -1;
+    for (size_t i = 0; i <= n; i++) {
+        double v = rpiv_ccm_sheet_fn(at, a + (b - a) * (double)i / (double)n);
+        if (v > *best) {
+            *best = v;
+            k = i;
+        }
+    }
+    return k;
+}
+
 rpiv_status rpiv_ccm_sheet_zmax(const rpiv_sheet *s, double xstar, const rpiv_ccm_params *p,
                                 double *zmax)
 {
     rpiv_ccm_sheet_at at = {s, xstar};
-    size_t n = p->scan, k = 0;
-    double best = -1;
-    for (size_t i = 0; i < n; i++) {
-        double v = rpiv_ccm_sheet_fn(&at, (double)i / (n - 1));
-        if (v > best) {
-            best = v;
-            k = i;
-        }
+    /* a coarse scan (1/16 of p->scan), then the fine one around its maximum; the full fine
+     * scan if the coarse one sees no light */
+    size_t nf = p->scan - 1, nc = nf / 16 >= 16 ? nf / 16 : nf;
+    double best, h = 1.0 / (double)nf;
+    size_t kc = scan_max(&at, 0, 1, nc, &best);
+    double lo = 0, hi = 1;
+    size_t n = nf;
+    if (best > 0 && nc < nf) {
+        lo = fmax(0, (double)(kc - (kc > 0)) / (double)nc);
+        hi = fmin(1, (double)(kc + 1) / (double)nc);
+        n = (size_t)lround((hi - lo) / h);
+    }
+    size_t k = scan_max(&at, lo, hi, n, &best);
+    if (!(best > 0) && n < nf) {
+        lo = 0;
+        hi = 1;
+        n = nf;
+        k = scan_max(&at, lo, hi, n, &best);
     }
     if (!(best > 0))
         return rpiv_fail(RPIV_ENUMERIC, "ccm: the sheet is zero at x* = %g", xstar);
-    double z = (double)k / (n - 1);
+    double step = (hi - lo) / (double)n, z = lo + step * (double)k;
     *zmax = z;
-    if (k == 0 || k == n - 1)
+    if ((k == 0 && lo == 0) || (k == n && hi == 1))
         return RPIV_OK;
-    double a = (double)(k - 1) / (n - 1), b = (double)(k + 1) / (n - 1);
+    double a = z - step, b = z + step;
     double fa = -rpiv_ccm_sheet_fn(&at, a), fb = -rpiv_ccm_sheet_fn(&at, b);
     if (!(-best < fa && -best < fb))
         return RPIV_OK; /* a plateau at the sampled maximum */
@@ -614,8 +642,8 @@ rpiv_status rpiv_ccm_sheet_zmax(const rpiv_sheet *s, double xstar, const rpiv_cc
     int gs = gsl_min_fminimizer_set_with_values(m, &F, z, -best, a, fa, b, fb);
     for (int it = 0; gs == GSL_SUCCESS && it < p->max_iter; it++) {
         gs = gsl_min_fminimizer_iterate(m);
-        double lo = gsl_min_fminimizer_x_lower(m), hi = gsl_min_fminimizer_x_upper(m);
-        if (!gs && hi - lo < 1e-12 + 4 * GSL_SQRT_DBL_EPSILON * fabs(lo))
+        double l = gsl_min_fminimizer_x_lower(m), u = gsl_min_fminimizer_x_upper(m);
+        if (!gs && u - l < 1e-12 + 4 * GSL_SQRT_DBL_EPSILON * fabs(l))
             break;
     }
     if (!gs)
@@ -873,17 +901,22 @@ rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, dou
                             .dy = ddy};
 }
 
-rpiv_ccm_gauss ccm_simp_term(const ccm_frame *f, double z)
+rpiv_ccm_gauss ccm_amp_term(const ccm_frame *f, double z)
 {
     const rpiv_ccm_model *m = f->m;
     double i0 = m->illum.fn(m->illum.user, z);
     double p, v;
     image_of(f, z, i0 > 0 ? i0 : 0, m->dp_m, &p, &v);
-    double u = m->u.fn(m->u.user, z), w = m->v.fn ? m->v.fn(m->v.user, z) : 0;
-    return (rpiv_ccm_gauss){.amp = p * p * M_PI * v / f->ref,
-                            .c = 1 / (4 * v),
-                            .dx = u * m->scale_px,
-                            .dy = w * m->scale_px};
+    return (rpiv_ccm_gauss){.amp = p * p * M_PI * v / f->ref, .c = 1 / (4 * v), .dx = 0, .dy = 0};
+}
+
+rpiv_ccm_gauss ccm_simp_term(const ccm_frame *f, double z)
+{
+    const rpiv_ccm_model *m = f->m;
+    rpiv_ccm_gauss g = ccm_amp_term(f, z);
+    g.dx = m->u.fn(m->u.user, z) * m->scale_px;
+    g.dy = m->v.fn ? m->v.fn(m->v.user, z) * m->scale_px : 0;
+    return g;
 }
 
 double ccm_presence(const rpiv_ccm_model *m, double z)

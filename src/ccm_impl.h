@@ -16,6 +16,7 @@ struct rpiv_ccm_work {
     double *ia, *ib;         /* intervals of the last adaptive pass (p.limit) */
     size_t nint;
     rpiv_ccm_corr *corr;     /* the rule of rpiv_ccm_predict */
+    gsl_integration_glfixed_table *gl1; /* coarse rule of the first pass */
     double *zn;              /* heights of the terms of the last rule built */
     size_t zcap;
 };
@@ -33,8 +34,22 @@ void ccm_frame_init(ccm_frame *f, const rpiv_ccm_model *m);
 /* The term of one particle (Eq. "CCM_gen"), relative to the reference. */
 rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, double i2,
                         double dp1, double dp2, double ddx, double ddy);
-/* The Eq. "CCM_simp" term of a particle at height z (I0, d_e, DX, DY from the model). */
+/* The Eq. "CCM_simp" term of a particle at height z (I0, d_e, DX, DY from the model);
+ * ccm_amp_term: the same without evaluating the velocity (DX = DY = 0). */
+rpiv_ccm_gauss ccm_amp_term(const ccm_frame *f, double z);
 rpiv_ccm_gauss ccm_simp_term(const ccm_frame *f, double z);
+
+/* The velocity profile of a model tabulated on p->utab nodes of [zlo, zhi] (Akima spline),
+ * when p->utab > 0: *tm is a copy of m whose u (and v) read the table. Release with
+ * ccm_utab_free. */
+typedef struct ccm_utab {
+    void *su, *sv; /* gsl_spline */
+    rpiv_ccm_func u0, v0;
+    double zlo, zhi;
+} ccm_utab;
+RPIV_NODISCARD rpiv_status ccm_utab_init(ccm_utab *t, const rpiv_ccm_model *m,
+                                         const rpiv_ccm_params *p, rpiv_ccm_model *tm);
+void ccm_utab_free(ccm_utab *t);
 
 /* Presence law P(z) (unnormalised; 1 when the model has none). */
 double ccm_presence(const rpiv_ccm_model *m, double z);

@@ -186,9 +186,16 @@ rpiv_status rpiv_ccm_mc_run(const rpiv_ccm_model *m, const rpiv_ccm_params *p,
         (st = rpiv_ccm_mc_params_check(mc)))
         return st;
     size_t R = mc->repeats, K = mc->nnim;
-    sampler smp;
-    if ((st = sampler_init(&smp, m, p->scan)))
+    ccm_utab tab;
+    rpiv_ccm_model tm;
+    if ((st = ccm_utab_init(&tab, m, p, &tm)))
         return st;
+    m = &tm; /* the velocity from the table from here on */
+    sampler smp;
+    if ((st = sampler_init(&smp, m, p->scan))) {
+        ccm_utab_free(&tab);
+        return st;
+    }
     rpiv_ccm_mc_result *res = calloc(1, sizeof *res);
     rpiv_status *sts = calloc(R, sizeof *sts);
     char(*msg)[256] = calloc(R, sizeof *msg);
@@ -243,6 +250,7 @@ out_free:
     free(sts);
     free(msg);
     free(smp.cdf);
+    ccm_utab_free(&tab);
     return st;
 }
 

@@ -59,8 +59,8 @@ void rpiv_ccm_table_free(rpiv_ccm_table *t)
 
 /* One position of a scenario. */
 static rpiv_status position(const rpiv_ccm_scenario *s, const rpiv_ccm_model *base,
-                            const rpiv_sheet *sheet, rpiv_ccm_work *w, size_t i,
-                            rpiv_ccm_row *row)
+                            const rpiv_ccm_func *uref, const rpiv_sheet *sheet, rpiv_ccm_work *w,
+                            size_t i, rpiv_ccm_row *row)
 {
     rpiv_status st;
     double zt = s->z0 + (s->z1 - s->z0) * (double)i / (double)(s->n - 1);
@@ -95,7 +95,7 @@ static rpiv_status position(const rpiv_ccm_scenario *s, const rpiv_ccm_model *ba
     rpiv_sheet_free(own);
     if (st)
         return st;
-    row->uref = m.u.fn(m.u.user, row->zstar);
+    row->uref = uref->fn(uref->user, row->zstar);
     row->umodel = pk.dx / m.scale_px;
     row->usub = pk.dx_sub / m.scale_px;
     row->err = (row->umodel - row->uref) / row->uref;
@@ -154,6 +154,10 @@ rpiv_status rpiv_ccm_scenario_run(const rpiv_ccm_scenario *s, const rpiv_ccm_mod
         return rpiv_fail(RPIV_EINVAL, "ccm: the R-PIV scenario needs a sheet");
     size_t n = s->n;
     int nth = threads > 0 ? threads : omp_get_max_threads();
+    ccm_utab tab;
+    rpiv_ccm_model tb;
+    if ((st = ccm_utab_init(&tab, base, p, &tb)))
+        return st;
     rpiv_ccm_table *t = calloc(1, sizeof *t);
     rpiv_ccm_row *rows = calloc(2 * n, sizeof *rows);
     rpiv_ccm_work **w = calloc((size_t)nth, sizeof *w);
@@ -172,7 +176,8 @@ rpiv_status rpiv_ccm_scenario_run(const rpiv_ccm_scenario *s, const rpiv_ccm_mod
         size_t e = b + batch < n ? b + batch : n;
 #pragma omp parallel for num_threads(nth) schedule(dynamic, 1)
         for (long i = (long)b; i < (long)e; i++) {
-            sts[i] = position(s, base, sheet, w[omp_get_thread_num()], (size_t)i, &rows[i]);
+            sts[i] = position(s, &tb, &base->u, sheet, w[omp_get_thread_num()], (size_t)i,
+                              &rows[i]);
             if (sts[i])
                 snprintf(msg[i], sizeof msg[i], "%s", rpiv_errmsg());
         }
@@ -211,6 +216,7 @@ rpiv_status rpiv_ccm_scenario_run(const rpiv_ccm_scenario *s, const rpiv_ccm_mod
     *out = t;
     t = NULL;
 out_free:
+    ccm_utab_free(&tab);
     if (w)
         for (int k = 0; k < nth; k++)
             rpiv_ccm_work_free(w[k]);

@@ -8,8 +8,11 @@
 #include <string.h>
 
 #include <gsl/gsl_errno.h>
+#include <gsl/gsl_spline.h>
 
 #define MAX_PTS (RPIV_CCM_MAX_BREAKS + 12)
+/* Gauss-Legendre points of the first pass, which only locates the integer peak */
+#define COARSE_POINTS 5
 
 rpiv_status rpiv_ccm_work_new(const rpiv_ccm_params *p, rpiv_ccm_work **out)
 {
@@ -23,11 +26,12 @@ rpiv_status rpiv_ccm_work_new(const rpiv_ccm_params *p, rpiv_ccm_work **out)
     w->p = *p;
     w->iw = gsl_integration_workspace_alloc(p->limit);
     w->gl = gsl_integration_glfixed_table_alloc(p->gl_points);
+    w->gl1 = gsl_integration_glfixed_table_alloc(COARSE_POINTS);
     w->scan_z = malloc(p->scan * sizeof *w->scan_z);
     w->scan_v = malloc(p->scan * sizeof *w->scan_v);
     w->ia = malloc(p->limit * sizeof *w->ia);
     w->ib = malloc(p->limit * sizeof *w->ib);
-    if (!w->iw || !w->gl || !w->scan_z || !w->scan_v || !w->ia || !w->ib) {
+    if (!w->iw || !w->gl || !w->gl1 || !w->scan_z || !w->scan_v || !w->ia || !w->ib) {
         rpiv_ccm_work_free(w);
         return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for the quadrature workspace");
     }
@@ -48,6 +52,8 @@ void rpiv_ccm_work_free(rpiv_ccm_work *w)
         gsl_integration_workspace_free(w->iw);
     if (w->gl)
         gsl_integration_glfixed_table_free(w->gl);
+    if (w->gl1)
+        gsl_integration_glfixed_table_free(w->gl1);
     free(w->scan_z);
     free(w->scan_v);
     free(w->ia);
@@ -131,9 +137,11 @@ typedef struct integ {
 static double integrand(double z, void *u)
 {
     const integ *q = u;
+    if (!q->nshift) /* the amplitude alone: no velocity needed */
+        return ccm_amp_term(&q->f, z).amp * ccm_presence(q->f.m, z) * q->f.pnorm;
     rpiv_ccm_gauss g = ccm_simp_term(&q->f, z);
     double a = g.amp * ccm_presence(q->f.m, z) * q->f.pnorm;
-    if (!q->nshift || !(a > 0))
+    if (!(a > 0))
         return a;
     double s = 0;
     for (int k = 0; k < q->nshift; k++) {
@@ -228,21 +236,23 @@ static rpiv_status partition(rpiv_ccm_work *w, integ *q, const double *pts, size
 }
 
 /* Gauss-Legendre nodes on the partition, each interval split to max_width: one term each. */
-static rpiv_status fill_rule(rpiv_ccm_work *w, const integ *q, rpiv_ccm_corr *out)
+static rpiv_status fill_rule(rpiv_ccm_work *w, const integ *q, int coarse, rpiv_ccm_corr *out)
 {
     out->n = 0;
     rpiv_status st;
+    const gsl_integration_glfixed_table *gl = coarse ? w->gl1 : w->gl;
+    size_t npt = coarse ? COARSE_POINTS : w->p.gl_points;
     for (size_t i = 0; i < w->nint; i++) {
         double a = w->ia[i], b = w->ib[i];
-        size_t nsub = (size_t)ceil((b - a) / w->p.max_width - 1e-9);
+        size_t nsub = coarse ? 1 : (size_t)ceil((b - a) / w->p.max_width - 1e-9);
         if (nsub < 1)
             nsub = 1;
         for (size_t s = 0; s < nsub; s++) {
             double sa = a + (b - a) * (double)s / (double)nsub;
             double sb = s + 1 == nsub ? b : a + (b - a) * (double)(s + 1) / (double)nsub;
-            for (size_t k = 0; k < w->p.gl_points; k++) {
+            for (size_t k = 0; k < npt; k++) {
                 double zk, wk;
-                gsl_integration_glfixed_point(sa, sb, k, &zk, &wk, w->gl);
+                gsl_integration_glfixed_point(sa, sb, k, &zk, &wk, gl);
                 rpiv_ccm_gauss g = ccm_simp_term(&q->f, zk);
                 g.amp *= wk * ccm_presence(q->f.m, zk) * q->f.pnorm;
                 if (!(g.amp > 0))
@@ -275,7 +285,7 @@ rpiv_status rpiv_ccm_stat_corr_fixed(const rpiv_ccm_model *m, rpiv_ccm_work *w,
         return st;
     if ((st = partition(w, &q, pts, npts)))
         return st;
-    return fill_rule(w, &q, out);
+    return fill_rule(w, &q, 0, out);
 }
 
 rpiv_status rpiv_ccm_stat_corr(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm_corr *out)
@@ -286,8 +296,8 @@ rpiv_status rpiv_ccm_stat_corr(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_c
     rpiv_status st = setup(m, w, &q, pts, &npts);
     if (st)
         return st;
-    /* first pass: the amplitude alone, to find the sampled peak */
-    if ((st = partition(w, &q, pts, npts)) || (st = fill_rule(w, &q, out)))
+    /* first pass: the amplitude alone and a coarse rule, to find the sampled peak */
+    if ((st = partition(w, &q, pts, npts)) || (st = fill_rule(w, &q, 1, out)))
         return st;
     int mx, my;
     if ((st = ccm_sampled_max(out, &w->p, &mx, &my)))
@@ -302,7 +312,7 @@ rpiv_status rpiv_ccm_stat_corr(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_c
     if ((st = partition(w, &q, pts, npts)))
         return st;
     q.nshift = 0;
-    return fill_rule(w, &q, out);
+    return fill_rule(w, &q, 0, out);
 }
 
 rpiv_status rpiv_ccm_predict(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm_peak *out)
@@ -311,4 +321,89 @@ rpiv_status rpiv_ccm_predict(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm
     if (st)
         return st;
     return rpiv_ccm_corr_peak(w->corr, &w->p, out);
+}
+
+/* ---- the tabulated velocity profile ----------------------------------------------------- */
+
+static double utab_u(const void *user, double z)
+{
+    const ccm_utab *t = user;
+    if (!(z >= t->zlo && z <= t->zhi))
+        return t->u0.fn(t->u0.user, z);
+    return gsl_spline_eval(t->su, z, NULL);
+}
+
+static double utab_v(const void *user, double z)
+{
+    const ccm_utab *t = user;
+    if (!(z >= t->zlo && z <= t->zhi))
+        return t->v0.fn(t->v0.user, z);
+    return gsl_spline_eval(t->sv, z, NULL);
+}
+
+static rpiv_status spline_of(rpiv_ccm_func f, double zlo, double zhi, size_t n, void **out)
+{
+    double *x = malloc(n * sizeof *x), *y = malloc(n * sizeof *y);
+    gsl_spline *s = gsl_spline_alloc(gsl_interp_akima, n);
+    rpiv_status st = RPIV_OK;
+    if (!x || !y || !s) {
+        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for the velocity table");
+        goto out_free;
+    }
+    for (size_t i = 0; i < n; i++) {
+        x[i] = zlo + (zhi - zlo) * (double)i / (double)(n - 1);
+        y[i] = f.fn(f.user, x[i]);
+        if (!isfinite(y[i])) {
+            st = rpiv_fail(RPIV_EINVAL, "ccm: the velocity profile is not finite at z* = %g",
+                           x[i]);
+            goto out_free;
+        }
+    }
+    x[n - 1] = zhi;
+    int gs = gsl_spline_init(s, x, y, n);
+    if (gs) {
+        st = ccm_gsl_fail(gs, "the velocity table");
+        goto out_free;
+    }
+    *out = s;
+    s = NULL;
+out_free:
+    if (s)
+        gsl_spline_free(s);
+    free(x);
+    free(y);
+    return st;
+}
+
+rpiv_status ccm_utab_init(ccm_utab *t, const rpiv_ccm_model *m, const rpiv_ccm_params *p,
+                          rpiv_ccm_model *tm)
+{
+    memset(t, 0, sizeof *t);
+    *tm = *m;
+    if (!p->utab)
+        return RPIV_OK;
+    t->u0 = m->u;
+    t->v0 = m->v;
+    t->zlo = m->zlo;
+    t->zhi = m->zhi;
+    rpiv_status st = spline_of(m->u, m->zlo, m->zhi, p->utab, &t->su);
+    if (!st && m->v.fn)
+        st = spline_of(m->v, m->zlo, m->zhi, p->utab, &t->sv);
+    if (st) {
+        ccm_utab_free(t);
+        return st;
+    }
+    tm->u = (rpiv_ccm_func){utab_u, t};
+    if (m->v.fn)
+        tm->v = (rpiv_ccm_func){utab_v, t};
+    return RPIV_OK;
+}
+
+void ccm_utab_free(ccm_utab *t)
+{
+    if (t->su)
+        gsl_spline_free(t->su);
+    if (t->sv)
+        gsl_spline_free(t->sv);
+    t->su = t->sv = NULL;
 }

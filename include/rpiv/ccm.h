@@ -39,6 +39,9 @@ typedef struct rpiv_ccm_params {
     int max_iter;         /* iterations of the peak minimiser (500)                           */
     int max_range_px;     /* widest integer-sampled correlation plane per axis, px (4096)     */
     rpiv_subpixel subpixel; /* sub-pixel estimator on the sampled plane (gauss)               */
+    size_t utab;          /* runs over many windows (scenarios, Monte-Carlo) tabulate U*, V*
+                             on this many nodes of [zlo, zhi] (Akima spline; 3e-11 for the
+                             duct); 0 = evaluate the profile every time (4097)               */
 } rpiv_ccm_params;
 
 rpiv_ccm_params rpiv_ccm_params_default(void);
