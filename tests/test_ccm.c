@@ -939,7 +939,7 @@ static void parameter_checks(void)
     rpiv_ccm_mc_result *r = NULL;
     CHECK_FAILS(rpiv_ccm_mc_run(&m, &P, &mc, NULL, &r), RPIV_EINVAL);
     /* curves of fewer than 2 points or with NaN */
-    const double x1[1] = {0}, nanv[2] = {0, NAN};
+    const double x1[2] = {0, 1}, nanv[2] = {0, NAN};
     rpiv_ccm_curve *c = NULL;
     CHECK_FAILS(rpiv_ccm_curve_new(x1, x1, 1, &c), RPIV_EINVAL);
     CHECK_FAILS(rpiv_ccm_curve_new(x1, nanv, 2, &c), RPIV_EINVAL);
