@@ -186,8 +186,9 @@ static enum fate trace_ray(const setup *s, long i, double h, ray_out *r)
 {
     r->w = s->wnorm * exp(-2.0 * h * h / (s->W * s->W));
     r->T1 = r->T2 = 0;
-    /* thin lens on slopes: tan(alpha') = tan(alpha) - h / f */
-    double slope = tan(div_angle(i, s->div_sd)) - h * s->inv_f, k = 1.0 / sqrt(1.0 + slope * slope);
+    /* thin lens on slopes: tan(alpha') = tan(alpha) - h / f; the divergence angles (about
+     * 1 mrad) are taken as slopes */
+    double slope = div_angle(i, s->div_sd) - h * s->inv_f, k = 1.0 / sqrt(1.0 + slope * slope);
     vec2 d = {(s->d0.x + slope * s->u.x) * k, (s->d0.z + slope * s->u.z) * k};
     vec2 S = {s->L.x + h * s->u.x, s->L.z + h * s->u.z};
     /* free flight to the inclined face */
@@ -260,8 +261,12 @@ enum { S_INC, S_RFACE, S_RFLOOR, S_TIR, S_MISS, S_TRANS, S_N };
 
 /* Trace rays [i0, i1) into one chunk's histogram and sums, in ray order. */
 static void trace_chunk(const setup *s, long nrays, long i0, long i1, const double *X, size_t nx,
-                        double h, size_t nz, double dz, double *hist, double *sum, long *cnt)
+                        double h, size_t nz, double dz, double *hist, double *sum_out,
+                        long *cnt_out)
 {
+    /* local sums: the chunks' output slots share cache lines */
+    double sum[S_N] = {0};
+    long cnt[3] = {0};
     for (long i = i0; i < i1; i++) {
         double hh = s->bundle * (((double)i + 0.5) / (double)nrays - 0.5);
         ray_out r;
@@ -296,6 +301,8 @@ static void trace_chunk(const setup *s, long nrays, long i0, long i1, const doub
                 hist[k * nz + j] += wz;
         }
     }
+    memcpy(sum_out, sum, sizeof sum);
+    memcpy(cnt_out, cnt, sizeof cnt);
 }
 
 /* Gaussian smoothing with the kernel renormalised over the bins inside the channel. */
