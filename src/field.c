@@ -29,10 +29,11 @@ rpiv_status rpiv_field_new(int nx, int ny, double x0, double y0, double dx, doub
         return rpiv_fail(RPIV_EINVAL, "field: grid %d x %d is empty", nx, ny);
     if ((size_t)nx > SIZE_MAX / 16 / (size_t)ny)
         return rpiv_fail(RPIV_EINVAL, "field: grid %d x %d is too large", nx, ny);
-    if (!isfinite(x0) || !isfinite(y0) || !isfinite(dx) || !isfinite(dy) || !(dx > 0) ||
-        !(dy > 0))
-        return rpiv_fail(RPIV_EINVAL, "field: grid origin (%g, %g) step (%g, %g) must be finite "
-                                      "with positive steps", x0, y0, dx, dy);
+    if (!isfinite(x0) || !isfinite(y0) || !isfinite(dx) || !isfinite(dy) || !(dx > 0) || !(dy > 0))
+        return rpiv_fail(RPIV_EINVAL,
+                         "field: grid origin (%g, %g) step (%g, %g) must be finite "
+                         "with positive steps",
+                         x0, y0, dx, dy);
     size_t n = (size_t)nx * (size_t)ny;
     rpiv_field *f = calloc(1, sizeof *f);
     if (!f)
@@ -108,8 +109,10 @@ static int key_ok(const char *k)
 rpiv_status rpiv_meta_add(rpiv_meta *m, const char *key, const char *fmt, ...)
 {
     if (!key_ok(key))
-        return rpiv_fail(RPIV_EINVAL, "meta: key '%s' must start with a letter and hold only "
-                                      "letters, digits, '_', '.', '-'", key);
+        return rpiv_fail(RPIV_EINVAL,
+                         "meta: key '%s' must start with a letter and hold only "
+                         "letters, digits, '_', '.', '-'",
+                         key);
     va_list ap;
     va_start(ap, fmt);
     int len = vsnprintf(NULL, 0, fmt, ap);
@@ -261,8 +264,7 @@ rpiv_status atomic_commit(atomic_file *af)
     if (!err && rename(af->tmp, af->path) != 0)
         err = errno;
     if (err) {
-        rpiv_status st =
-            rpiv_fail(RPIV_EIO, "%s: cannot write: %s", af->path, strerror(err));
+        rpiv_status st = rpiv_fail(RPIV_EIO, "%s: cannot write: %s", af->path, strerror(err));
         atomic_abort(af);
         return st;
     }
@@ -298,8 +300,7 @@ static int ext_is(const char *ext, const char *want)
     return strcasecmp(ext, want) == 0;
 }
 
-typedef rpiv_status (*stream_writer)(const rpiv_field *, const rpiv_meta *, FILE *,
-                                     const char *);
+typedef rpiv_status (*stream_writer)(const rpiv_field *, const rpiv_meta *, FILE *, const char *);
 
 rpiv_status rpiv_field_save(const rpiv_field *f, const rpiv_meta *meta, const char *path)
 {
@@ -331,8 +332,20 @@ rpiv_status rpiv_field_save(const rpiv_field *f, const rpiv_meta *meta, const ch
 
 /* ---- text columns ----------------------------------------------------------- */
 
-rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
-                            const char *path)
+/* The shortest %g form (6 to 9 digits) that reads back as the same float, so text files
+ * round-trip exactly and stay readable (0.3187, not 0.318699986). */
+static void put_float(FILE *fp, float v)
+{
+    char buf[32];
+    for (int p = 6; p <= 9; p++) {
+        snprintf(buf, sizeof buf, "%.*g", p, (double)v);
+        if (strtof(buf, NULL) == v)
+            break;
+    }
+    fputs(buf, fp);
+}
+
+rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp, const char *path)
 {
     int phys = field_has_phys(f);
     fprintf(fp, "# rpiv vector field 1\n");
@@ -345,14 +358,19 @@ rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp
         fprintf(fp, "# dt_s = %.17g\n", f->dt_s);
     for (size_t k = 0; meta && k < meta->n; k++)
         fprintf(fp, "# %s = %s\n", meta->key[k], meta->val[k]);
-    fprintf(fp, "# x y u v flag peak_ratio correlation%s\n",
-            phys ? " x_mm y_mm u_ms v_ms" : "");
+    fprintf(fp, "# x y u v flag peak_ratio correlation%s\n", phys ? " x_mm y_mm u_ms v_ms" : "");
     for (int j = 0; j < f->ny; j++) {
         for (int i = 0; i < f->nx; i++) {
             size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
             double x = f->x0 + i * f->dx, y = f->y0 + j * f->dy;
-            fprintf(fp, "%.10g %.10g %.9g %.9g %d %.9g %.9g", x, y, (double)f->u[k],
-                    (double)f->v[k], f->flag[k], (double)f->peak_ratio[k], (double)f->corr[k]);
+            fprintf(fp, "%.10g %.10g ", x, y);
+            put_float(fp, f->u[k]);
+            fputc(' ', fp);
+            put_float(fp, f->v[k]);
+            fprintf(fp, " %d ", f->flag[k]);
+            put_float(fp, f->peak_ratio[k]);
+            fputc(' ', fp);
+            put_float(fp, f->corr[k]);
             if (phys) {
                 double s = f->scale_mm_per_px, ms = s * 1e-3 / f->dt_s;
                 fprintf(fp, " %.10g %.10g %.9g %.9g", x * s, y * s, (double)f->u[k] * ms,

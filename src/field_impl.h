@@ -29,10 +29,10 @@ void atomic_abort(atomic_file *af);
 const char *field_ext(const char *path);
 
 /* Writers by format; each writes into af (already open) and names af->path in messages. */
-RPIV_NODISCARD rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta,
-                                           FILE *fp, const char *path);
-RPIV_NODISCARD rpiv_status field_write_tecplot(const rpiv_field *f, const rpiv_meta *meta,
-                                               FILE *fp, const char *path);
+RPIV_NODISCARD rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
+                                           const char *path);
+RPIV_NODISCARD rpiv_status field_write_tecplot(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
+                                               const char *path);
 RPIV_NODISCARD rpiv_status field_write_vtk(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
                                            const char *path);
 RPIV_NODISCARD rpiv_status field_save_nc(const rpiv_field *f, const rpiv_meta *meta,
