@@ -41,6 +41,14 @@ grep -q 'beta1_side pmma polarisation s' "$tmp/s/raytrace_profile.txt" && ok || 
 cmp -s "$tmp/t1/raytrace_profile.txt" "$tmp/t2/raytrace_profile.txt" && ok || ko "thread count changes the profile"
 cmp -s "$tmp/t1/raytrace_metrics.txt" "$tmp/t2/raytrace_metrics.txt" && ok || ko "thread count changes the metrics"
 
+# plots
+"$bin" raytrace --rays 20000 --out "$tmp/p" --png --sweep beta1:1:2:0.5 --sensitivity \
+    --stations 2:8:1 >/dev/null 2>"$tmp/err" && ok || ko "--png: $(cat "$tmp/err")"
+for f in profile metrics map sweep sweep_profiles sensitivity; do
+    head -c 8 "$tmp/p/raytrace_$f.png" 2>/dev/null | od -An -tx1 | tr -d ' \n' | grep -qx '89504e470d0a1a0a' \
+        && ok || ko "raytrace_$f.png is not a PNG"
+done
+
 "$bin" raytrace --help | grep -q '^usage: rpiv raytrace' && ok || ko "--help"
 
 check_err() { # expected-rc expected-substring args...
