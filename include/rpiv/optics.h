@@ -52,11 +52,11 @@ typedef struct rpiv_laser {
     double lens_f_m;        /* spherical converging lens focal length, m (0.5)              */
     double lens_dist_m;     /* lens to the prism's inclined face along the axis, m (0.27)   */
     double beta1_deg;       /* axis deviation from the face normal, deg (1.3)               */
-    rpiv_beta1_side beta1_side; /* side of the face beta1 is measured on (air)              */
     double bundle_m;        /* full width of the equally spaced ray bundle at the lens, m
                                (19e-3: the paper's "complete beam ... of width 19 mm")     */
     long nrays;             /* rays traced (100000)                                         */
     rpiv_polar polar;       /* Fresnel transmission (p)                                     */
+    rpiv_beta1_side beta1_side; /* side of the face beta1 is measured on (air)              */
 } rpiv_laser;
 
 /* The PMMA prism and the fluid. */
