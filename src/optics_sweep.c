@@ -47,6 +47,10 @@ rpiv_status rpiv_optics_sweep_beta1(const rpiv_laser *l, const rpiv_prism *p, do
         return rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory");
     double ref = (double)NAN;
     int have_ref = 0;
+    size_t total = n + 1; /* one more trace for the reference unless 2 deg is in the list */
+    for (size_t i = 0; i < n; i++)
+        if (fabs(beta1[i] - 2.0) < 1e-12)
+            total = n;
     for (size_t i = 0; i <= n; i++) {
         rpiv_laser li = *l;
         if (i == n) { /* the reference, if the sweep did not pass through 2 deg */
@@ -71,7 +75,7 @@ rpiv_status rpiv_optics_sweep_beta1(const rpiv_laser *l, const rpiv_prism *p, do
             if (profiles)
                 memcpy(profiles + i * nz, prof, nz * sizeof *prof);
         }
-        if (rpiv_progress_report(prog, i + 1, n + 1)) {
+        if (rpiv_progress_report(prog, i + 1, total)) {
             st = rpiv_fail(RPIV_EINTR, "raytrace: sweep interrupted at beta1 = %g deg",
                            li.beta1_deg);
             goto out_free;
