@@ -355,9 +355,10 @@ static rpiv_status run_trace(job *j, const rpiv_progress *prog)
     st = rpiv_optics_selfsim_fit(view.xstar, view.nx, r->zstar, r->nz, view.inten, 0.01, &f);
     if (st == RPIV_OK) {
         printf("sheet along x* (%zu of %zu stations): z*_max = %.4f + %.5f x* (inclination %.3f "
-               "deg, rms %.3g), e* = %.4f + %.5f x* (de*/dx* %.5f, rms %.3g)\n",
+               "deg, rms %.3g), e* = %.4f + %.5f x* (de*/dx* %.5f, rms %.3g); shape rms %.3g "
+               "from self-similar\n",
                f->nused, j->nst, f->zm0, f->zm1, atan(f->zm1) * 180 / M_PI, f->rms_zm, f->e0,
-               f->e1, f->e1, f->rms_e);
+               f->e1, f->e1, f->rms_e, f->rms_shape);
         if (j->fit && (st = rpiv_optics_selfsim_save(f, j->fit)))
             goto out;
         if (j->fit && !j->c.quiet)

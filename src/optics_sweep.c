@@ -115,7 +115,7 @@ rpiv_status rpiv_optics_sensitivity(const rpiv_laser *l, const rpiv_prism *p, do
         q->deta = deta0 + (deta1 - deta0) * (double)i / (double)(n - 1);
         q->transmitted =
             rpiv_optics_refract(eta0 + q->deta, 1.0, ax.theta_i, l->polar, &q->theta_t, &q->T);
-        q->dtheta_rel = q->theta_t / tt0 - 1;
+        q->dtheta_rel = q->transmitted ? q->theta_t / tt0 - 1 : (double)NAN;
         q->dT_rel = q->T / T0 - 1;
     }
     if (cutoff)
@@ -251,6 +251,22 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
     }
     for (size_t g = 0; g < f->n; g++)
         acc[g] = fmin(1.0, fmax(0.0, acc[g] / mx));
+    /* how self-similar: the stations' departure from the mean shape where they cover it */
+    double ss2 = 0, ns2 = 0;
+    for (size_t q = 0; q < nu; q++) {
+        const double *p = inten + idx[q] * nz;
+        for (size_t j = 0; j < nz; j++)
+            norm[j] = p[j] / im[q];
+        for (size_t g = 0; g < f->n; g++) {
+            double z = zm[q] + f->zplus[g] * es[q];
+            if (z >= zstar[0] && z <= zstar[nz - 1]) {
+                double d = interp(zstar, norm, nz, z) - acc[g];
+                ss2 += d * d;
+                ns2 += 1;
+            }
+        }
+    }
+    f->rms_shape = sqrt(ss2 / ns2);
     *out = f;
     f = NULL;
 out_free:

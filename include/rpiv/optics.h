@@ -186,6 +186,8 @@ RPIV_NODISCARD rpiv_status rpiv_optics_metrics(const rpiv_optics_result *r, size
 typedef struct rpiv_optics_selfsim {
     double e0, e1, zm0, zm1;
     double rms_e, rms_zm;  /* rms residuals of the two lines                        */
+    double rms_shape;      /* rms departure of the stations' normalised profiles
+                              from the mean shape (0 = exactly self-similar)         */
     size_t nused;          /* stations with metrics                                 */
     size_t n;              /* shape rows                                            */
     double *zplus, *shape; /* [n]                                                   */
@@ -234,8 +236,8 @@ size_t rpiv_optics_nbins(const rpiv_optics_opts *o);
 
 /* For the axis ray (incidence theta_i on the floor fixed by the geometry), the floor's
  * refraction with eta = n_pmma / n_water + deta: theta_t, T and their relative changes from
- * deta = 0. transmitted = 0 beyond the cut-off (then theta_t = pi/2, T = 0, relative changes
- * of T = -1). */
+ * deta = 0. transmitted = 0 beyond the cut-off (then theta_t = pi/2, T = 0, dT_rel = -1 and
+ * dtheta_rel = NaN). */
 typedef struct rpiv_optics_sens_row {
     double deta, theta_t, T, dtheta_rel, dT_rel;
     int transmitted;
