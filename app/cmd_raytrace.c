@@ -92,13 +92,13 @@ static rpiv_status out_path(char *buf, const char *dir, const char *name)
 
 typedef struct job {
     cli_ctx c;
-    double x;           /* profile station */
-    double *stations;   /* metrics stations */
+    double x;         /* profile station */
+    double *stations; /* metrics stations */
     size_t nst;
-    double *sweep;      /* beta1 values */
+    double *sweep; /* beta1 values */
     size_t nsweep;
     int sensitivity, png;
-    double sens_beta1;  /* beta1 of the one-ray sensitivity (1.5 deg, paper fig. 10) */
+    double sens_beta1; /* beta1 of the one-ray sensitivity (1.5 deg, paper fig. 10) */
     const char *fit, *dir;
     rpiv_optics_opts o;
 } job;
@@ -212,8 +212,8 @@ static rpiv_status plot_map(const job *j, const char *dir)
     o.zmin = 0;
     o.zmax = 1;
     if (!(st = out_path(path, dir, "raytrace_map.png")))
-        st = rpiv_plot_map(path, "the refracted sheet, normalised at each x*", z, NXM, (int)nz,
-                           ext, &o);
+        st = rpiv_plot_map(path, "the refracted sheet, normalised at each x*", z, NXM, (int)nz, ext,
+                           &o);
 out:
     free(z);
     free(col);
@@ -221,8 +221,8 @@ out:
     return st;
 }
 
-static rpiv_status plot_sweep(const job *j, const rpiv_optics_sweep_row *rows,
-                              const double *prof, const char *dir)
+static rpiv_status plot_sweep(const job *j, const rpiv_optics_sweep_row *rows, const double *prof,
+                              const char *dir)
 {
     char path[RPIV_PATH_MAX], title[96];
     size_t n = j->nsweep, nz = rpiv_optics_nbins(&j->o), ns = n < 12 ? n : 12;
@@ -294,7 +294,9 @@ static rpiv_status plot_sensitivity(const rpiv_optics_sens_row *rows, size_t n, 
                                {de, tt, n, "#gdT/T#d0#u", RPIV_PLOT_BOTH}};
     snprintf(title, sizeof title, "one ray at #gb#d1#u = %g deg", beta1);
     rpiv_status st = out_path(path, dir, "raytrace_sensitivity.png");
-    return st ? st : rpiv_plot_lines(path, title, "#gd#gy  (#gy = n#dPMMA#u / n#dwater#u)", "relative change", ser, 2, NULL);
+    return st ? st
+              : rpiv_plot_lines(path, title, "#gd#gy  (#gy = n#dPMMA#u / n#dwater#u)",
+                                "relative change", ser, 2, NULL);
 }
 
 static void print_summary(const rpiv_optics_result *r)
@@ -304,8 +306,7 @@ static void print_summary(const rpiv_optics_result *r)
     printf("rays %ld, beta1 %g deg (%s side: %.4f deg in air, %.4f deg in the PMMA), "
            "polarisation %s\n",
            s->n_rays, r->laser.beta1_deg, rpiv_beta1_side_name(r->laser.beta1_side),
-           a->beta1_air * 180 / M_PI, a->beta1_pmma * 180 / M_PI,
-           rpiv_polar_name(r->laser.polar));
+           a->beta1_air * 180 / M_PI, a->beta1_pmma * 180 / M_PI, rpiv_polar_name(r->laser.polar));
     printf("axis: incidence on the floor %.4f deg (critical %.4f deg), ", a->theta_i * 180 / M_PI,
            a->theta_c * 180 / M_PI);
     if (a->transmitted)
@@ -329,16 +330,16 @@ static rpiv_status run_trace(job *j, const rpiv_progress *prog)
         return rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory");
     xs[0] = j->x;
     memcpy(xs + 1, j->stations, j->nst * sizeof *xs);
-    st = rpiv_optics_trace(&j->c.exp.laser, &j->c.exp.prism, j->c.exp.channel.h_m, xs, nx,
-                           &j->o, prog, &r);
+    st = rpiv_optics_trace(&j->c.exp.laser, &j->c.exp.prism, j->c.exp.channel.h_m, xs, nx, &j->o,
+                           prog, &r);
     if (st)
         goto out;
     if (!j->c.quiet)
         print_summary(r);
     rpiv_sheet_metrics m;
     if (rpiv_optics_metrics(r, 0, &m) == RPIV_OK)
-        printf("x* = %g: z*_inf %.4f  z*_max %.4f  z*_sup %.4f  e* %.4f  I_max %.4g Ig/h\n",
-               j->x, m.zinf, m.zmax, m.zsup, m.e, m.imax);
+        printf("x* = %g: z*_inf %.4f  z*_max %.4f  z*_sup %.4f  e* %.4f  I_max %.4g Ig/h\n", j->x,
+               m.zinf, m.zmax, m.zsup, m.e, m.imax);
     else
         printf("x* = %g: no sheet metrics (%s)\n", j->x, rpiv_errmsg());
     if ((st = out_path(path, j->dir, "raytrace_profile.txt")) ||
@@ -357,8 +358,8 @@ static rpiv_status run_trace(job *j, const rpiv_progress *prog)
         printf("sheet along x* (%zu of %zu stations): z*_max = %.4f + %.5f x* (inclination %.3f "
                "deg, rms %.3g), e* = %.4f + %.5f x* (de*/dx* %.5f, rms %.3g); shape rms %.3g "
                "from self-similar\n",
-               f->nused, j->nst, f->zm0, f->zm1, atan(f->zm1) * 180 / M_PI, f->rms_zm, f->e0,
-               f->e1, f->e1, f->rms_e, f->rms_shape);
+               f->nused, j->nst, f->zm0, f->zm1, atan(f->zm1) * 180 / M_PI, f->rms_zm, f->e0, f->e1,
+               f->e1, f->rms_e, f->rms_shape);
         if (j->fit && (st = rpiv_optics_selfsim_save(f, j->fit)))
             goto out;
         if (j->fit && !j->c.quiet)
@@ -390,13 +391,13 @@ static rpiv_status run_sweep(job *j, const rpiv_progress *prog)
         st = rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (sweep)");
         goto out;
     }
-    if ((st = rpiv_optics_sweep_beta1(&j->c.exp.laser, &j->c.exp.prism, j->c.exp.channel.h_m,
-                                      j->x, j->sweep, j->nsweep, &j->o, prog, rows, prof)))
+    if ((st = rpiv_optics_sweep_beta1(&j->c.exp.laser, &j->c.exp.prism, j->c.exp.channel.h_m, j->x,
+                                      j->sweep, j->nsweep, &j->o, prog, rows, prof)))
         goto out;
     if ((st = out_path(path, j->dir, "raytrace_sweep.txt")) ||
         (st = out_path(ppath, j->dir, "raytrace_sweep_profiles.txt")) ||
-        (st = rpiv_optics_save_sweep(&j->c.exp.laser, &j->c.exp.prism, j->x, rows, j->nsweep,
-                                     path, prof, &j->o, ppath)))
+        (st = rpiv_optics_save_sweep(&j->c.exp.laser, &j->c.exp.prism, j->x, rows, j->nsweep, path,
+                                     prof, &j->o, ppath)))
         goto out;
     if (j->png && (st = plot_sweep(j, rows, prof, j->dir)))
         goto out;
@@ -404,8 +405,8 @@ static rpiv_status run_sweep(job *j, const rpiv_progress *prog)
         printf("beta1 sweep at x* = %g (I*_peak = I_peak / I_peak(2 deg)):\n", j->x);
         printf("  beta1_deg       e*   z*_max    It/Ig  I*_peak\n");
         for (size_t i = 0; i < j->nsweep; i++)
-            printf("  %9.4g %8.4f %8.4f %8.5f %8.4f\n", rows[i].beta1_deg, rows[i].e,
-                   rows[i].zmax, rows[i].it_ig, rows[i].ipeak_star);
+            printf("  %9.4g %8.4f %8.4f %8.5f %8.4f\n", rows[i].beta1_deg, rows[i].e, rows[i].zmax,
+                   rows[i].it_ig, rows[i].ipeak_star);
     }
 out:
     free(rows);

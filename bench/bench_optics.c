@@ -126,8 +126,7 @@ int main(void)
     printf("trace_bin 10000000 17 1 %.1f %.1f 1 %.1f %.12g\n", t1, t1, c1, checksum(a));
     t2 = time_trace(10000000, xs, 17, 2, 3, &b, &c2);
     bad |= check(b, a, "1e7 x 17, 2 threads");
-    printf("trace_bin 10000000 17 2 %.1f %.1f %.3f %.1f %.12g\n", t2, t1, t1 / t2, c2,
-           checksum(b));
+    printf("trace_bin 10000000 17 2 %.1f %.1f %.3f %.1f %.12g\n", t2, t1, t1 / t2, c2, checksum(b));
     printf("# speed-up 1 -> 2 threads at 1e7 rays: %.2f (wall); CPU per ray %.1f ns\n", t1 / t2,
            1e6 * c1 / 1e7);
     rpiv_optics_result_free(a);

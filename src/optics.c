@@ -57,7 +57,7 @@ int rpiv_optics_refract(double n1, double n2, double theta_i, rpiv_polar pol, do
  * odd, so q visits every level once per DIV_LEVELS consecutive rays and the (height, angle)
  * pairs form a rank-1 (Fibonacci-like) lattice: even coverage, no random numbers. */
 #define DIV_LEVELS 4096
-#define DIV_STEP 2531
+#define DIV_STEP   2531
 
 typedef struct vec2 {
     double x, z;
@@ -76,19 +76,19 @@ static double cross(vec2 a, vec2 b)
 
 /* Everything a ray needs, fixed for a trace. */
 typedef struct setup {
-    vec2 n, np;     /* face inward normal (into the PMMA) and its +90 deg rotation     */
-    vec2 P;         /* axis entry point on the face                                   */
-    vec2 d0, u;     /* axis direction in air, and the lens plane direction (+90 deg)   */
-    vec2 L;         /* lens centre                                                    */
-    double eta1;    /* n_air / n_pmma                                                 */
-    double eta2;    /* n_pmma / n_water                                               */
+    vec2 n, np;  /* face inward normal (into the PMMA) and its +90 deg rotation     */
+    vec2 P;      /* axis entry point on the face                                   */
+    vec2 d0, u;  /* axis direction in air, and the lens plane direction (+90 deg)   */
+    vec2 L;      /* lens centre                                                    */
+    double eta1; /* n_air / n_pmma                                                 */
+    double eta2; /* n_pmma / n_water                                               */
     double n_air, n_pmma, n_water;
-    double W;       /* 1/e^2 radius of the beam at the lens                           */
-    double div_sd;  /* standard deviation of the ray angles from the beam's divergence    */
+    double W;      /* 1/e^2 radius of the beam at the lens                           */
+    double div_sd; /* standard deviation of the ray angles from the beam's divergence    */
     double div_tab[DIV_LEVELS]; /* its quantiles at (q + 1/2) / DIV_LEVELS               */
-    double inv_f;   /* 1 / focal length                                               */
-    double bundle;  /* full width of the ray bundle                                   */
-    double wnorm;   /* Gaussian weight normalisation                                  */
+    double inv_f;               /* 1 / focal length                                               */
+    double bundle;              /* full width of the ray bundle                                   */
+    double wnorm;               /* Gaussian weight normalisation                                  */
     rpiv_polar pol;
 } setup;
 
@@ -184,7 +184,8 @@ static enum fate trace_ray(const setup *s, long i, double h, ray_out *r)
     r->T1 = r->T2 = 0;
     /* thin lens on slopes: tan(alpha') = tan(alpha) - h / f; the divergence angles (about
      * 1 mrad) are taken as slopes */
-    double slope = s->div_tab[(unsigned long)i * DIV_STEP % DIV_LEVELS] - h * s->inv_f, k = 1.0 / sqrt(1.0 + slope * slope);
+    double slope = s->div_tab[(unsigned long)i * DIV_STEP % DIV_LEVELS] - h * s->inv_f,
+           k = 1.0 / sqrt(1.0 + slope * slope);
     vec2 d = {(s->d0.x + slope * s->u.x) * k, (s->d0.z + slope * s->u.z) * k};
     vec2 S = {s->L.x + h * s->u.x, s->L.z + h * s->u.z};
     /* free flight to the inclined face */
@@ -335,9 +336,9 @@ static rpiv_status smooth_profiles(rpiv_optics_result *r, double sigma)
 
 /* Chunks are fixed by the ray count (not the thread count), each summed in ray order, and the
  * chunks summed in chunk order: the result is the same for any number of threads. */
-#define CHUNK_MIN 4096L
+#define CHUNK_MIN       4096L
 #define CHUNK_MAX_COUNT 256L
-#define CHUNK_MEM_MAX (256.0 * 1024 * 1024)
+#define CHUNK_MEM_MAX   (256.0 * 1024 * 1024)
 
 rpiv_status rpiv_optics_trace(const rpiv_laser *l, const rpiv_prism *p, double h_m,
                               const double *xstar, size_t nx, const rpiv_optics_opts *o,
@@ -391,8 +392,7 @@ rpiv_status rpiv_optics_trace(const rpiv_laser *l, const rpiv_prism *p, double h
     cnts = calloc((size_t)nchunk * 3, sizeof *cnts);
     double *X = malloc(nx * sizeof *X);
     if (!r->xstar || !r->zstar || !r->inten || !hist || !sums || !cnts || !X) {
-        st = rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (%ld chunks of %zu bins)", nchunk,
-                       nb);
+        st = rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (%ld chunks of %zu bins)", nchunk, nb);
         goto out_free;
     }
     memcpy(r->xstar, xstar, nx * sizeof *xstar);

@@ -161,9 +161,8 @@ static double rms_resid(const double *x, const double *y, size_t n, double c0, d
     return sqrt(s / (double)n);
 }
 
-rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double *zstar,
-                                    size_t nz, const double *inten, double dzplus,
-                                    rpiv_optics_selfsim **out)
+rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double *zstar, size_t nz,
+                                    const double *inten, double dzplus, rpiv_optics_selfsim **out)
 {
     rpiv_status st = RPIV_OK;
     *out = NULL;

@@ -25,8 +25,8 @@ static double desc_T(double eta, double ti)
 
 static void refraction_matches_snell_and_fresnel(void)
 {
-    const double cases[][3] = {{1.0, 1.49, 0.4187}, {1.49, 1.33, 1.0871}, {1.33, 1.0, 0.2963},
-                               {1.49, 1.0, 0.5113}};
+    const double cases[][3] = {
+        {1.0, 1.49, 0.4187}, {1.49, 1.33, 1.0871}, {1.33, 1.0, 0.2963}, {1.49, 1.0, 0.5113}};
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         double n1 = cases[c][0], n2 = cases[c][1], ti = cases[c][2], tt, Tp, Ts, Tu;
         CHECK(rpiv_optics_refract(n1, n2, ti, RPIV_POLAR_P, &tt, &Tp) == 1);
@@ -520,8 +520,7 @@ static void bad_inputs_fail_with_a_status(void)
         rpiv_optics_selfsim *f = (rpiv_optics_selfsim *)&m;
         double xx[2] = {-3, -2};
         double *in2 = calloc(2 * r->nz, sizeof *in2);
-        CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 2, r->zstar, r->nz, in2, 0.01, &f),
-                    RPIV_ENUMERIC);
+        CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 2, r->zstar, r->nz, in2, 0.01, &f), RPIV_ENUMERIC);
         CHECK(f == NULL);
         CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 1, r->zstar, r->nz, in2, 0.01, &f), RPIV_EINVAL);
         CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 2, r->zstar, r->nz, in2, 0, &f), RPIV_EINVAL);
