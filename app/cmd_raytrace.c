@@ -105,6 +105,20 @@ typedef struct job {
 
 /* ---- plots ------------------------------------------------------------------------------ */
 
+/* Copy the series that have a finite point (the plot refuses the others); returns how many. */
+static size_t finite_series(const rpiv_plot_series *in, size_t n, rpiv_plot_series *out)
+{
+    size_t nu = 0;
+    for (size_t q = 0; q < n; q++) {
+        int any = 0;
+        for (size_t k = 0; k < in[q].n; k++)
+            any |= isfinite(in[q].y[k]);
+        if (any)
+            out[nu++] = in[q];
+    }
+    return nu;
+}
+
 /* Profile k of r as I0* (x) against z* (y), the way the paper draws sheet profiles. */
 static rpiv_status plot_profile(const rpiv_optics_result *r, const char *dir)
 {
@@ -160,16 +174,8 @@ static rpiv_status plot_metrics(const rpiv_optics_result *v, const rpiv_optics_s
     o.ymax = 1;
     st = out_path(path, dir, "raytrace_metrics.png");
     if (!st) {
-        /* series with no finite point are refused by the plot: leave them out */
         rpiv_plot_series use[5];
-        size_t nu = 0;
-        for (int q = 0; q < 5; q++) {
-            int any = 0;
-            for (size_t k = 0; k < n; k++)
-                any |= isfinite(ser[q].y[k]);
-            if (any)
-                use[nu++] = ser[q];
-        }
+        size_t nu = finite_series(ser, 5, use);
         st = nu ? rpiv_plot_lines(path, "sheet edges and thickness along x*", "x*", "z*, e*", use,
                                   nu, &o)
                 : RPIV_OK;
@@ -261,14 +267,7 @@ static rpiv_status plot_sweep(const job *j, const rpiv_optics_sweep_row *rows, c
                               {b, ip, n, "I*#dpeak#u", RPIV_PLOT_BOTH},
                               {b, e, n, "e*", RPIV_PLOT_BOTH}};
     rpiv_plot_series use[3];
-    size_t nu = 0;
-    for (int q = 0; q < 3; q++) {
-        int any = 0;
-        for (size_t i = 0; i < n; i++)
-            any |= isfinite(s3[q].y[i]);
-        if (any)
-            use[nu++] = s3[q];
-    }
+    size_t nu = finite_series(s3, 3, use);
     snprintf(title, sizeof title, "transmission, peak and thickness at x* = %g", j->x);
     if (!(st = out_path(path, dir, "raytrace_sweep.png")) && nu)
         st = rpiv_plot_lines(path, title, "#gb#d1#u (deg)", "", use, nu, NULL);

@@ -178,7 +178,7 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
     double *xs = malloc(nx * sizeof *xs), *es = malloc(nx * sizeof *es),
            *zm = malloc(nx * sizeof *zm), *im = malloc(nx * sizeof *im);
     size_t *idx = malloc(nx * sizeof *idx);
-    double *acc = NULL, *cnt = NULL, *norm = malloc(nz * sizeof *norm);
+    double *res = NULL, *norm = malloc(nz * sizeof *norm);
     if (!f || !xs || !es || !zm || !im || !idx || !norm) {
         st = rpiv_fail(RPIV_ENOMEM, "selfsim fit: out of memory");
         goto out_free;
@@ -218,53 +218,52 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
     f->rms_zm = rms_resid(xs, zm, nu, f->zm0, f->zm1);
     f->nused = nu;
 
-    /* mean shape over the stations covering each z+ (all cover z+ = 0) */
+    /* each station resampled on z+ (NaN where it does not cover z+; all cover z+ = 0) */
     long g0 = (long)floor(zpmin / dzplus), g1 = (long)ceil(zpmax / dzplus);
-    f->n = (size_t)(g1 - g0 + 1);
-    f->zplus = malloc(f->n * sizeof *f->zplus);
-    f->shape = calloc(f->n, sizeof *f->shape);
-    acc = f->shape;
-    cnt = calloc(f->n, sizeof *cnt);
-    if (!f->zplus || !f->shape || !cnt) {
-        st = rpiv_fail(RPIV_ENOMEM, "selfsim fit: out of memory (%zu rows)", f->n);
+    size_t ng = (size_t)(g1 - g0 + 1);
+    f->n = ng;
+    f->zplus = malloc(ng * sizeof *f->zplus);
+    f->shape = calloc(ng, sizeof *f->shape);
+    res = malloc(nu * ng * sizeof *res);
+    if (!f->zplus || !f->shape || !res) {
+        st = rpiv_fail(RPIV_ENOMEM, "selfsim fit: out of memory (%zu rows)", ng);
         goto out_free;
     }
-    for (size_t g = 0; g < f->n; g++)
+    for (size_t g = 0; g < ng; g++)
         f->zplus[g] = (double)(g0 + (long)g) * dzplus;
     for (size_t q = 0; q < nu; q++) {
         const double *p = inten + idx[q] * nz;
         for (size_t j = 0; j < nz; j++)
             norm[j] = p[j] / im[q];
-        for (size_t g = 0; g < f->n; g++) {
+        for (size_t g = 0; g < ng; g++) {
             double z = zm[q] + f->zplus[g] * es[q];
-            if (z >= zstar[0] && z <= zstar[nz - 1]) {
-                acc[g] += interp(zstar, norm, nz, z);
-                cnt[g] += 1;
-            }
+            res[q * ng + g] =
+                z >= zstar[0] && z <= zstar[nz - 1] ? interp(zstar, norm, nz, z) : (double)NAN;
         }
     }
+    /* the mean over the stations covering each z+, renormalised to a maximum of 1 */
     double mx = 0;
-    for (size_t g = 0; g < f->n; g++) {
-        acc[g] = cnt[g] > 0 ? acc[g] / cnt[g] : 0;
-        mx = fmax(mx, acc[g]);
+    for (size_t g = 0; g < ng; g++) {
+        double acc = 0, cnt = 0;
+        for (size_t q = 0; q < nu; q++)
+            if (!isnan(res[q * ng + g])) {
+                acc += res[q * ng + g];
+                cnt += 1;
+            }
+        f->shape[g] = cnt > 0 ? acc / cnt : 0;
+        mx = fmax(mx, f->shape[g]);
     }
-    for (size_t g = 0; g < f->n; g++)
-        acc[g] = fmin(1.0, fmax(0.0, acc[g] / mx));
+    for (size_t g = 0; g < ng; g++)
+        f->shape[g] = fmin(1.0, fmax(0.0, f->shape[g] / mx));
     /* how self-similar: the stations' departure from the mean shape where they cover it */
     double ss2 = 0, ns2 = 0;
-    for (size_t q = 0; q < nu; q++) {
-        const double *p = inten + idx[q] * nz;
-        for (size_t j = 0; j < nz; j++)
-            norm[j] = p[j] / im[q];
-        for (size_t g = 0; g < f->n; g++) {
-            double z = zm[q] + f->zplus[g] * es[q];
-            if (z >= zstar[0] && z <= zstar[nz - 1]) {
-                double d = interp(zstar, norm, nz, z) - acc[g];
+    for (size_t q = 0; q < nu; q++)
+        for (size_t g = 0; g < ng; g++)
+            if (!isnan(res[q * ng + g])) {
+                double d = res[q * ng + g] - f->shape[g];
                 ss2 += d * d;
                 ns2 += 1;
             }
-        }
-    }
     f->rms_shape = sqrt(ss2 / ns2);
     *out = f;
     f = NULL;
@@ -275,7 +274,7 @@ out_free:
     free(zm);
     free(im);
     free(idx);
-    free(cnt);
+    free(res);
     free(norm);
     return st;
 }

@@ -153,10 +153,10 @@ static void lens_focuses_the_beam_at_its_focal_length(void)
     rpiv_optics_result_free(r);
 }
 
-/* The default experiment (paper set-up, beta1 = 1.3 deg in the air): the sheet leaves the
- * floor a few degrees up and thickens along x*. Paper (measured): about 5 deg, e* = 0.42 at
- * x* = 6.5, z*_max = 0.5 at x* = 6.3. This geometry: 3.93 deg, e* = 0.417 at x* = 6.5,
- * z*_max = 0.43 at x* = 6.5, e* = -0.078 + 0.0756 x* (docs/optics.md). */
+/* The default experiment (paper set-up, beta1 = 1.3 deg in the air; 1e6 rays, as in
+ * docs/optics.md): the sheet leaves the floor a few degrees up and thickens along x*. Paper
+ * (measured): about 5 deg, e* = 0.42 at x* = 6.5, z*_max = 0.5 at x* = 6.3. This geometry:
+ * 3.90 deg, e* = 0.416 and z*_max = 0.437 at x* = 6.5, e* = -0.079 + 0.0761 x*. */
 static void default_sheet_is_inclined_and_thickens(void)
 {
     rpiv_laser l = rpiv_laser_default();
@@ -165,6 +165,7 @@ static void default_sheet_is_inclined_and_thickens(void)
     double xs[17];
     for (int k = 0; k < 17; k++)
         xs[k] = 1 + 0.5 * k;
+    l.nrays = 1000000;
     rpiv_optics_result *r = trace(&l, &p, 8e-3, xs, 17, &o);
     if (!r)
         return;
@@ -173,12 +174,12 @@ static void default_sheet_is_inclined_and_thickens(void)
     if (f) {
         double incl = atan(f->zm1) / DEG;
         CHECK(incl > 2 && incl < 8); /* "a few degrees" */
-        CHECK_NEAR(incl, 3.93, 0.05);
-        CHECK_NEAR(f->e1, 0.0756, 0.002);
+        CHECK_NEAR(incl, 3.90, 0.02);
+        CHECK_NEAR(f->e1, 0.0761, 0.001);
         CHECK(f->nused == 17);
-        CHECK(f->rms_zm < 0.015 && f->rms_e < 0.015);
+        CHECK(f->rms_zm < 0.01 && f->rms_e < 0.01);
         /* self-similar, as measured (paper): the normalised profiles collapse on z+ within a
-         * few per cent rms (0.036 here, the near field x* < 3 included) */
+         * few per cent rms (0.035 here, the near field x* < 3 included) */
         CHECK(f->rms_shape < 0.05);
     }
     rpiv_sheet_metrics m4, m11;
@@ -186,8 +187,8 @@ static void default_sheet_is_inclined_and_thickens(void)
     CHECK_OK(rpiv_optics_metrics(r, 11, &m11)); /* x* = 6.5 */
     CHECK(m11.e > 1.5 * m4.e);
     CHECK(m11.zmax > m4.zmax);
-    CHECK_NEAR(m11.e, 0.417, 0.01);
-    CHECK_NEAR(m11.zmax, 0.432, 0.01);
+    CHECK_NEAR(m11.e, 0.416, 0.003);
+    CHECK_NEAR(m11.zmax, 0.437, 0.003);
     /* asymmetric as measured: the tail is below the peak */
     CHECK((m11.zmax - m11.zinf) > 1.3 * (m11.zsup - m11.zmax));
     rpiv_optics_selfsim_free(f);
