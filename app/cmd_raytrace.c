@@ -26,6 +26,8 @@ static void help(void)
         "  raytrace_profile.txt    I0(z*) at x* = X (default 4.455, paper fig. 11)\n"
         "  raytrace_metrics.txt    z*_inf, z*_max, z*_sup, e* at the stations (default 1:9:0.5)\n"
         "and print the power bookkeeping, the sheet's inclination and thickness growth.\n"
+        "  --x X*            station of the profile (4.455)\n"
+        "  --stations A:B:STEP  stations of the metrics and the fit (1:9:0.5)\n"
         "  --rays N          rays traced (laser.rays; up to 1e8)\n"
         "  --beta1 DEG       incidence on the inclined face (laser.beta1_deg; the side it is\n"
         "                    measured on is laser.beta1_side = air|pmma)\n"
@@ -39,7 +41,9 @@ static void help(void)
         "  --fit FILE        self-similar sheet fitted on the stations, written as a sheet\n"
         "                    profile file (use with sheet.kind = selfsim, sheet.profile = FILE)\n"
         "  --out DIR         output folder (output.dir)\n"
-        "  --png             also write PNG plots\n");
+        "  --png             also write PNG plots (raytrace_*.png; the sheet map\n"
+        "                    raytrace_map.png traces 200 more stations)\n"
+        "See docs/optics.md for the geometry and every modelling choice.\n");
 }
 
 /* "A:B:STEP" (with an optional "NAME:" prefix checked against `name`). */
