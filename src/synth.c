@@ -23,6 +23,13 @@
  * particles). It does not depend on the thread count. */
 enum { BAND = 32 };
 
+/* Shot noise draws Poisson(m) as Poisson(m_k) + Poisson(m - m_k), exact in distribution,
+ * with m_k = background + k POIS_STEP the largest tabulated mean below m (Walker tables of
+ * GSL, O(1) per draw) and the small remainder from gsl_ran_poisson's direct method; means
+ * beyond the last table draw the whole excess from gsl_ran_poisson. */
+#define POIS_STEP 4.0
+enum { POIS_TABLES = 512 };
+
 /* Stream tags: particles, and noise of (frame, band). */
 #define TAG_PARTICLES 0ULL
 #define TAG_NOISE     (1ULL << 40)
@@ -42,8 +49,8 @@ struct rpiv_synth {
     int invariant;      /* 1: the displacement is constant along a path     */
     size_t npz;         /* P(z*) table rows (0 = uniform)                   */
     double *pz_z, *pz_p, *pz_c; /* nodes, density, cumulative integral      */
-    gsl_ran_discrete_t *bg;     /* Poisson(background) table (shot noise)   */
-    long bg_k0;                 /* its first count                          */
+    gsl_ran_discrete_t **ptab;  /* shot noise: Poisson(background + k POIS_STEP) */
+    long *ptab_k0;              /* first count of each table                */
     double maxval;              /* 2^bits - 1                               */
 };
 
@@ -55,7 +62,8 @@ typedef struct spot {
 /* ---- seeds ---------------------------------------------------------------------------- */
 
 /* A 64-bit finaliser (the splitmix64 one) so that neighbouring (seed, index, tag) give
- * unrelated streams. GSL's mt19937 takes 32 bits of seed. */
+ * unrelated streams. GSL's taus2 (L'Ecuyer's maximally equidistributed Tausworthe
+ * generator, period 2^88) takes 32 bits of seed. */
 static uint64_t mix64(uint64_t z)
 {
     z += 0x9e3779b97f4a7c15ULL;
@@ -169,26 +177,57 @@ static double sample_z(const rpiv_synth *s, gsl_rng *r)
 
 /* ---- making a generator ----------------------------------------------------------------- */
 
-static rpiv_status bg_table(rpiv_synth *s)
+static rpiv_status poisson_tables(rpiv_synth *s)
 {
-    double mu = s->e.synth.background;
-    double sd = sqrt(mu);
-    /* Beyond 12 sd + 40 counts either side the Poisson mass is below 1e-30. */
-    long k0 = (long)floor(mu - 12 * sd - 40), k1 = (long)ceil(mu + 12 * sd + 40);
-    if (k0 < 0)
-        k0 = 0;
-    size_t n = (size_t)(k1 - k0 + 1);
-    double *p = malloc(n * sizeof *p);
-    if (!p)
-        return rpiv_fail(RPIV_ENOMEM, "synth: out of memory (background table)");
-    for (size_t k = 0; k < n; k++)
-        p[k] = gsl_ran_poisson_pdf((unsigned int)(k0 + (long)k), mu);
-    s->bg = gsl_ran_discrete_preproc(n, p);
+    s->ptab = calloc(POIS_TABLES, sizeof *s->ptab);
+    s->ptab_k0 = calloc(POIS_TABLES, sizeof *s->ptab_k0);
+    size_t cap = 0;
+    double *p = NULL;
+    if (!s->ptab || !s->ptab_k0)
+        goto out_nomem;
+    for (int t = 0; t < POIS_TABLES; t++) {
+        double mu = s->e.synth.background + t * POIS_STEP, sd = sqrt(mu);
+        if (mu == 0)
+            continue; /* Poisson(0) = 0: no table */
+        /* beyond 12 sd + 40 counts either side the Poisson mass is below 1e-30 */
+        long k0 = (long)floor(mu - 12 * sd - 40), k1 = (long)ceil(mu + 12 * sd + 40);
+        if (k0 < 0)
+            k0 = 0;
+        size_t n = (size_t)(k1 - k0 + 1);
+        if (n > cap) {
+            free(p);
+            cap = n;
+            p = malloc(cap * sizeof *p);
+            if (!p)
+                goto out_nomem;
+        }
+        for (size_t k = 0; k < n; k++)
+            p[k] = gsl_ran_poisson_pdf((unsigned int)(k0 + (long)k), mu);
+        s->ptab[t] = gsl_ran_discrete_preproc(n, p);
+        if (!s->ptab[t])
+            goto out_nomem;
+        s->ptab_k0[t] = k0;
+    }
     free(p);
-    if (!s->bg)
-        return rpiv_fail(RPIV_ENOMEM, "synth: out of memory (background table)");
-    s->bg_k0 = k0;
     return RPIV_OK;
+out_nomem:
+    free(p);
+    return rpiv_fail(RPIV_ENOMEM, "synth: out of memory (shot-noise tables)");
+}
+
+/* A Poisson count of mean m >= background (see POIS_STEP). */
+static double shot(const rpiv_synth *s, double m, gsl_rng *r)
+{
+    double ex = m - s->e.synth.background;
+    int t = ex > 0 ? (int)(ex / POIS_STEP) : 0;
+    if (t >= POIS_TABLES)
+        t = POIS_TABLES - 1;
+    double rem = ex - t * POIS_STEP, c = 0;
+    if (s->ptab[t])
+        c = (double)(s->ptab_k0[t] + (long)gsl_ran_discrete(r, s->ptab[t]));
+    if (rem > 0)
+        c += gsl_ran_poisson(r, rem);
+    return c;
 }
 
 /* The flow from the spec and the geometry. */
@@ -325,7 +364,7 @@ rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flo
     double dp0 = e->particles.dp_m;
     s->de0_m = rpiv_imaging_de_m(cam, dp0, 0);
     s->norm = e->synth.peak_counts / rpiv_imaging_peak(cam, dp0 * dp0, s->de0_m, 0);
-    if (e->synth.shot_noise && e->synth.background > 0 && (st = bg_table(s)))
+    if (e->synth.shot_noise && (st = poisson_tables(s)))
         goto out_free;
     *out = s;
     return RPIV_OK;
@@ -342,8 +381,12 @@ void rpiv_synth_free(rpiv_synth *s)
     free(s->pz_z);
     free(s->pz_p);
     free(s->pz_c);
-    if (s->bg)
-        gsl_ran_discrete_free(s->bg);
+    if (s->ptab)
+        for (int t = 0; t < POIS_TABLES; t++)
+            if (s->ptab[t])
+                gsl_ran_discrete_free(s->ptab[t]);
+    free(s->ptab);
+    free(s->ptab_k0);
     free(s);
 }
 
@@ -373,7 +416,7 @@ rpiv_status rpiv_synth_particles_new(const rpiv_synth *s, unsigned long index,
     *out = NULL;
     *n = 0;
     rpiv_synth_particle *p = malloc((s->n ? s->n : 1) * sizeof *p);
-    gsl_rng *r = gsl_rng_alloc(gsl_rng_mt19937);
+    gsl_rng *r = gsl_rng_alloc(gsl_rng_taus2);
     if (!p || !r) {
         free(p);
         if (r)
@@ -507,18 +550,14 @@ static void render_band(const rpiv_synth *s, const spot *sp, const size_t *list,
     }
 }
 
-/* Background, shot noise (Poisson(bg + signal) drawn as Poisson(bg) + Poisson(signal), the
- * first from a table), read noise, rounding and saturation. */
+/* Background, shot noise, read noise, rounding and saturation. */
 static void noise_band(const rpiv_synth *s, const double *buf, size_t npx, float *out, gsl_rng *r)
 {
     const rpiv_synth_params *sp = &s->e.synth;
     for (size_t k = 0; k < npx; k++) {
         double v = buf[k];
         if (sp->shot_noise) {
-            double c = s->bg ? (double)(s->bg_k0 + (long)gsl_ran_discrete(r, s->bg)) : 0;
-            if (v > 0)
-                c += gsl_ran_poisson(r, v);
-            v = c;
+            v = shot(s, sp->background + v, r);
         } else {
             v += sp->background;
         }
@@ -581,7 +620,7 @@ static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *c
         size_t w = (size_t)s->w;
         double *buf = malloc(BAND * w * sizeof *buf);
         double *wx = malloc((w + 2) * sizeof *wx), *wy = malloc((BAND + 2) * sizeof *wy);
-        gsl_rng *r = noise ? gsl_rng_alloc(gsl_rng_mt19937) : NULL;
+        gsl_rng *r = noise ? gsl_rng_alloc(gsl_rng_taus2) : NULL;
         int ok = buf && wx && wy && (r || !noise);
         nomem |= !ok;
 #pragma omp for schedule(dynamic, 1)
