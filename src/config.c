@@ -37,6 +37,7 @@ typedef struct key_spec {
 
 static const char *const sheet_kinds[] = {"gauss", "selfsim", "uniform", NULL};
 static const char *const polars[] = {"p", "s", "unpolarised", NULL};
+static const char *const beta1_sides[] = {"air", "pmma", NULL};
 static const char *const subpixels[] = {"gauss", "parabola", "centroid", NULL};
 static const char *const backgrounds[] = {"none", "min", "mean", NULL};
 
@@ -96,7 +97,11 @@ static const key_spec keys[] = {
     {"laser", "lens_distance_mm", KEY_DOUBLE, OFF(laser.lens_dist_m), 0, 100000, 1e-3, "mm",
      "lens to the prism's inclined face", 0},
     {"laser", "beta1_deg", KEY_DOUBLE, OFF(laser.beta1_deg), -45, 45, 1, "deg",
-     "incidence on the inclined face, from its normal", 0},
+     "beam axis deviation from the inclined face's normal, towards the vertical", 0},
+    {"laser", "beta1_side", KEY_ENUM, OFF(laser.beta1_side), 0, 0, 1, "-",
+     "side of the face beta1 is measured on: air (incidence) or pmma (inside)", beta1_sides},
+    {"laser", "bundle_mm", KEY_DOUBLE, OFF(laser.bundle_m), 0.01, 1000, 1e-3, "mm",
+     "full width of the equally spaced ray bundle at the lens", 0},
     {"laser", "rays", KEY_LONG, OFF(laser.nrays), 1, 1e8, 1, "-", "number of rays traced", 0},
     {"laser", "polarisation", KEY_ENUM, OFF(laser.polar), 0, 0, 1, "-",
      "Fresnel transmission: p (paper), s or unpolarised", polars},
@@ -104,7 +109,7 @@ static const key_spec keys[] = {
     {"prism", "inclination_deg", KEY_DOUBLE, OFF(prism.theta_p_deg), 1, 89, 1, "deg",
      "inclination theta_p of the inclined face", 0},
     {"prism", "thickness_mm", KEY_DOUBLE, OFF(prism.thickness_m), 0.1, 10000, 1e-3, "mm",
-     "thickness of the PMMA block", 0},
+     "block thickness: beam entry point to floor along the face normal", 0},
     {"prism", "n_pmma", KEY_DOUBLE, OFF(prism.n_pmma), 1, 4, 1, "-", "refractive index of PMMA",
      0},
     {"prism", "n_water", KEY_DOUBLE, OFF(prism.n_water), 1, 4, 1, "-",

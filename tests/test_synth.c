@@ -90,6 +90,7 @@ static double de_by_hand_m(double z)
 static void particle_count_matches_density_per_window(void)
 {
     rpiv_experiment e = rpiv_experiment_default();
+    e.particles.density_ppp = 0.05; /* the test's figures are for 0.05 (default 0.015) */
     e.synth.width_px = 512;
     e.synth.height_px = 384;
     strcpy(e.synth.flow, "uniform:3.3187,-1.7421");
@@ -380,6 +381,7 @@ static void frame_b_moves_by_the_uniform_displacement(void)
 static void duct_maps_to_bulk_displacement_in_pixels(void)
 {
     rpiv_experiment e = rpiv_experiment_default(); /* flow "duct", full sensor */
+    e.particles.density_ppp = 0.05;
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
     if (!s)
@@ -609,6 +611,7 @@ static void tabulated_pz_is_sampled(void)
 static void diameters_are_uniform_in_the_spread(void)
 {
     rpiv_experiment e = quiet_experiment(256, 256);
+    e.particles.density_ppp = 0.05;
     e.particles.dp_sigma_m = 4e-6;
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));

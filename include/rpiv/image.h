@@ -23,6 +23,29 @@ RPIV_NODISCARD rpiv_status rpiv_image_new(int w, int h, rpiv_image **out);
 void rpiv_image_free(rpiv_image *im); /* NULL is a no-op */
 RPIV_NODISCARD rpiv_status rpiv_image_copy(const rpiv_image *im, rpiv_image **out);
 
+/* File formats recognised from their first bytes. */
+typedef enum rpiv_image_format {
+    RPIV_IMAGE_UNKNOWN = 0,
+    RPIV_IMAGE_TIFF = 1, /* "II*\0" / "MM\0*" (classic) or BigTIFF           */
+    RPIV_IMAGE_PNG = 2,  /* "\x89PNG\r\n\x1a\n"                              */
+    RPIV_IMAGE_PGM = 3,  /* "P2" (ASCII) or "P5" (binary) portable grey map   */
+    RPIV_IMAGE_BMP = 4,  /* "BM"                                              */
+    RPIV_IMAGE_JPEG = 5  /* FF D8 FF                                          */
+} rpiv_image_format;
+
+/* Detect the format of a file from its magic bytes. Errors: RPIV_EIO (cannot open/read),
+ * RPIV_EFORMAT (zero-byte file or unknown magic), each naming the file. */
+RPIV_NODISCARD rpiv_status rpiv_image_format_of(const char *path, rpiv_image_format *fmt);
+
+/* A short name for a format: "TIFF", "PNG", "PGM", "BMP", "JPEG" or "unknown". */
+const char *rpiv_image_format_name(rpiv_image_format fmt);
+
+/* Grey-level statistics of an image (summed in double, in row order: deterministic). */
+typedef struct rpiv_image_stats {
+    double min, max, mean;
+} rpiv_image_stats;
+rpiv_image_stats rpiv_image_stats_of(const rpiv_image *im);
+
 /* Read page `page` (0-based; multi-page TIFF) of a grey image; the format is detected from
  * the file's magic bytes, not its name. RGB input is converted to luminance (Rec. 601) and
  * *warned is set to 1 if warned is not NULL. Errors: RPIV_EIO (missing/unreadable),

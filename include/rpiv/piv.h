@@ -6,14 +6,9 @@
 #include "rpiv/error.h"
 #include "rpiv/field.h"
 #include "rpiv/image.h"
+#include "rpiv/peak.h"
 
 #define RPIV_PIV_MAX_PASSES 8
-
-typedef enum rpiv_subpixel {
-    RPIV_SUBPIXEL_GAUSS = 0,    /* 3-point Gaussian fit in x and y (default) */
-    RPIV_SUBPIXEL_PARABOLA = 1, /* 3-point parabola                          */
-    RPIV_SUBPIXEL_CENTROID = 2  /* 3x3 centroid                              */
-} rpiv_subpixel;
 
 typedef enum rpiv_background {
     RPIV_BACKGROUND_NONE = 0,
