@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -64,7 +65,13 @@ rpiv_status rpiv_synth_params_check(const rpiv_synth_params *p)
         return rpiv_fail(RPIV_EINVAL, "synth: flow or pz_profile is not a terminated string");
     rpiv_flow f;
     int has_amp, has_centre;
-    return rpiv_synth_flow_parse(p->flow, &f, &has_amp, &has_centre);
+    rpiv_status st = rpiv_synth_flow_parse(p->flow, &f, &has_amp, &has_centre);
+    if (st) {
+        char msg[768];
+        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+        return rpiv_fail(st, "synth.flow: %s", msg);
+    }
+    return RPIV_OK;
 }
 
 /* The flow names, their kinds and how many numbers each takes (min..max). */
