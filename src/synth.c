@@ -526,13 +526,13 @@ static void erf_weights(double c, double sig, int i0, int i1, double *wt)
     }
 }
 
-/* Add the spots listed for a band (rows b0 .. b1-1) into buf (band rows x image width). */
-static void render_band(const rpiv_synth *s, const spot *sp, const size_t *list, size_t cnt,
-                        int b0, int b1, double *buf, double *wx, double *wy)
+/* Add a band's spots (rows b0 .. b1-1) into buf (band rows x image width). */
+static void render_band(const rpiv_synth *s, const spot *sp, size_t cnt, int b0, int b1,
+                        double *buf, double *wx, double *wy)
 {
     double rad = s->e.synth.radius_sigma;
     for (size_t q = 0; q < cnt; q++) {
-        const spot *p = &sp[list[q]];
+        const spot *p = &sp[q];
         double r = rad * p->sig;
         double xl = p->x - r - 0.5, xr = p->x + r + 0.5, yl = p->y - r - 0.5, yr = p->y + r + 0.5;
         int x0 = xl < 0 ? 0 : (int)ceil(xl), x1 = xr > s->w - 1 ? s->w - 1 : (int)floor(xr);
@@ -568,9 +568,10 @@ static void noise_band(const rpiv_synth *s, const double *buf, size_t npx, float
     }
 }
 
-/* Per-band lists of the spots to draw, in spot order: list[start[b] .. start[b+1]). */
+/* Per-band copies of the spots to draw, in spot order: list[start[b] .. start[b+1]) (copies,
+ * not indices, so that each band reads its spots in sequence). */
 static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb, size_t **start,
-                          size_t **list)
+                          spot **list)
 {
     size_t *st = calloc((size_t)nb + 1, sizeof *st), total = 0;
     if (!st)
@@ -583,7 +584,7 @@ static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb,
     for (int b = 0; b < nb; b++)
         st[b + 1] += st[b];
     total = st[nb];
-    size_t *li = malloc((total ? total : 1) * sizeof *li);
+    spot *li = malloc((total ? total : 1) * sizeof *li);
     size_t *fill = malloc((size_t)nb * sizeof *fill);
     if (!li || !fill) {
         free(st);
@@ -595,7 +596,7 @@ static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb,
     for (size_t i = 0; i < n; i++)
         if (spot_rows(s, &sp[i], &y0, &y1))
             for (int b = y0 / BAND; b <= y1 / BAND; b++)
-                li[fill[b]++] = i;
+                li[fill[b]++] = sp[i];
     free(fill);
     *start = st;
     *list = li;
@@ -608,7 +609,8 @@ static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *c
                         int nf, unsigned long index, int noise)
 {
     int nb = (s->h + BAND - 1) / BAND;
-    size_t *start[2] = {NULL, NULL}, *list[2] = {NULL, NULL};
+    size_t *start[2] = {NULL, NULL};
+    spot *list[2] = {NULL, NULL};
     rpiv_status st = RPIV_OK;
     for (int f = 0; f < nf && !st; f++)
         st = bucket(s, sp[f], n, nb, &start[f], &list[f]);
@@ -630,8 +632,8 @@ static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *c
             int f = it / nb, b = it % nb, b0 = b * BAND, b1 = b0 + BAND > s->h ? s->h : b0 + BAND;
             size_t npx = (size_t)(b1 - b0) * w;
             memset(buf, 0, npx * sizeof *buf);
-            render_band(s, sp[f], list[f] + start[f][b], start[f][b + 1] - start[f][b], b0, b1,
-                        buf, wx, wy);
+            render_band(s, list[f] + start[f][b], start[f][b + 1] - start[f][b], b0, b1, buf,
+                        wx, wy);
             float *o = out[f] + (size_t)b0 * w;
             if (noise) {
                 gsl_rng_set(r, stream_seed(s->e.synth.seed, index,
