@@ -3,6 +3,7 @@
 #include "rpiv/config.h"
 #include "rpiv/synth.h"
 
+#include <gsl/gsl_integration.h>
 #include <gsl/gsl_randist.h>
 #include <omp.h>
 #include <stdlib.h>
@@ -471,6 +472,51 @@ static void truth_at_the_sheet_peak_for_rpiv(void)
     rpiv_synth_free(s);
 }
 
+typedef struct path_ctx {
+    double y, zmid, w;
+} path_ctx;
+
+static double duct_on_path(double t, void *user)
+{
+    const path_ctx *c = user;
+    return rpiv_duct_u(c->y, c->zmid + (t - 0.5) * c->w);
+}
+
+static void duct_with_w_integrates_along_the_path(void)
+{
+    /* with an out-of-plane w the particle crosses the profile: B - A = A_bulk * integral over
+     * the pulse separation of U*(y*, z*(t)), by RK4; reference by GSL quadrature */
+    rpiv_experiment e = rpiv_experiment_default();
+    e.synth.width_px = 256;
+    e.synth.height_px = 256;
+    e.synth.w_star = 0.1318;
+    rpiv_synth *s;
+    CHECK_OK(rpiv_synth_new(&e, NULL, &s));
+    if (!s)
+        return;
+    rpiv_synth_info in;
+    rpiv_synth_get_info(s, &in);
+    gsl_integration_workspace *ws = gsl_integration_workspace_alloc(100);
+    const double zs[] = {0.1187, 0.4913, 0.8234};
+    for (int k = 0; k < 3; k++) {
+        rpiv_synth_particle mid = {100.25, 97.3, zs[k], 10e-6}, pa, pb;
+        rpiv_synth_advect(s, &mid, -0.5, &pa);
+        rpiv_synth_advect(s, &mid, 0.5, &pb);
+        CHECK_NEAR(pb.z - pa.z, 0.1318, 1e-15);
+        CHECK_NEAR(pb.y, pa.y, 0);
+        path_ctx c = {in.flow.y0_star + 97.3 * in.flow.ystar_per_px, zs[k], 0.1318};
+        gsl_function fn = {duct_on_path, &c};
+        double ref, err;
+        CHECK(gsl_integration_qag(&fn, 0, 1, 1e-13, 1e-12, 100, GSL_INTEG_GAUSS31, ws, &ref,
+                                  &err) == 0);
+        printf("  z*_mid %.4f: B - A = %.9f px, quadrature %.9f px\n", zs[k], pb.x - pa.x,
+               in.bulk_px * ref);
+        CHECK_NEAR(pb.x - pa.x, in.bulk_px * ref, 1e-7);
+    }
+    gsl_integration_workspace_free(ws);
+    rpiv_synth_free(s);
+}
+
 static void oseen_particles_stay_on_their_circle(void)
 {
     rpiv_experiment e = quiet_experiment(256, 256);
@@ -818,6 +864,7 @@ int main(void)
     RUN_TEST(frame_b_moves_by_the_uniform_displacement);
     RUN_TEST(duct_maps_to_bulk_displacement_in_pixels);
     RUN_TEST(truth_at_the_sheet_peak_for_rpiv);
+    RUN_TEST(duct_with_w_integrates_along_the_path);
     RUN_TEST(oseen_particles_stay_on_their_circle);
     RUN_TEST(noise_has_poisson_and_read_statistics);
     RUN_TEST(quantisation_saturates_at_the_bit_depth);
