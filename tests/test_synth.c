@@ -631,7 +631,8 @@ static void quantisation_saturates_at_the_bit_depth(void)
 static void tabulated_pz_is_sampled(void)
 {
     /* P(z*) = 2 z*: mean 2/3, variance 1/18 */
-    rpiv_experiment e = quiet_experiment(256, 256);
+    rpiv_experiment e = quiet_experiment(512, 512);
+    e.particles.density_ppp = 0.05;
     strcpy(e.synth.pz_profile, write_file("pz_ramp.txt", "# ramp\n0 0\n0.5 1\n1 2\n"));
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
