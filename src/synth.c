@@ -27,7 +27,8 @@ enum { BAND = 32 };
  * with m_k = background + k POIS_STEP the largest tabulated mean below m (Walker tables of
  * GSL, O(1) per draw) and the small remainder from gsl_ran_poisson's direct method; means
  * beyond the last table draw the whole excess from gsl_ran_poisson. */
-#define POIS_STEP 4.0
+#define POIS_STEP    4.0
+#define POIS_ENTRIES 2e6
 enum { POIS_TABLES = 512 };
 
 /* Stream tags: particles, and noise of (frame, band). */
@@ -51,6 +52,7 @@ struct rpiv_synth {
     double *pz_z, *pz_p, *pz_c; /* nodes, density, cumulative integral      */
     gsl_ran_discrete_t **ptab;  /* shot noise: Poisson(background + k POIS_STEP) */
     long *ptab_k0;              /* first count of each table                */
+    int npt;                    /* number of tables                         */
     double maxval;              /* 2^bits - 1                               */
 };
 
@@ -177,33 +179,49 @@ static double sample_z(const rpiv_synth *s, gsl_rng *r)
 
 /* ---- making a generator ----------------------------------------------------------------- */
 
+/* Range of counts tabulated for Poisson(mu): beyond 12 sd + 40 counts either side the mass is
+ * below 1e-30. */
+static void pois_range(double mu, long *k0, long *k1)
+{
+    double sd = sqrt(mu);
+    *k0 = (long)floor(mu - 12 * sd - 40);
+    *k1 = (long)ceil(mu + 12 * sd + 40);
+    if (*k0 < 0)
+        *k0 = 0;
+}
+
 static rpiv_status poisson_tables(rpiv_synth *s)
 {
-    s->ptab = calloc(POIS_TABLES, sizeof *s->ptab);
-    s->ptab_k0 = calloc(POIS_TABLES, sizeof *s->ptab_k0);
-    size_t cap = 0;
-    double *p = NULL;
-    if (!s->ptab || !s->ptab_k0)
+    double bg = s->e.synth.background;
+    long k0, k1;
+    /* at most POIS_ENTRIES table entries in all (16 bytes each): fewer tables for a high
+     * background */
+    int nt = POIS_TABLES;
+    for (;;) {
+        pois_range(bg + (nt - 1) * POIS_STEP, &k0, &k1);
+        if (nt == 1 || (double)nt * (double)(k1 - k0 + 1) <= POIS_ENTRIES)
+            break;
+        nt /= 2;
+    }
+    s->npt = nt;
+    s->ptab = calloc((size_t)nt, sizeof *s->ptab);
+    s->ptab_k0 = calloc((size_t)nt, sizeof *s->ptab_k0);
+    double *p = malloc((size_t)(k1 - k0 + 1) * sizeof *p); /* the largest table */
+    if (!s->ptab || !s->ptab_k0 || !p)
         goto out_nomem;
-    for (int t = 0; t < POIS_TABLES; t++) {
-        double mu = s->e.synth.background + t * POIS_STEP, sd = sqrt(mu);
+    for (int t = 0; t < nt; t++) {
+        double mu = bg + t * POIS_STEP;
         if (mu == 0)
             continue; /* Poisson(0) = 0: no table */
-        /* beyond 12 sd + 40 counts either side the Poisson mass is below 1e-30 */
-        long k0 = (long)floor(mu - 12 * sd - 40), k1 = (long)ceil(mu + 12 * sd + 40);
-        if (k0 < 0)
-            k0 = 0;
-        size_t n = (size_t)(k1 - k0 + 1);
-        if (n > cap) {
-            free(p);
-            cap = n;
-            p = malloc(cap * sizeof *p);
-            if (!p)
-                goto out_nomem;
-        }
-        for (size_t k = 0; k < n; k++)
-            p[k] = gsl_ran_poisson_pdf((unsigned int)(k0 + (long)k), mu);
-        s->ptab[t] = gsl_ran_discrete_preproc(n, p);
+        pois_range(mu, &k0, &k1);
+        /* the pmf from its mode outward by the ratios p(k+1)/p(k) = mu/(k+1) */
+        long km = (long)floor(mu), n = k1 - k0 + 1;
+        p[km - k0] = gsl_ran_poisson_pdf((unsigned int)km, mu);
+        for (long k = km + 1; k <= k1; k++)
+            p[k - k0] = p[k - 1 - k0] * mu / (double)k;
+        for (long k = km - 1; k >= k0; k--)
+            p[k - k0] = p[k + 1 - k0] * (double)(k + 1) / mu;
+        s->ptab[t] = gsl_ran_discrete_preproc((size_t)n, p);
         if (!s->ptab[t])
             goto out_nomem;
         s->ptab_k0[t] = k0;
@@ -220,8 +238,8 @@ static double shot(const rpiv_synth *s, double m, gsl_rng *r)
 {
     double ex = m - s->e.synth.background;
     int t = ex > 0 ? (int)(ex / POIS_STEP) : 0;
-    if (t >= POIS_TABLES)
-        t = POIS_TABLES - 1;
+    if (t >= s->npt)
+        t = s->npt - 1;
     double rem = ex - t * POIS_STEP, c = 0;
     if (s->ptab[t])
         c = (double)(s->ptab_k0[t] + (long)gsl_ran_discrete(r, s->ptab[t]));
@@ -382,7 +400,7 @@ void rpiv_synth_free(rpiv_synth *s)
     free(s->pz_p);
     free(s->pz_c);
     if (s->ptab)
-        for (int t = 0; t < POIS_TABLES; t++)
+        for (int t = 0; t < s->npt; t++)
             if (s->ptab[t])
                 gsl_ran_discrete_free(s->ptab[t]);
     free(s->ptab);
