@@ -87,8 +87,7 @@ static rpiv_status apply(const synth_opts *o, rpiv_experiment *e)
         else if (!strcmp(o->sheet, "volume"))
             e->sheet.kind = RPIV_SHEET_UNIFORM;
         else
-            return cli_usage_error("synth", "--sheet: '%s' is not ppiv, rpiv or volume",
-                                   o->sheet);
+            return cli_usage_error("synth", "--sheet: '%s' is not ppiv, rpiv or volume", o->sheet);
     }
     if (o->out) {
         if (strlen(o->out) >= sizeof e->output.dir)

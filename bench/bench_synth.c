@@ -44,8 +44,8 @@ static int run_case(const char *name, rpiv_experiment *e, int reps)
     }
     rpiv_synth_info in;
     rpiv_synth_get_info(s, &in);
-    double expect = e->particles.density_ppp * (in.region[2] - in.region[0]) *
-                    (in.region[3] - in.region[1]);
+    double expect =
+        e->particles.density_ppp * (in.region[2] - in.region[0]) * (in.region[3] - in.region[1]);
     int bad = !(in.nparticles == (size_t)(expect + 0.5));
     rpiv_image a = {in.width_px, in.height_px, 0, NULL}, b = a;
     size_t npx = (size_t)in.width_px * (size_t)in.height_px;
@@ -94,8 +94,8 @@ int main(int argc, char **argv)
     if (reps < 1 || reps > 16)
         reps = 5;
     rpiv_init();
-    printf("# bench_synth: %d repeats, median and min wall time per pair, threads up to %d\n",
-           reps, omp_get_max_threads());
+    printf("# bench_synth: %d repeats, median and min wall time per pair, threads up to %d\n", reps,
+           omp_get_max_threads());
     printf("# case               size      particles thr median_ms   min_ms   cpu_ms pairs/s "
            "checksum\n");
     int bad = 0;

@@ -36,19 +36,19 @@ enum { POIS_TABLES = 512 };
 #define TAG_NOISE     (1ULL << 40)
 
 struct rpiv_synth {
-    rpiv_experiment e;  /* the parameters, copied                           */
-    rpiv_sheet *sheet;  /* I0(x*, z*)                                       */
-    rpiv_flow flow;     /* displacement over dt, px                         */
-    int w, h;           /* image size                                       */
-    double pix_m;       /* sensor pixel pitch                               */
-    double spp;         /* x* (= y*) per image pixel                        */
-    double x0s, y0s;    /* x*, y* of the left and top image edges           */
-    double reg[4];      /* particle region x0, y0, x1, y1, px               */
-    size_t n;           /* particles per pair                               */
-    double norm;        /* peak_counts / model peak of the reference particle */
-    double de0_m;       /* d_e of the reference particle in focus           */
-    int invariant;      /* 1: the displacement is constant along a path     */
-    size_t npz;         /* P(z*) table rows (0 = uniform)                   */
+    rpiv_experiment e;          /* the parameters, copied                           */
+    rpiv_sheet *sheet;          /* I0(x*, z*)                                       */
+    rpiv_flow flow;             /* displacement over dt, px                         */
+    int w, h;                   /* image size                                       */
+    double pix_m;               /* sensor pixel pitch                               */
+    double spp;                 /* x* (= y*) per image pixel                        */
+    double x0s, y0s;            /* x*, y* of the left and top image edges           */
+    double reg[4];              /* particle region x0, y0, x1, y1, px               */
+    size_t n;                   /* particles per pair                               */
+    double norm;                /* peak_counts / model peak of the reference particle */
+    double de0_m;               /* d_e of the reference particle in focus           */
+    int invariant;              /* 1: the displacement is constant along a path     */
+    size_t npz;                 /* P(z*) table rows (0 = uniform)                   */
     double *pz_z, *pz_p, *pz_c; /* nodes, density, cumulative integral      */
     gsl_ran_discrete_t **ptab;  /* shot noise: Poisson(background + k POIS_STEP) */
     long *ptab_k0;              /* first count of each table                */
@@ -143,8 +143,8 @@ static rpiv_status pz_load(rpiv_synth *s, const char *path)
     }
     s->pz_c[0] = 0;
     for (size_t k = 1; k < s->npz; k++)
-        s->pz_c[k] = s->pz_c[k - 1] +
-                     0.5 * (s->pz_p[k - 1] + s->pz_p[k]) * (s->pz_z[k] - s->pz_z[k - 1]);
+        s->pz_c[k] =
+            s->pz_c[k - 1] + 0.5 * (s->pz_p[k - 1] + s->pz_p[k]) * (s->pz_z[k] - s->pz_z[k - 1]);
     if (!(s->pz_c[s->npz - 1] > 0))
         st = rpiv_fail(RPIV_EFORMAT, "%s: P(z) integrates to zero", path);
 out_close:
@@ -326,8 +326,7 @@ static void region_of(rpiv_synth *s)
         s->reg[3] = s->reg[1];
 }
 
-rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flow,
-                           rpiv_synth **out)
+rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flow, rpiv_synth **out)
 {
     rpiv_status st;
     *out = NULL;
@@ -502,8 +501,7 @@ void rpiv_synth_image_model(const rpiv_synth *s, const rpiv_synth_particle *p, d
     double de = rpiv_imaging_de_m(cam, p->dp_m, zd);
     if (amp_counts) {
         double i0 = rpiv_sheet_eval(s->sheet, xstar, p->z);
-        *amp_counts = i0 > 0 ? s->norm * rpiv_imaging_peak(cam, i0 * p->dp_m * p->dp_m, de, zd)
-                             : 0;
+        *amp_counts = i0 > 0 ? s->norm * rpiv_imaging_peak(cam, i0 * p->dp_m * p->dp_m, de, zd) : 0;
     }
     if (de_px)
         *de_px = de / s->pix_m;
@@ -623,8 +621,8 @@ static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb,
 
 /* Draw nf frames: spots sp[f] into out[f] (w x h). With noise, out is overwritten by the
  * noisy, quantised image; without, the spots are added to out. */
-static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *const *out,
-                        int nf, unsigned long index, int noise)
+static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *const *out, int nf,
+                        unsigned long index, int noise)
 {
     int nb = (s->h + BAND - 1) / BAND;
     size_t *start[2] = {NULL, NULL};
@@ -650,8 +648,8 @@ static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *c
             int f = it / nb, b = it % nb, b0 = b * BAND, b1 = b0 + BAND > s->h ? s->h : b0 + BAND;
             size_t npx = (size_t)(b1 - b0) * w;
             memset(buf, 0, npx * sizeof *buf);
-            render_band(s, list[f] + start[f][b], start[f][b + 1] - start[f][b], b0, b1, buf,
-                        wx, wy);
+            render_band(s, list[f] + start[f][b], start[f][b + 1] - start[f][b], b0, b1, buf, wx,
+                        wy);
             float *o = out[f] + (size_t)b0 * w;
             if (noise) {
                 gsl_rng_set(r, stream_seed(s->e.synth.seed, index,
@@ -681,8 +679,8 @@ out_free:
 static rpiv_status size_ok(const rpiv_synth *s, const rpiv_image *im, const char *what)
 {
     if (im->w != s->w || im->h != s->h || !im->px)
-        return rpiv_fail(RPIV_ESIZE, "synth: %s is %dx%d, the generator makes %dx%d", what,
-                         im->w, im->h, s->w, s->h);
+        return rpiv_fail(RPIV_ESIZE, "synth: %s is %dx%d, the generator makes %dx%d", what, im->w,
+                         im->h, s->w, s->h);
     return RPIV_OK;
 }
 
@@ -705,8 +703,7 @@ rpiv_status rpiv_synth_render(const rpiv_synth *s, const rpiv_synth_particle *p,
     return st;
 }
 
-rpiv_status rpiv_synth_pair(const rpiv_synth *s, unsigned long index, rpiv_image *a,
-                            rpiv_image *b)
+rpiv_status rpiv_synth_pair(const rpiv_synth *s, unsigned long index, rpiv_image *a, rpiv_image *b)
 {
     rpiv_status st;
     if ((st = size_ok(s, a, "frame A")) || (st = size_ok(s, b, "frame B")))
@@ -752,8 +749,7 @@ rpiv_status rpiv_synth_pair_double(const rpiv_synth *s, unsigned long index, rpi
 
 /* ---- ground truth ----------------------------------------------------------------------- */
 
-rpiv_status rpiv_synth_grid_of(const rpiv_synth *s, const rpiv_piv_params *piv,
-                               rpiv_synth_grid *g)
+rpiv_status rpiv_synth_grid_of(const rpiv_synth *s, const rpiv_piv_params *piv, rpiv_synth_grid *g)
 {
     int last = piv->npass - 1, ww = piv->win_w[last], wh = piv->win_h[last];
     int sx = piv->step_px, sy = piv->step_px;
@@ -908,10 +904,9 @@ rpiv_status rpiv_synth_save_params(const rpiv_synth *s, const char *path)
             "#   flow %s: a %.9g, b %.9g, centre (%.6g, %.6g), y* at row 0 %.9g, y* per px %.9g\n",
             s->e.synth.seed, s->e.synth.pairs, in.width_px, in.height_px, in.x0_star,
             in.x0_star + in.width_px * in.star_per_px, in.y0_star,
-            in.y0_star + in.height_px * in.star_per_px, in.star_per_px, in.nparticles,
-            in.region[0], in.region[2], in.region[1], in.region[3], in.bulk_px, in.de_focus_px,
-            in.sigma_focus_px, flow_name(f->kind), f->a, f->b, f->cx, f->cy, f->y0_star,
-            f->ystar_per_px);
+            in.y0_star + in.height_px * in.star_per_px, in.star_per_px, in.nparticles, in.region[0],
+            in.region[2], in.region[1], in.region[3], in.bulk_px, in.de_focus_px, in.sigma_focus_px,
+            flow_name(f->kind), f->a, f->b, f->cx, f->cy, f->y0_star, f->ystar_per_px);
     rpiv_status st = rpiv_config_write(&s->e, fp);
     int bad = ferror(fp);
     bad |= fclose(fp) != 0;

@@ -159,8 +159,8 @@ static void single_particle_centroid_is_its_position(void)
     CHECK_OK(rpiv_synth_render(s, &p, 1, im));
     double sum, cx, cy;
     moments(im, 0, 95, 0, 63, &sum, &cx, &cy, NULL, NULL);
-    printf("  centroid (%.6f, %.6f), sigma %.4f px, error (%.2e, %.2e) px\n", cx, cy, sig,
-           cx - p.x, cy - p.y);
+    printf("  centroid (%.6f, %.6f), sigma %.4f px, error (%.2e, %.2e) px\n", cx, cy, sig, cx - p.x,
+           cy - p.y);
     CHECK(sig > 0.8);
     CHECK_NEAR(cx, 40.3187, 1e-3);
     CHECK_NEAR(cy, 25.7421, 1e-3);
@@ -202,7 +202,8 @@ static void particle_diameter_follows_eq_diam(void)
         double sum, cx, cy, vx, vy;
         moments(im, 0, 127, 0, 127, &sum, &cx, &cy, &vx, &vy);
         /* pixel integration adds 1/12 px^2 to the variance (Sheppard) */
-        double de_x = sqrt(8.0) * beta * sqrt(vx - 1.0 / 12), de_y = sqrt(8.0) * beta * sqrt(vy - 1.0 / 12);
+        double de_x = sqrt(8.0) * beta * sqrt(vx - 1.0 / 12),
+               de_y = sqrt(8.0) * beta * sqrt(vy - 1.0 / 12);
         printf("  z* %.4f: d_e from the image %.5f, %.5f px; Eq. diam by hand %.5f px\n", zs[k],
                de_x, de_y, hand);
         CHECK_NEAR(de_x, hand, 1e-3 * hand);
@@ -253,14 +254,15 @@ static void total_intensity_follows_amplitude_law(void)
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
     if (!s)
         return;
-    rpiv_synth_particle p0 = {60.4127, 66.2283, 0.45, 10e-6}, p1 = {60.4127, 66.2283, 0.4737,
-                                                                       7.3e-6};
+    rpiv_synth_particle p0 = {60.4127, 66.2283, 0.45, 10e-6},
+                        p1 = {60.4127, 66.2283, 0.4737, 7.3e-6};
     double a0, a1, d0, d1;
     rpiv_synth_image_model(s, &p0, &a0, &d0, NULL);
     rpiv_synth_image_model(s, &p1, &a1, &d1, NULL);
     double dz = (0.4737 - 0.45) / 0.1, i0 = exp(-4 * log(4.0) * dz * dz);
     double zp = h * (0.4737 - 0.45);
-    double ratio = i0 * (7.3 * 7.3 / 100) * (d0 * d0) / (d1 * d1) * (s0 * s0) / ((s0 + zp) * (s0 + zp));
+    double ratio =
+        i0 * (7.3 * 7.3 / 100) * (d0 * d0) / (d1 * d1) * (s0 * s0) / ((s0 + zp) * (s0 + zp));
     CHECK_NEAR(a0, 1318.7, 1e-9);
     CHECK_NEAR(a1 / a0, ratio, 1e-12);
     rpiv_synth_free(s);
@@ -585,8 +587,7 @@ static void noise_has_poisson_and_read_statistics(void)
          * already; rounding a Gaussian adds 1/12. */
         printf("  shot %d background %g read %g: mean %.4f (%g +- %.4f), variance %.3f (%.3f "
                "+- %.3f)\n",
-               cases[c].shot, bg, cases[c].read, m, bg, sqrt(var / n), v, var,
-               var * sqrt(2 / n));
+               cases[c].shot, bg, cases[c].read, m, bg, sqrt(var / n), v, var, var * sqrt(2 / n));
         CHECK_NEAR(m, bg, 4.5 * sqrt(var / n));
         CHECK_NEAR(v, var, 4.5 * var * sqrt(2 / n));
         if (cases[c].shot && cases[c].read == 0 && bg == 100) {
@@ -655,7 +656,8 @@ static void tabulated_pz_is_sampled(void)
     }
     m /= (double)n;
     double fb = 0.3187 * 0.3187; /* P(z* < a) = a^2 */
-    printf("  %zu particles: mean z* %.4f (2/3), P(z* < 0.3187) %.4f (%.4f)\n", n, m, below / (double)n, fb);
+    printf("  %zu particles: mean z* %.4f (2/3), P(z* < 0.3187) %.4f (%.4f)\n", n, m,
+           below / (double)n, fb);
     CHECK_NEAR(m, 2.0 / 3, 4.5 * sqrt(1.0 / 18 / (double)n));
     CHECK_NEAR(below / (double)n, fb, 4.5 * sqrt(fb * (1 - fb) / (double)n));
     rpiv_synth_particles_free(p);
@@ -772,9 +774,10 @@ static void flow_specs_parse_and_fail(void)
     CHECK(f.kind == RPIV_FLOW_OSEEN && hc && f.cx == 100.5 && f.cy == 90);
     CHECK_OK(rpiv_synth_flow_parse("poiseuille-y:4", &f, &ha, &hc));
     CHECK(f.kind == RPIV_FLOW_POISEUILLE_Y);
-    const char *bad[] = {"", "vortex", "uniform", "uniform:1", "uniform:1,2,3", "uniform:1,x",
-                         "uniform:1,", "duct:1,2", "oseen:6", "oseen:6,0", "oseen:6,48,1",
-                         "sine:3,-64", "sine:3", "uniform:nan,1", "uniform:1;2"};
+    const char *bad[] = {
+        "",           "vortex",        "uniform",    "uniform:1", "uniform:1,2,3", "uniform:1,x",
+        "uniform:1,", "duct:1,2",      "oseen:6",    "oseen:6,0", "oseen:6,48,1",  "sine:3,-64",
+        "sine:3",     "uniform:nan,1", "uniform:1;2"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         int st = rpiv_synth_flow_parse(bad[i], &f, &ha, &hc);
         if (st != RPIV_EINVAL)
@@ -811,8 +814,8 @@ static void bad_inputs_fail_with_codes(void)
     strcpy(e.synth.pz_profile, missing);
     CHECK_FAILS(rpiv_synth_new(&e, NULL, &s), RPIV_EIO);
     CHECK(strstr(rpiv_errmsg(), "no-such-pz.txt") != NULL);
-    const char *bad[] = {"0 1\n", "0 1\n0.5 x\n", "0 1\n0.5 -1\n", "0 1\n1.5 1\n",
-                         "0.5 1\n0.2 1\n", "0 0\n1 0\n", "0 1 2\n1 1\n"};
+    const char *bad[] = {"0 1\n",          "0 1\n0.5 x\n", "0 1\n0.5 -1\n", "0 1\n1.5 1\n",
+                         "0.5 1\n0.2 1\n", "0 0\n1 0\n",   "0 1 2\n1 1\n"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         strcpy(e.synth.pz_profile, write_file("pz_bad.txt", bad[i]));
         CHECK_FAILS(rpiv_synth_new(&e, NULL, &s), RPIV_EFORMAT);
