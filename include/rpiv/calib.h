@@ -63,8 +63,10 @@ typedef struct rpiv_calib_shot {
 typedef struct rpiv_calib_sheet_params {
     rpiv_calib_geom geom;
     double smooth_px;   /* Gaussian smoothing (sigma) of the span-averaged profile, px (0: none) */
-    int subtract_floor; /* 1: also subtract the profile's minimum over the plate interior
-                           (scattered light, plate glow) before normalising (1) */
+    int subtract_floor; /* 1: also subtract the profile's minimum along the plate (scattered
+                           light, plate glow) before normalising (1) */
+    double min_signal;  /* the sheet's peak above that floor must exceed min_signal x floor and
+                           10 x the noise of the span average, else "no sheet" (0.1) */
     double margin;      /* z* dropped next to the floor and the plate top, where the blurred image
                            of the floor or of the plate edge leaks into the profile (0.03) */
     double zplus_step;  /* step of the mean shape table in z+ (0.01) */
