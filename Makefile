@@ -6,9 +6,10 @@
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 WERROR ?= OFF
 DEMO_ARGS ?=
+FUZZ_SECONDS ?= 30
 CMAKE ?= cmake
 
-.PHONY: all deps build demo test test-unit install-check bench memcheck format lint clean
+.PHONY: all deps build build-test demo test install-check fuzz bench memcheck format lint clean
 
 all: build
 
@@ -32,6 +33,11 @@ test: build-test
 	    UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	    ctest -j $(JOBS) --output-on-failure
 	$(MAKE) install-check
+	$(MAKE) fuzz
+
+# libFuzzer targets (clang, ASan+UBSan), each run FUZZ_SECONDS on its seed corpus.
+fuzz: deps
+	scripts/run-fuzz $(FUZZ_SECONDS)
 
 # Install into a temporary prefix and build a consumer with pkg-config and with CMake.
 install-check: deps
@@ -56,4 +62,4 @@ lint: build
 	    --suppress='*:/usr/*' --error-exitcode=1 -q
 
 clean:
-	rm -rf build build-test build-memcheck build-install
+	rm -rf build build-test build-memcheck build-install build-fuzz

@@ -1,11 +1,176 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* rpiv duct - not implemented yet (placeholder until its issue lands). */
+/* rpiv duct - print (and plot) the analytic square-duct profile U*(y*, z*) along y* or z*. */
 #include "cli.h"
+
+#include "rpiv/flow.h"
+#include "rpiv/plot.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 rpiv_status cmd_duct(int argc, char **argv);
 
+#define MAX_POINTS 1000000
+
+static void help(void)
+{
+    printf("usage: rpiv duct [--y Y|START:STOP:STEP] [--z Z|START:STOP:STEP] [--png FILE]\n\n"
+           "Print the fully developed laminar velocity in the square duct (Eq. \"White\" of the\n"
+           "paper), U* = U / U_bulk, as a two-column table: the coordinate given as a range,\n"
+           "then U*. One of --y, --z is a single value in 0..1, the other a range (inclusive\n"
+           "of STOP). Default: --y 0.5 --z 0:1:0.01. The table is a profile file that\n"
+           "'rpiv compare' reads.\n\n"
+           "  --y V|A:B:S   spanwise coordinate y* (0..1)\n"
+           "  --z V|A:B:S   height z* above the floor (0..1)\n"
+           "  --png FILE    also plot the profile into FILE (PNG)\n"
+           "  --help        this text\n");
+}
+
+/* A number of option opt, or a usage error naming the option and the text. */
+static rpiv_status number(const char *opt, const char *what, const char *s, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end || errno || !isfinite(v))
+        return cli_usage_error("duct", "%s: %s '%s' is not a number", opt, what, s);
+    *out = v;
+    return RPIV_OK;
+}
+
+/* "V" (one value) or "START:STOP:STEP" (STOP included when it falls on the step), all in
+ * 0..1. On success *vals is malloc'ed with *n values. */
+static rpiv_status parse_range(const char *opt, const char *arg, double **vals, size_t *n,
+                               int *is_range)
+{
+    char buf[256];
+    double a = 0, b = 0, s = 0;
+    rpiv_status st;
+    *vals = NULL;
+    if (strlen(arg) >= sizeof buf)
+        return cli_usage_error("duct", "%s: argument too long", opt);
+    strcpy(buf, arg);
+    char *c1 = strchr(buf, ':'), *c2 = c1 ? strchr(c1 + 1, ':') : NULL;
+    if (!c1) {
+        if ((st = number(opt, "value", buf, &a)))
+            return st;
+        b = a;
+        s = 1;
+        *is_range = 0;
+    } else {
+        if (!c2 || strchr(c2 + 1, ':'))
+            return cli_usage_error("duct", "%s: '%s' is neither a value nor START:STOP:STEP", opt,
+                                   arg);
+        *c1 = *c2 = '\0';
+        if ((st = number(opt, "start", buf, &a)) || (st = number(opt, "stop", c1 + 1, &b)) ||
+            (st = number(opt, "step", c2 + 1, &s)))
+            return st;
+        if (!(s > 0))
+            return cli_usage_error("duct", "%s: step %g must be > 0", opt, s);
+        if (b < a)
+            return cli_usage_error("duct", "%s: stop %g is below start %g", opt, b, a);
+        *is_range = 1;
+    }
+    if (a < 0 || b > 1)
+        return cli_usage_error("duct", "%s: '%s' leaves the duct: coordinates are 0..1", opt, arg);
+    double count = floor((b - a) / s + 1e-9) + 1;
+    if (count > MAX_POINTS)
+        return cli_usage_error("duct", "%s: '%s' gives %.0f points, more than %d", opt, arg, count,
+                               MAX_POINTS);
+    *n = (size_t)count;
+    *vals = malloc(*n * sizeof **vals);
+    if (!*vals)
+        return rpiv_fail(RPIV_ENOMEM, "duct: out of memory for %zu points", *n);
+    for (size_t k = 0; k < *n; k++)
+        (*vals)[k] = fmin(a + (double)k * s, b); /* k * step: no accumulated rounding */
+    return RPIV_OK;
+}
+
 rpiv_status cmd_duct(int argc, char **argv)
 {
-    (void)argc;
-    return rpiv_fail(RPIV_EINVAL, "%s: not implemented yet", argv[0]);
+    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
+                                         {"y", required_argument, 0, 'y'},
+                                         {"z", required_argument, 0, 'z'},
+                                         {"png", required_argument, 0, 'p'},
+                                         {0, 0, 0, 0}};
+    cli_ctx c;
+    const char *yarg = NULL, *zarg = NULL, *png = NULL;
+    int o;
+    rpiv_status st;
+    cli_ctx_init(&c);
+    optind = 1;
+    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+        if (o == 'h') {
+            help();
+            return RPIV_OK;
+        }
+        if (cli_common_opt(&c, o, optarg, &st)) {
+            if (st)
+                return st;
+            continue;
+        }
+        if (o == 'y')
+            yarg = optarg;
+        else if (o == 'z')
+            zarg = optarg;
+        else if (o == 'p')
+            png = optarg;
+        else
+            return cli_usage_error("duct", "unknown option '%s'", argv[optind - 1]);
+    }
+    if (optind < argc)
+        return cli_usage_error("duct", "unexpected argument '%s'", argv[optind]);
+    if (!yarg && !zarg)
+        yarg = "0.5";
+    if (!zarg && yarg && !strchr(yarg, ':'))
+        zarg = "0:1:0.01";
+    if (!yarg)
+        yarg = strchr(zarg, ':') ? "0.5" : "0:1:0.01";
+    double *ys = NULL, *zs = NULL, *u = NULL;
+    size_t ny = 0, nz = 0;
+    int yr = 0, zr = 0;
+    if ((st = parse_range("--y", yarg, &ys, &ny, &yr)) ||
+        (st = parse_range("--z", zarg, &zs, &nz, &zr)))
+        goto out;
+    if (yr && zr) {
+        st = cli_usage_error("duct", "--y %s and --z %s are both ranges: give one as a value", yarg,
+                             zarg);
+        goto out;
+    }
+    /* the range is the abscissa; a single point counts as a range along z */
+    int along_y = yr;
+    const double *al = along_y ? ys : zs;
+    size_t n = along_y ? ny : nz;
+    double fixed = along_y ? zs[0] : ys[0];
+    u = malloc(n * sizeof *u);
+    if (!u) {
+        st = rpiv_fail(RPIV_ENOMEM, "duct: out of memory");
+        goto out;
+    }
+    for (size_t k = 0; k < n; k++)
+        u[k] = along_y ? rpiv_duct_u(al[k], fixed) : rpiv_duct_u(fixed, al[k]);
+    printf("# rpiv duct: square-duct laminar profile U* = U/U_bulk (Eq. \"White\"), %s* = %.10g\n",
+           along_y ? "z" : "y", fixed);
+    printf("# %s* U*\n", along_y ? "y" : "z");
+    for (size_t k = 0; k < n; k++)
+        printf("%.10g %.10g\n", al[k], u[k]);
+    if (fflush(stdout) != 0) {
+        st = rpiv_fail(RPIV_EIO, "duct: cannot write the table: %s", strerror(errno));
+        goto out;
+    }
+    if (png) {
+        char title[96], label[96];
+        snprintf(title, sizeof title, "Square duct, %s* = %.4g", along_y ? "z" : "y", fixed);
+        snprintf(label, sizeof label, "U*(%s* = %.4g)", along_y ? "z" : "y", fixed);
+        rpiv_plot_series s = {al, u, n, label, n > 1 ? RPIV_PLOT_LINE : RPIV_PLOT_POINTS};
+        st = rpiv_plot_lines(png, title, along_y ? "y*" : "z*", "U* = U / U#dbulk#u", &s, 1, NULL);
+    }
+out:
+    free(ys);
+    free(zs);
+    free(u);
+    return st;
 }

@@ -37,6 +37,7 @@ typedef struct key_spec {
 
 static const char *const sheet_kinds[] = {"gauss", "selfsim", "uniform", NULL};
 static const char *const polars[] = {"p", "s", "unpolarised", NULL};
+static const char *const beta1_sides[] = {"air", "pmma", NULL};
 static const char *const subpixels[] = {"gauss", "parabola", "centroid", NULL};
 static const char *const backgrounds[] = {"none", "min", "mean", NULL};
 
@@ -96,7 +97,11 @@ static const key_spec keys[] = {
     {"laser", "lens_distance_mm", KEY_DOUBLE, OFF(laser.lens_dist_m), 0, 100000, 1e-3, "mm",
      "lens to the prism's inclined face", 0},
     {"laser", "beta1_deg", KEY_DOUBLE, OFF(laser.beta1_deg), -45, 45, 1, "deg",
-     "incidence on the inclined face, from its normal", 0},
+     "beam axis deviation from the inclined face's normal, towards the vertical", 0},
+    {"laser", "beta1_side", KEY_ENUM, OFF(laser.beta1_side), 0, 0, 1, "-",
+     "side of the face beta1 is measured on: air (incidence) or pmma (inside)", beta1_sides},
+    {"laser", "bundle_mm", KEY_DOUBLE, OFF(laser.bundle_m), 0.01, 1000, 1e-3, "mm",
+     "full width of the equally spaced ray bundle at the lens", 0},
     {"laser", "rays", KEY_LONG, OFF(laser.nrays), 1, 1e8, 1, "-", "number of rays traced", 0},
     {"laser", "polarisation", KEY_ENUM, OFF(laser.polar), 0, 0, 1, "-",
      "Fresnel transmission: p (paper), s or unpolarised", polars},
@@ -104,7 +109,7 @@ static const key_spec keys[] = {
     {"prism", "inclination_deg", KEY_DOUBLE, OFF(prism.theta_p_deg), 1, 89, 1, "deg",
      "inclination theta_p of the inclined face", 0},
     {"prism", "thickness_mm", KEY_DOUBLE, OFF(prism.thickness_m), 0.1, 10000, 1e-3, "mm",
-     "thickness of the PMMA block", 0},
+     "block thickness: beam entry point to floor along the face normal", 0},
     {"prism", "n_pmma", KEY_DOUBLE, OFF(prism.n_pmma), 1, 4, 1, "-", "refractive index of PMMA",
      0},
     {"prism", "n_water", KEY_DOUBLE, OFF(prism.n_water), 1, 4, 1, "-",
@@ -165,7 +170,7 @@ static const key_spec keys[] = {
     {"synth", "dt_s", KEY_DOUBLE, OFF(synth.dt_s), 1e-9, 100, 1, "s", "pulse separation", 0},
     {"synth", "bits", KEY_INT, OFF(synth.bits), 8, 16, 1, "bit", "bit depth: 8, 12 or 16", 0},
     {"synth", "peak_counts", KEY_DOUBLE, OFF(synth.peak_counts), 1e-6, 1e9, 1, "counts",
-     "grey level of an in-focus particle at I0 = 1", 0},
+     "peak of the Gaussian image of an in-focus particle of mean d_p at I0 = 1", 0},
     {"synth", "background", KEY_DOUBLE, OFF(synth.background), 0, 1e9, 1, "counts",
      "constant background", 0},
     {"synth", "read_noise", KEY_DOUBLE, OFF(synth.read_noise), 0, 1e9, 1, "counts",
@@ -178,6 +183,19 @@ static const key_spec keys[] = {
      "out-of-plane displacement between frames", 0},
     {"synth", "double_frame", KEY_BOOL, OFF(synth.double_frame), 0, 1, 1, "-",
      "write frame A above frame B in one file", 0},
+    {"synth", "flow", KEY_STRING, OFF(synth.flow), 0, 0, 1, "spec",
+     "flow in px: uniform:U,V; duct[:A]; poiseuille[:A]; poiseuille-y:A; oseen:A,RC[,CX,CY]; "
+     "sine:A,L (rpiv synth --help)", 0},
+    {"synth", "truth_z", KEY_DOUBLE, OFF(synth.truth_z), -1, 1, 1, "h",
+     "z* of the ground truth of z-dependent flows (< 0: the sheet's peak)", 0},
+    {"synth", "pz_profile", KEY_STRING, OFF(synth.pz_profile), 0, 0, 1, "path",
+     "particle density P(z*) table, rows 'z* P' (empty = uniform)", 0},
+    {"synth", "radius_sigma", KEY_DOUBLE, OFF(synth.radius_sigma), 1, 20, 1, "sigma",
+     "particle images drawn out to this many sigma", 0},
+    {"synth", "cutoff_counts", KEY_DOUBLE, OFF(synth.cutoff_counts), 0, 1e9, 1, "counts",
+     "particle images with a lower peak are not drawn", 0},
+    {"synth", "rk_steps", KEY_INT, OFF(synth.rk_steps), 1, 1000, 1, "-",
+     "RK4 steps over dt/2 for flows varying along the path", 0},
     /* [output] */
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},

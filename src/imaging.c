@@ -20,7 +20,7 @@ rpiv_camera rpiv_camera_default(void)
 
 rpiv_particles rpiv_particles_default(void)
 {
-    return (rpiv_particles){.dp_m = 10e-6, .dp_sigma_m = 4e-6, .density_ppp = 0.05};
+    return (rpiv_particles){.dp_m = 10e-6, .dp_sigma_m = 4e-6, .density_ppp = 0.015};
 }
 
 static int bad(double v, double lo, double hi)

@@ -1,9 +1,15 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* rpiv/field.h - vector fields on a regular grid of window centres, and their files.
+/* rpiv/field.h - vector fields on a regular grid of window centres, and their files;
+ * velocity profiles (alpha, value) and the E1 comparison of profiles and fields.
  *
  * Point (i, j) (i along x, j along y) has centre (x0 + i*dx, y0 + j*dy) in pixel coordinates of
  * image A (0-based, pixel centres at integers). u is along +x (columns), v along +y (rows,
- * downward), both in pixels of displacement. Arrays are row-major: index j * nx + i. */
+ * downward), both in pixels of displacement. Arrays are row-major: index j * nx + i.
+ *
+ * Files are described in docs/formats.md. Every writer is atomic: the data go to a temporary
+ * file in the destination folder, which is flushed, fsync'ed and renamed over the path, so a
+ * failed or interrupted save never leaves a partial file nor destroys an existing one.
+ * All functions are thread-safe on distinct objects (no global state). */
 #ifndef RPIV_FIELD_H
 #define RPIV_FIELD_H
 
@@ -18,50 +24,120 @@ enum {
 };
 
 typedef struct rpiv_field {
-    int nx, ny;       /* grid size                                   */
-    double x0, y0;    /* centre of point (0,0), px                   */
-    double dx, dy;    /* grid step, px                               */
-    float *u, *v;     /* displacement, px                            */
+    int nx, ny;    /* grid size                                   */
+    double x0, y0; /* centre of point (0,0), px                   */
+    double dx, dy; /* grid step, px                               */
+    float *u, *v;  /* displacement, px                            */
     unsigned char *flag;
-    float *peak_ratio; /* highest / second-highest correlation peak (0 if unknown) */
-    float *corr;       /* normalised correlation value at the peak   */
+    float *peak_ratio;      /* highest / second-highest correlation peak (0 if unknown) */
+    float *corr;            /* normalised correlation value at the peak   */
     double scale_mm_per_px; /* 0 = not set; with dt_s gives mm and m/s columns */
     double dt_s;            /* 0 = not set */
 } rpiv_field;
 
-/* A new zeroed nx x ny field. Release with rpiv_field_free(). */
+/* A new zeroed nx x ny field (flags RPIV_FLAG_VALID, scale and dt unset). RPIV_EINVAL if
+ * nx or ny < 1, a step is not > 0 or a value is not finite; RPIV_ENOMEM. On failure *out is
+ * NULL. Release with rpiv_field_free(). */
 RPIV_NODISCARD rpiv_status rpiv_field_new(int nx, int ny, double x0, double y0, double dx,
                                           double dy, rpiv_field **out);
 void rpiv_field_free(rpiv_field *f); /* NULL is a no-op */
+/* A deep copy of f (all arrays, scale and dt). */
 RPIV_NODISCARD rpiv_status rpiv_field_copy(const rpiv_field *f, rpiv_field **out);
 
-/* Free-form "key = value" lines recorded in file headers (processing parameters). */
+/* Free-form "key = value" lines recorded in file headers (processing parameters). Start
+ * from a zeroed struct (rpiv_meta m = {0};) and release with rpiv_meta_clear(). */
 typedef struct rpiv_meta {
     size_t n;
     char **key, **val; /* owned */
 } rpiv_meta;
+/* Add key = printf(fmt, ...), or replace the value if key is already there. The key must
+ * start with a letter and hold only letters, digits, '_', '.', '-' (it becomes a NetCDF
+ * attribute name): RPIV_EINVAL otherwise. Control characters in the value become spaces. */
 RPIV_NODISCARD rpiv_status rpiv_meta_add(rpiv_meta *m, const char *key, const char *fmt, ...)
     RPIV_PRINTF(3, 4);
-void rpiv_meta_clear(rpiv_meta *m);
+void rpiv_meta_clear(rpiv_meta *m); /* frees the entries; m is empty and reusable after */
 
-/* Save by extension: .txt (text columns x y u v flag peak_ratio correlation [+ mm, m/s]),
- * .nc (NetCDF-4, dims (t,y,x)), .dat (Tecplot ASCII), .vtk (legacy VTK structured grid).
- * meta may be NULL. Written atomically. See docs/formats.md. */
+/* Save by extension (case-insensitive): .txt (text columns x y u v flag peak_ratio
+ * correlation, + x_mm y_mm u_ms v_ms when scale and dt are set), .nc (NetCDF-4, dims
+ * (t,y,x) with t of length 1, t = 0), .dat (Tecplot ASCII POINT zone), .vtk (legacy VTK
+ * ASCII structured grid). meta may be NULL. Written atomically. RPIV_EINVAL for another
+ * extension (named in the message), RPIV_EIO if the file cannot be written (path named). */
 RPIV_NODISCARD rpiv_status rpiv_field_save(const rpiv_field *f, const rpiv_meta *meta,
                                            const char *path);
 
-/* Read a text vector file written by rpiv (or any file with columns x y u v [flag ...] on a
- * regular grid, '#' comments). Errors name file:line. */
+/* Read a text vector file written by rpiv, or any whitespace (or comma) separated file with
+ * columns x y u v [flag ...] on a regular grid, in any row order, '#' comments (OpenPIV's
+ * text output reads as is). The grid (nx, ny, x0, y0, dx, dy; dx, dy > 0, so a file with y
+ * decreasing comes back sorted ascending) is inferred from the coordinates. Columns 6 and 7
+ * are peak ratio and correlation in rpiv's own files only (their first line is
+ * "# rpiv vector field 1"); scale_mm_per_px and dt_s come back from rpiv's header.
+ * RPIV_EIO if it cannot be opened; RPIV_EFORMAT with "file:line:" for a non-numeric or
+ * non-finite value, fewer than 4 columns, a column count that changes, a flag that is not an
+ * integer 0..255, a point off the grid or repeated, and "file:" for missing points or no
+ * data. */
 RPIV_NODISCARD rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out);
 
-/* A series of fields of one grid written into one NetCDF file along t. */
+/* A series of fields of one grid written into one NetCDF-4 file along an unlimited t. The
+ * file appears at path only when the series is closed without abort; until then it is a
+ * temporary file next to it. grid gives the grid, scale and dt (its data are not written). */
 typedef struct rpiv_field_series rpiv_field_series;
 RPIV_NODISCARD rpiv_status rpiv_field_series_open(const char *path, const rpiv_field *grid,
-                                                  const rpiv_meta *meta,
-                                                  rpiv_field_series **out);
+                                                  const rpiv_meta *meta, rpiv_field_series **out);
+/* Append f at time t (s). RPIV_ESIZE if f's grid differs from the series'; RPIV_EIO. */
 RPIV_NODISCARD rpiv_status rpiv_field_series_append(rpiv_field_series *s, const rpiv_field *f,
                                                     double t);
-/* Close and publish (rename into place). On abort=1 the temporary file is removed. */
+/* Close and publish (rename into place). On abort=1 the temporary file is removed. s is
+ * freed in every case; NULL is a no-op. */
 RPIV_NODISCARD rpiv_status rpiv_field_series_close(rpiv_field_series *s, int abort);
+
+/* ---- profiles and comparisons ------------------------------------------------ */
+
+/* A profile: value(alpha) at n >= 2 strictly increasing alpha (a generic coordinate such as
+ * z*, y*, x*). */
+typedef struct rpiv_profile {
+    size_t n;
+    double *alpha, *value; /* owned */
+} rpiv_profile;
+
+/* Read a profile text file: '#' comments, data lines "alpha value [ignored columns...]".
+ * Alpha must be strictly monotonic (a decreasing file is reversed). RPIV_EIO if it cannot be
+ * opened; RPIV_EFORMAT with file:line for a non-numeric or non-finite value, fewer than 2
+ * columns, alpha not monotonic; "file:" if fewer than 2 points. */
+RPIV_NODISCARD rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out);
+void rpiv_profile_free(rpiv_profile *p); /* NULL is a no-op */
+
+/* The number of columns on the first data line of a text file ('#' comments and blank lines
+ * skipped): 2 for a profile, 4 or more for a vector file. RPIV_EIO, RPIV_EFORMAT (no data). */
+RPIV_NODISCARD rpiv_status rpiv_text_columns(const char *path, int *ncol);
+
+/* What a comparison measured: E1 (Eq. "E1" of the paper, see rpiv_e1), and the RMS and
+ * largest absolute difference ref - cmp, in the unit of the values; n samples used; for
+ * profiles, the alpha range [alpha0, alpha1] compared. */
+typedef struct rpiv_compare {
+    double e1, rms, max_abs;
+    size_t n;
+    double alpha0, alpha1;
+} rpiv_compare;
+
+/* E1 between two profiles, on the reference's samples that lie in the range of cmp, with
+ * cmp interpolated linearly there (GSL). Alpha is rescaled to [0, 1] over the compared range
+ * before Eq. "E1" is applied, so that E1 = RMS difference / mean reference whatever the unit
+ * of alpha (the paper's alpha spans [0, 1]). RPIV_ESIZE if fewer than 2 reference samples lie
+ * in cmp's range ("do not overlap"); RPIV_EINVAL if the reference integrates to zero. */
+RPIV_NODISCARD rpiv_status rpiv_profile_compare(const rpiv_profile *ref, const rpiv_profile *cmp,
+                                                rpiv_compare *out);
+
+typedef enum rpiv_component {
+    RPIV_COMPONENT_MAG = 0, /* |(u, v)| */
+    RPIV_COMPONENT_U = 1,
+    RPIV_COMPONENT_V = 2
+} rpiv_component;
+
+/* E1 between two fields on the same grid, over the points masked in neither: the discrete
+ * form of Eq. "E1" on the grid, sqrt(mean (ref - cmp)^2) / mean ref of the chosen component
+ * (px), with RMS and max |ref - cmp|. RPIV_ESIZE if the grids differ or no point is left;
+ * RPIV_EINVAL if the mean reference is zero. */
+RPIV_NODISCARD rpiv_status rpiv_field_compare(const rpiv_field *ref, const rpiv_field *cmp,
+                                              rpiv_component c, rpiv_compare *out);
 
 #endif /* RPIV_FIELD_H */

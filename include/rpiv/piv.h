@@ -6,14 +6,11 @@
 #include "rpiv/error.h"
 #include "rpiv/field.h"
 #include "rpiv/image.h"
+#include "rpiv/peak.h"
+
+#include <stddef.h>
 
 #define RPIV_PIV_MAX_PASSES 8
-
-typedef enum rpiv_subpixel {
-    RPIV_SUBPIXEL_GAUSS = 0,    /* 3-point Gaussian fit in x and y (default) */
-    RPIV_SUBPIXEL_PARABOLA = 1, /* 3-point parabola                          */
-    RPIV_SUBPIXEL_CENTROID = 2  /* 3x3 centroid                              */
-} rpiv_subpixel;
 
 typedef enum rpiv_background {
     RPIV_BACKGROUND_NONE = 0,
@@ -44,6 +41,67 @@ typedef struct rpiv_piv_params {
 rpiv_piv_params rpiv_piv_params_default(void);
 RPIV_NODISCARD rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p);
 
-/* (The engine API follows; see the PIV engine issue.) */
+/* ---- the engine ---------------------------------------------------------------------------
+ *
+ * A plan (rpiv_piv) is made once for an image size and a set of parameters: the grid of every
+ * pass (windows inside the ROI, centred in it), the FFTW plans of every window size, one
+ * workspace per thread and per pass, and the frame buffers. Each pass k:
+ *   1. interpolates the predictor (the validated field of pass k-1) to every pixel with a
+ *      cubic B-spline on its grid, and deforms both frames symmetrically by -+1/2 of it
+ *      (cubic B-spline image interpolation; rpiv/deform.h); pass 0 has no predictor;
+ *   2. correlates every window pair by FFT (rpiv/xcorr.h), windows mean-removed;
+ *   3. locates the highest peak with the sub-pixel fit chosen (rpiv/peak.h): the vector is
+ *      the predictor at the window centre plus the residual shift;
+ *   4. validates with the normalised median test and replaces rejected vectors by the median
+ *      of their valid neighbours (rpiv/validate.h).
+ * Window k of a pass covers pixels ox + i*sx .. ox + i*sx + W-1; its vector sits at the
+ * window's centre, x = ox + i*sx + (W-1)/2 (pixel centres at integers, so a 32 px window
+ * starting at 0 is centred at 15.5). Vectors whose window has more than half of its pixels
+ * masked are flagged RPIV_FLAG_MASKED with u = v = 0. Windows whose plane has no usable peak
+ * (a blank window, a flat plane) are rejected like outliers and replaced.
+ *
+ * Results are identical for any thread count: threads split windows, rows and columns, and
+ * nothing is summed across threads. */
+typedef struct rpiv_piv rpiv_piv;
+
+/* A plan for pairs of w x h frames. mask (NULL = none) is a w x h image, 0 = masked pixel
+ * (the file named by p->mask is the caller's to load). Errors: RPIV_EINVAL (parameters),
+ * RPIV_ESIZE (a window larger than the image or ROI, a ROI outside the image, a mask of
+ * another size), RPIV_ELIMIT (buffers above p->max_mem_mb), RPIV_ENOMEM. Makes FFTW plans:
+ * call from one thread at a time. */
+RPIV_NODISCARD rpiv_status rpiv_piv_new(const rpiv_piv_params *p, int w, int h,
+                                        const rpiv_image *mask, rpiv_piv **out);
+void rpiv_piv_free(rpiv_piv *pv); /* NULL is a no-op */
+
+int rpiv_piv_npass(const rpiv_piv *pv);
+int rpiv_piv_threads(const rpiv_piv *pv);
+const rpiv_piv_params *rpiv_piv_params_of(const rpiv_piv *pv);
+/* Bytes held by the plan's buffers (frames, workspaces). */
+size_t rpiv_piv_memory(const rpiv_piv *pv);
+
+/* A zeroed field on the grid of pass `pass` (0-based), scale and dt set from the params. */
+RPIV_NODISCARD rpiv_status rpiv_piv_grid(const rpiv_piv *pv, int pass, rpiv_field **out);
+
+/* Background frames subtracted on loading (bg_a from frame A, bg_b from frame B), copied;
+ * NULL, NULL removes them. RPIV_ESIZE if a size differs from the plan's. */
+RPIV_NODISCARD rpiv_status rpiv_piv_set_background(rpiv_piv *pv, const rpiv_image *bg_a,
+                                                   const rpiv_image *bg_b);
+
+/* Load a pair into the plan (copied: background subtracted, masked pixels set to the frame's
+ * mean over unmasked pixels). The caller may free a and b afterwards. RPIV_ESIZE if their
+ * size differs from the plan's. */
+RPIV_NODISCARD rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a,
+                                         const rpiv_image *b);
+
+/* Run pass `pass` on the loaded pair with `predictor` (any grid; NULL: none, windows
+ * correlated where they are) into a new field on the pass's grid: measured, validated,
+ * rejected vectors replaced. RPIV_EINVAL if nothing is loaded or pass is out of range. */
+RPIV_NODISCARD rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor,
+                                         rpiv_field **out);
+
+/* The whole multi-pass run on one pair: load, then every pass, each pass's field being the
+ * next one's predictor. *out is the last pass's field. */
+RPIV_NODISCARD rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b,
+                                        rpiv_field **out);
 
 #endif /* RPIV_PIV_H */

@@ -11,6 +11,7 @@
 #include "rpiv/imaging.h"
 #include "rpiv/optics.h"
 #include "rpiv/piv.h"
+#include "rpiv/plot.h"
 #include "rpiv/progress.h"
 #include "rpiv/sheet.h"
 #include "rpiv/synth.h"

@@ -1,0 +1,384 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/deform.c - cubic B-spline prefilter and sampling; field predictor; symmetric deformation. */
+#include "rpiv/deform.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The pole of the cubic B-spline prefilter, z = sqrt(3) - 2, and the filter's gain. */
+#define POLE (-0.267949192431122706472553658494127633)
+#define GAIN 6.0
+/* Causal initialisation horizon: |z|^HORIZON < 1e-9. */
+#define HORIZON 16
+/* Ghost nodes around a predictor's grid: the prefilter's mirror boundary sits this far out,
+ * where its effect on the evaluated range (RPIV_DEFORM_GHOST steps) is below 1e-6. */
+#define PAD 16
+/* Columns per task in the column pass: a fixed split, so results do not depend on threads. */
+#define COLBLOCK 64
+
+static int nthr(int n)
+{
+    return n > 0 ? n : omp_get_max_threads();
+}
+
+/* Causal initial value c+(0) for the mirror-extended signal s[0], s[stride], ... (n >= 2). */
+static double causal_init(const float *s, int n, size_t stride)
+{
+    const double z = POLE;
+    if (n > HORIZON) {
+        double zk = 1, sum = 0;
+        for (int k = 0; k < HORIZON; k++) {
+            sum += zk * (double)s[(size_t)k * stride];
+            zk *= z;
+        }
+        return sum;
+    }
+    /* exact for the mirror extension of period 2n-2 (Unser's initial causal coefficient) */
+    double zn1 = pow(z, n - 1), zk = z, zr = zn1 * zn1 / z;
+    double sum = (double)s[0] + zn1 * (double)s[(size_t)(n - 1) * stride];
+    for (int k = 1; k < n - 1; k++) {
+        sum += (zk + zr) * (double)s[(size_t)k * stride];
+        zk *= z;
+        zr /= z;
+    }
+    return sum / (1.0 - zn1 * zn1);
+}
+
+/* Prefilter one line in place (stride 1). */
+static void prefilter_line(float *c, int n)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    if (n < 2)
+        return;
+    for (int k = 0; k < n; k++)
+        c[k] *= g;
+    c[0] = (float)causal_init(c, n, 1);
+    for (int k = 1; k < n; k++)
+        c[k] += z * c[k - 1];
+    c[n - 1] = (float)((POLE / (POLE * POLE - 1.0)) *
+                       ((double)c[n - 1] + POLE * (double)c[n - 2]));
+    for (int k = n - 2; k >= 0; k--)
+        c[k] = z * (c[k + 1] - c[k]);
+}
+
+/* Prefilter columns i0..i1-1 of a w x h image in place, all columns of the block together. */
+static void prefilter_cols(float *img, int w, int h, int i0, int i1)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    const size_t sw = (size_t)w;
+    int nb = i1 - i0;
+    float first[COLBLOCK], cn[COLBLOCK];
+    for (int i = 0; i < nb; i++)
+        first[i] = (float)(GAIN * causal_init(img + i0 + i, h, sw));
+    for (int i = 0; i < nb; i++)
+        img[(size_t)i0 + (size_t)i] = first[i];
+    for (int k = 1; k < h; k++) {
+        float *row = img + (size_t)k * sw + i0;
+        const float *prev = row - sw;
+        for (int i = 0; i < nb; i++)
+            row[i] = g * row[i] + z * prev[i];
+    }
+    float *last = img + (size_t)(h - 1) * sw + i0, *before = last - sw;
+    for (int i = 0; i < nb; i++)
+        cn[i] = (float)((POLE / (POLE * POLE - 1.0)) * ((double)last[i] + POLE * (double)before[i]));
+    for (int i = 0; i < nb; i++)
+        last[i] = cn[i];
+    for (int k = h - 2; k >= 0; k--) {
+        float *row = img + (size_t)k * sw + i0;
+        const float *next = row + sw;
+        for (int i = 0; i < nb; i++)
+            row[i] = z * (next[i] - row[i]);
+    }
+}
+
+void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
+{
+    int nt = nthr(nthreads);
+#pragma omp parallel num_threads(nt)
+    {
+#pragma omp for schedule(static)
+        for (int y = 0; y < h; y++)
+            prefilter_line(img + (size_t)y * (size_t)w, w);
+        if (h >= 2) {
+#pragma omp for schedule(static)
+            for (int b = 0; b < (w + COLBLOCK - 1) / COLBLOCK; b++) {
+                int i0 = b * COLBLOCK, i1 = i0 + COLBLOCK < w ? i0 + COLBLOCK : w;
+                prefilter_cols(img, w, h, i0, i1);
+            }
+        }
+    }
+}
+
+/* Cubic B-spline weights for taps -1, 0, 1, 2 at fraction t in [0, 1). */
+static inline void bweights(float t, float wt[4])
+{
+    float t2 = t * t, t3 = t2 * t, s = 1.0f - t;
+    wt[0] = s * s * s * (1.0f / 6.0f);
+    wt[1] = (2.0f / 3.0f) - t2 + 0.5f * t3;
+    wt[3] = t3 * (1.0f / 6.0f);
+    wt[2] = 1.0f - wt[0] - wt[1] - wt[3];
+}
+
+/* Mirror (whole-sample symmetric) index into 0..n-1, for |i| within one period. */
+static inline int mirror(int i, int n)
+{
+    if (n == 1)
+        return 0;
+    int p = 2 * n - 2;
+    i %= p;
+    if (i < 0)
+        i += p;
+    return i < n ? i : p - i;
+}
+
+/* 1 if (xi + ox, yi + oy) lies in [-0.5, w - 0.5] x [-0.5, h - 0.5]. */
+static inline int inside(int w, int h, int xi, int yi, float ox, float oy)
+{
+    float fx = floorf(ox), fy = floorf(oy);
+    int ix = xi + (int)fx, iy = yi + (int)fy;
+    float tx = ox - fx, ty = oy - fy;
+    return !(ix < -1 || (ix == -1 && tx < 0.5f) || ix > w - 1 || (ix == w - 1 && tx > 0.5f) ||
+             iy < -1 || (iy == -1 && ty < 0.5f) || iy > h - 1 || (iy == h - 1 && ty > 0.5f));
+}
+
+/* Sample at (xi + ox, yi + oy), a point inside the image; xi, yi integers and ox, oy small
+ * offsets (so the fraction keeps full float precision). */
+static inline float sample_at(const float *c, int w, int h, int xi, int yi, float ox, float oy)
+{
+    float fx = floorf(ox), fy = floorf(oy);
+    int ix = xi + (int)fx, iy = yi + (int)fy;
+    float tx = ox - fx, ty = oy - fy;
+    float wx[4], wy[4];
+    bweights(tx, wx);
+    bweights(ty, wy);
+    const size_t sw = (size_t)w;
+    float acc = 0;
+    if (ix >= 1 && ix + 2 < w && iy >= 1 && iy + 2 < h) {
+        const float *r = c + (size_t)(iy - 1) * sw + (size_t)(ix - 1);
+        for (int m = 0; m < 4; m++, r += sw)
+            acc += wy[m] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);
+        return acc;
+    }
+    int cx[4];
+    for (int k = 0; k < 4; k++)
+        cx[k] = mirror(ix - 1 + k, w);
+    for (int m = 0; m < 4; m++) {
+        const float *r = c + (size_t)mirror(iy - 1 + m, h) * sw;
+        acc += wy[m] * (wx[0] * r[cx[0]] + wx[1] * r[cx[1]] + wx[2] * r[cx[2]] + wx[3] * r[cx[3]]);
+    }
+    return acc;
+}
+
+float rpiv_deform_sample(const float *coef, int w, int h, double x, double y, float fill)
+{
+    if (!(x >= -0.5 && x <= w - 0.5 && y >= -0.5 && y <= h - 0.5))
+        return fill;
+    double fx = floor(x), fy = floor(y);
+    return sample_at(coef, w, h, (int)fx, (int)fy, (float)(x - fx), (float)(y - fy));
+}
+
+/* ---- predictor ----------------------------------------------------------------------------- */
+
+struct rpiv_deform_pred {
+    int nx, ny;         /* padded grid size (field + 2 * PAD) */
+    double x0, y0, dx, dy;
+    float *cu, *cv;     /* spline coefficients, ny x nx */
+    int w, h;           /* image size */
+    double shift;       /* rows and columns evaluated at pixel + shift */
+    int *ix, *iy;       /* first tap per pixel column / row */
+    float *wx, *wy;     /* 4 weights per pixel column / row */
+};
+
+void rpiv_deform_pred_free(rpiv_deform_pred *p)
+{
+    if (!p)
+        return;
+    free(p->cu);
+    free(p->cv);
+    free(p->ix);
+    free(p->iy);
+    free(p->wx);
+    free(p->wy);
+    free(p);
+}
+
+/* Value k >= 0 along a line of n samples, linearly continued beyond its end. */
+static double ext(const float *g, int n, size_t stride, int k)
+{
+    if (k <= n - 1)
+        return g[(size_t)k * stride];
+    if (n == 1)
+        return g[0];
+    double e = g[(size_t)(n - 1) * stride], d = e - (double)g[(size_t)(n - 2) * stride];
+    return e + (k - (n - 1)) * d;
+}
+
+/* Fill the G ghosts on both sides of a line whose n real samples start at g (stride). */
+static void ghosts(float *g, int n, size_t stride)
+{
+    const int G = PAD;
+    float *rev = g + (size_t)(n - 1) * stride;
+    for (int k = 1; k <= G; k++) {
+        double lo = 2.0 * (double)g[0] - ext(g, n, stride, k);
+        /* the far end: the same rule on the reversed line */
+        double hi;
+        if (k <= n - 1)
+            hi = 2.0 * (double)rev[0] - (double)rev[-(ptrdiff_t)((size_t)k * stride)];
+        else if (n == 1)
+            hi = rev[0];
+        else {
+            double e = g[0], d = e - (double)g[stride];
+            hi = 2.0 * (double)rev[0] - (e + (k - (n - 1)) * d);
+        }
+        g[-(ptrdiff_t)((size_t)k * stride)] = (float)lo;
+        rev[(size_t)k * stride] = (float)hi;
+    }
+}
+
+/* Real grid coordinate t (0 = first node of n) clamped to RPIV_DEFORM_GHOST steps beyond the
+ * grid; first tap *i0 in padded coordinates and the four weights. */
+static void tap(double t, int n, int *i0, float wt[4])
+{
+    const double lo = -RPIV_DEFORM_GHOST, hi = n - 1 + RPIV_DEFORM_GHOST;
+    t = t < lo ? lo : (t > hi ? hi : t);
+    double ft = floor(t);
+    int i = (int)ft;
+    bweights((float)(t - ft), wt);
+    *i0 = i - 1 + PAD;
+}
+
+rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift,
+                                 rpiv_deform_pred **out)
+{
+    const int G = PAD;
+    *out = NULL;
+    if (w < 1 || h < 1)
+        return rpiv_fail(RPIV_EINVAL, "deform: image size %dx%d", w, h);
+    rpiv_deform_pred *p = calloc(1, sizeof *p);
+    if (!p)
+        return rpiv_fail(RPIV_ENOMEM, "deform: out of memory for the predictor");
+    p->nx = f->nx + 2 * G;
+    p->ny = f->ny + 2 * G;
+    p->x0 = f->x0;
+    p->y0 = f->y0;
+    p->dx = f->dx;
+    p->dy = f->dy;
+    p->w = w;
+    p->h = h;
+    p->shift = shift;
+    size_t n = (size_t)p->nx * (size_t)p->ny, snx = (size_t)p->nx;
+    p->cu = malloc(n * sizeof *p->cu);
+    p->cv = malloc(n * sizeof *p->cv);
+    p->ix = malloc((size_t)w * sizeof *p->ix);
+    p->iy = malloc((size_t)h * sizeof *p->iy);
+    p->wx = malloc((size_t)w * 4 * sizeof *p->wx);
+    p->wy = malloc((size_t)h * 4 * sizeof *p->wy);
+    if (!p->cu || !p->cv || !p->ix || !p->iy || !p->wx || !p->wy) {
+        rpiv_deform_pred_free(p);
+        return rpiv_fail(RPIV_ENOMEM, "deform: out of memory for the predictor");
+    }
+    for (int c = 0; c < 2; c++) {
+        float *g = c ? p->cv : p->cu;
+        const float *src = c ? f->v : f->u;
+        for (int j = 0; j < f->ny; j++) {
+            float *row = g + (size_t)(j + G) * snx + G;
+            memcpy(row, src + (size_t)j * (size_t)f->nx, (size_t)f->nx * sizeof *row);
+            ghosts(row, f->nx, 1);
+        }
+        for (int i = 0; i < p->nx; i++)
+            ghosts(g + (size_t)G * snx + (size_t)i, f->ny, snx);
+        rpiv_deform_prefilter(g, p->nx, p->ny, 1);
+    }
+    for (int x = 0; x < w; x++)
+        tap((x + shift - f->x0) / f->dx, f->nx, &p->ix[x], p->wx + 4 * (size_t)x);
+    for (int y = 0; y < h; y++)
+        tap((y + shift - f->y0) / f->dy, f->ny, &p->iy[y], p->wy + 4 * (size_t)y);
+    *out = p;
+    return RPIV_OK;
+}
+
+void rpiv_deform_pred_eval(const rpiv_deform_pred *p, double x, double y, double *u, double *v)
+{
+    int i0, j0;
+    float wx[4], wy[4];
+    tap((x - p->x0) / p->dx, p->nx - 2 * PAD, &i0, wx);
+    tap((y - p->y0) / p->dy, p->ny - 2 * PAD, &j0, wy);
+    double su = 0, sv = 0;
+    for (int m = 0; m < 4; m++) {
+        size_t r = (size_t)(j0 + m) * (size_t)p->nx + (size_t)i0;
+        double ru = 0, rv = 0;
+        for (int k = 0; k < 4; k++) {
+            ru += (double)wx[k] * (double)p->cu[r + (size_t)k];
+            rv += (double)wx[k] * (double)p->cv[r + (size_t)k];
+        }
+        su += (double)wy[m] * ru;
+        sv += (double)wy[m] * rv;
+    }
+    *u = su;
+    *v = sv;
+}
+
+size_t rpiv_deform_pred_scratch(const rpiv_deform_pred *p)
+{
+    return 2 * (size_t)p->nx;
+}
+
+void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
+                          float *scratch)
+{
+    const size_t snx = (size_t)p->nx;
+    float *tu = scratch, *tv = scratch + snx;
+    const float *wy = p->wy + 4 * (size_t)y;
+    const float *ru = p->cu + (size_t)p->iy[y] * snx, *rv = p->cv + (size_t)p->iy[y] * snx;
+    for (size_t k = 0; k < snx; k++) {
+        tu[k] = wy[0] * ru[k] + wy[1] * ru[k + snx] + wy[2] * ru[k + 2 * snx] +
+                wy[3] * ru[k + 3 * snx];
+        tv[k] = wy[0] * rv[k] + wy[1] * rv[k + snx] + wy[2] * rv[k + 2 * snx] +
+                wy[3] * rv[k + 3 * snx];
+    }
+    for (int x = x0; x < x1; x++) {
+        const float *wx = p->wx + 4 * (size_t)x, *a = tu + p->ix[x], *b = tv + p->ix[x];
+        u[x - x0] = wx[0] * a[0] + wx[1] * a[1] + wx[2] * a[2] + wx[3] * a[3];
+        v[x - x0] = wx[0] * b[0] + wx[1] * b[1] + wx[2] * b[2] + wx[3] * b[3];
+    }
+}
+
+rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int h,
+                            const rpiv_deform_pred *p, const int rect[4], float fill_a,
+                            float fill_b, float *out_a, float *out_b, int nthreads)
+{
+    int x0 = rect[0], y0 = rect[1], x1 = rect[2], y1 = rect[3];
+    if (x0 < 0 || y0 < 0 || x1 > w || y1 > h || x0 >= x1 || y0 >= y1 || p->w != w || p->h != h)
+        return rpiv_fail(RPIV_EINVAL, "deform: rectangle %d,%d,%d,%d outside the %dx%d image",
+                         x0, y0, x1, y1, w, h);
+    int nt = nthr(nthreads);
+    const float c = (float)p->shift;
+    size_t nw = (size_t)(x1 - x0), per = 2 * nw + rpiv_deform_pred_scratch(p);
+    float *scr = malloc((size_t)nt * per * sizeof *scr);
+    if (!scr)
+        return rpiv_fail(RPIV_ENOMEM, "deform: out of memory");
+#pragma omp parallel num_threads(nt)
+    {
+        float *pu = scr + (size_t)omp_get_thread_num() * per, *pv = pu + nw, *tmp = pv + nw;
+#pragma omp for schedule(static)
+        for (int y = y0; y < y1; y++) {
+            rpiv_deform_pred_row(p, y, x0, x1, pu, pv, tmp);
+            float *ra = out_a + (size_t)y * (size_t)w, *rb = out_b + (size_t)y * (size_t)w;
+            for (int x = x0; x < x1; x++) {
+                float hx = 0.5f * pu[x - x0], hy = 0.5f * pv[x - x0];
+                if (inside(w, h, x, y, c - hx, c - hy) && inside(w, h, x, y, c + hx, c + hy)) {
+                    ra[x] = sample_at(coef_a, w, h, x, y, c - hx, c - hy);
+                    rb[x] = sample_at(coef_b, w, h, x, y, c + hx, c + hy);
+                } else { /* a particle here has no partner in the other frame */
+                    ra[x] = fill_a;
+                    rb[x] = fill_b;
+                }
+            }
+        }
+    }
+    free(scr);
+    return RPIV_OK;
+}

@@ -1,0 +1,386 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/field.c - vector fields: allocation, meta, atomic saving by extension, text columns. */
+#include "rpiv/field.h"
+
+#include "field_impl.h"
+
+#include <assert.h>
+#include <ctype.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+/* ---- fields --------------------------------------------------------------- */
+
+rpiv_status rpiv_field_new(int nx, int ny, double x0, double y0, double dx, double dy,
+                           rpiv_field **out)
+{
+    *out = NULL;
+    if (nx < 1 || ny < 1)
+        return rpiv_fail(RPIV_EINVAL, "field: grid %d x %d is empty", nx, ny);
+    if ((size_t)nx > SIZE_MAX / 16 / (size_t)ny)
+        return rpiv_fail(RPIV_EINVAL, "field: grid %d x %d is too large", nx, ny);
+    if (!isfinite(x0) || !isfinite(y0) || !isfinite(dx) || !isfinite(dy) || !(dx > 0) || !(dy > 0))
+        return rpiv_fail(RPIV_EINVAL,
+                         "field: grid origin (%g, %g) step (%g, %g) must be finite "
+                         "with positive steps",
+                         x0, y0, dx, dy);
+    size_t n = (size_t)nx * (size_t)ny;
+    rpiv_field *f = calloc(1, sizeof *f);
+    if (!f)
+        return rpiv_fail(RPIV_ENOMEM, "field: out of memory for %d x %d", nx, ny);
+    f->nx = nx;
+    f->ny = ny;
+    f->x0 = x0;
+    f->y0 = y0;
+    f->dx = dx;
+    f->dy = dy;
+    f->u = calloc(n, sizeof *f->u);
+    f->v = calloc(n, sizeof *f->v);
+    f->flag = calloc(n, sizeof *f->flag);
+    f->peak_ratio = calloc(n, sizeof *f->peak_ratio);
+    f->corr = calloc(n, sizeof *f->corr);
+    if (!f->u || !f->v || !f->flag || !f->peak_ratio || !f->corr) {
+        rpiv_field_free(f);
+        return rpiv_fail(RPIV_ENOMEM, "field: out of memory for %d x %d", nx, ny);
+    }
+    *out = f;
+    return RPIV_OK;
+}
+
+void rpiv_field_free(rpiv_field *f)
+{
+    if (!f)
+        return;
+    free(f->u);
+    free(f->v);
+    free(f->flag);
+    free(f->peak_ratio);
+    free(f->corr);
+    free(f);
+}
+
+rpiv_status rpiv_field_copy(const rpiv_field *f, rpiv_field **out)
+{
+    rpiv_field *c;
+    rpiv_status st = rpiv_field_new(f->nx, f->ny, f->x0, f->y0, f->dx, f->dy, &c);
+    *out = NULL;
+    if (st)
+        return st;
+    size_t n = (size_t)f->nx * (size_t)f->ny;
+    memcpy(c->u, f->u, n * sizeof *c->u);
+    memcpy(c->v, f->v, n * sizeof *c->v);
+    memcpy(c->flag, f->flag, n * sizeof *c->flag);
+    memcpy(c->peak_ratio, f->peak_ratio, n * sizeof *c->peak_ratio);
+    memcpy(c->corr, f->corr, n * sizeof *c->corr);
+    c->scale_mm_per_px = f->scale_mm_per_px;
+    c->dt_s = f->dt_s;
+    *out = c;
+    return RPIV_OK;
+}
+
+int field_has_phys(const rpiv_field *f)
+{
+    return f->scale_mm_per_px > 0 && f->dt_s > 0;
+}
+
+/* ---- meta ----------------------------------------------------------------- */
+
+/* Keys become NetCDF attribute names and header words: a letter, then letters, digits, _ . - */
+static int key_ok(const char *k)
+{
+    if (!isalpha((unsigned char)k[0]))
+        return 0;
+    for (const char *p = k; *p; p++)
+        if (!isalnum((unsigned char)*p) && *p != '_' && *p != '.' && *p != '-')
+            return 0;
+    return 1;
+}
+
+rpiv_status rpiv_meta_add(rpiv_meta *m, const char *key, const char *fmt, ...)
+{
+    if (!key_ok(key))
+        return rpiv_fail(RPIV_EINVAL,
+                         "meta: key '%s' must start with a letter and hold only "
+                         "letters, digits, '_', '.', '-'",
+                         key);
+    va_list ap;
+    va_start(ap, fmt);
+    int len = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (len < 0)
+        return rpiv_fail(RPIV_EINVAL, "meta: cannot format the value of '%s'", key);
+    char *val = malloc((size_t)len + 1);
+    if (!val)
+        return rpiv_fail(RPIV_ENOMEM, "meta: out of memory for '%s'", key);
+    va_start(ap, fmt);
+    vsnprintf(val, (size_t)len + 1, fmt, ap);
+    va_end(ap);
+    /* one header line per entry: control characters (newlines) become spaces */
+    for (char *p = val; *p; p++)
+        if (iscntrl((unsigned char)*p))
+            *p = ' ';
+    for (size_t i = 0; i < m->n; i++) {
+        if (strcmp(m->key[i], key) == 0) {
+            free(m->val[i]);
+            m->val[i] = val;
+            return RPIV_OK;
+        }
+    }
+    char *k = strdup(key);
+    char **nk = k ? realloc(m->key, (m->n + 1) * sizeof *nk) : NULL;
+    if (nk)
+        m->key = nk;
+    char **nv = nk ? realloc(m->val, (m->n + 1) * sizeof *nv) : NULL;
+    if (nv)
+        m->val = nv;
+    if (!k || !nk || !nv) {
+        free(k);
+        free(val);
+        return rpiv_fail(RPIV_ENOMEM, "meta: out of memory for '%s'", key);
+    }
+    m->key[m->n] = k;
+    m->val[m->n] = val;
+    m->n++;
+    return RPIV_OK;
+}
+
+void rpiv_meta_clear(rpiv_meta *m)
+{
+    for (size_t i = 0; i < m->n; i++) {
+        free(m->key[i]);
+        free(m->val[i]);
+    }
+    free(m->key);
+    free(m->val);
+    m->key = m->val = NULL;
+    m->n = 0;
+}
+
+/* ---- atomic files --------------------------------------------------------- */
+
+rpiv_status atomic_begin(atomic_file *af, const char *path, int want_stream)
+{
+    memset(af, 0, sizeof *af);
+    size_t len = strlen(path);
+    af->path = strdup(path);
+    af->tmp = malloc(len + 64);
+    if (!af->path || !af->tmp) {
+        free(af->path);
+        free(af->tmp);
+        return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
+    }
+    /* O_EXCL makes the name ours; the suffix only has to make collisions unlikely. Unlike
+     * mkstemp, open() applies the umask to 0666, so the result has the usual mode. */
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    unsigned long seed = (unsigned long)ts.tv_nsec ^ ((unsigned long)getpid() << 16);
+    int fd = -1, err = 0;
+    for (int attempt = 0; attempt < 100 && fd < 0; attempt++) {
+        seed = seed * 6364136223846793005UL + 1442695040888963407UL;
+        snprintf(af->tmp, len + 64, "%s.tmp-%ld-%08lx", path, (long)getpid(),
+                 (seed >> 32) & 0xfffffffful);
+        fd = open(af->tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        err = errno;
+        if (fd < 0 && err != EEXIST)
+            break;
+    }
+    if (fd < 0) {
+        free(af->path);
+        free(af->tmp);
+        return rpiv_fail(RPIV_EIO, "%s: cannot create a temporary file in its folder: %s", path,
+                         strerror(err));
+    }
+    if (want_stream) {
+        af->fp = fdopen(fd, "w");
+        if (!af->fp) {
+            err = errno;
+            close(fd);
+            unlink(af->tmp);
+            free(af->path);
+            free(af->tmp);
+            return rpiv_fail(RPIV_EIO, "%s: cannot open a stream: %s", path, strerror(err));
+        }
+    } else {
+        close(fd);
+    }
+    return RPIV_OK;
+}
+
+static void atomic_release(atomic_file *af)
+{
+    free(af->path);
+    free(af->tmp);
+    af->path = af->tmp = NULL;
+    af->fp = NULL;
+}
+
+void atomic_abort(atomic_file *af)
+{
+    if (af->fp)
+        fclose(af->fp);
+    if (af->tmp)
+        unlink(af->tmp);
+    atomic_release(af);
+}
+
+/* fsync a file by name (NetCDF closes its own descriptor). */
+static int fsync_path(const char *p, int dir)
+{
+    int fd = open(p, (dir ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
+    if (fd < 0)
+        return -1;
+    int r = fsync(fd);
+    /* some file systems refuse fsync on a directory; the rename is done, so ignore that */
+    if (r != 0 && dir && (errno == EINVAL || errno == EBADF))
+        r = 0;
+    close(fd);
+    return r;
+}
+
+rpiv_status atomic_commit(atomic_file *af)
+{
+    int err = 0;
+    if (af->fp) {
+        if (fflush(af->fp) != 0 || ferror(af->fp))
+            err = errno ? errno : EIO;
+        if (!err && fsync(fileno(af->fp)) != 0)
+            err = errno;
+        if (fclose(af->fp) != 0 && !err)
+            err = errno ? errno : EIO;
+        af->fp = NULL;
+    } else if (fsync_path(af->tmp, 0) != 0) {
+        err = errno;
+    }
+    if (!err && rename(af->tmp, af->path) != 0)
+        err = errno;
+    if (err) {
+        rpiv_status st = rpiv_fail(RPIV_EIO, "%s: cannot write: %s", af->path, strerror(err));
+        atomic_abort(af);
+        return st;
+    }
+    /* make the rename durable: fsync the folder */
+    char *dir = strdup(af->path);
+    if (dir) {
+        char *slash = strrchr(dir, '/');
+        if (!slash)
+            strcpy(dir, ".");
+        else if (slash == dir)
+            dir[1] = '\0';
+        else
+            *slash = '\0';
+        (void)fsync_path(dir, 1);
+        free(dir);
+    }
+    atomic_release(af);
+    return RPIV_OK;
+}
+
+/* ---- saving by extension -------------------------------------------------- */
+
+const char *field_ext(const char *path)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const char *dot = strrchr(base, '.');
+    return dot && dot != base ? dot + 1 : "";
+}
+
+static int ext_is(const char *ext, const char *want)
+{
+    return strcasecmp(ext, want) == 0;
+}
+
+typedef rpiv_status (*stream_writer)(const rpiv_field *, const rpiv_meta *, FILE *, const char *);
+
+rpiv_status rpiv_field_save(const rpiv_field *f, const rpiv_meta *meta, const char *path)
+{
+    const char *ext = field_ext(path);
+    stream_writer w = NULL;
+    if (ext_is(ext, "nc"))
+        return field_save_nc(f, meta, path);
+    if (ext_is(ext, "txt"))
+        w = field_write_txt;
+    else if (ext_is(ext, "dat"))
+        w = field_write_tecplot;
+    else if (ext_is(ext, "vtk"))
+        w = field_write_vtk;
+    else
+        return rpiv_fail(RPIV_EINVAL,
+                         "%s: unknown vector file extension '%s%s' (use .txt, .nc, .dat or .vtk)",
+                         path, *ext ? "." : "", ext);
+    atomic_file af;
+    rpiv_status st = atomic_begin(&af, path, 1);
+    if (st)
+        return st;
+    st = w(f, meta, af.fp, path);
+    if (st) {
+        atomic_abort(&af);
+        return st;
+    }
+    return atomic_commit(&af);
+}
+
+/* ---- text columns ----------------------------------------------------------- */
+
+/* The shortest %g form (6 to 9 digits) that reads back as the same float, so text files
+ * round-trip exactly and stay readable (0.3187, not 0.318699986). */
+static void put_float(FILE *fp, float v)
+{
+    char buf[32];
+    for (int p = 6; p <= 9; p++) {
+        snprintf(buf, sizeof buf, "%.*g", p, (double)v);
+        if (strtof(buf, NULL) == v)
+            break;
+    }
+    fputs(buf, fp);
+}
+
+rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp, const char *path)
+{
+    int phys = field_has_phys(f);
+    fprintf(fp, "# rpiv vector field 1\n");
+    fprintf(fp, "# nx = %d\n# ny = %d\n", f->nx, f->ny);
+    fprintf(fp, "# x0 = %.17g\n# y0 = %.17g\n# dx = %.17g\n# dy = %.17g\n", f->x0, f->y0, f->dx,
+            f->dy);
+    if (f->scale_mm_per_px > 0)
+        fprintf(fp, "# scale_mm_per_px = %.17g\n", f->scale_mm_per_px);
+    if (f->dt_s > 0)
+        fprintf(fp, "# dt_s = %.17g\n", f->dt_s);
+    for (size_t k = 0; meta && k < meta->n; k++)
+        fprintf(fp, "# %s = %s\n", meta->key[k], meta->val[k]);
+    fprintf(fp, "# x y u v flag peak_ratio correlation%s\n", phys ? " x_mm y_mm u_ms v_ms" : "");
+    for (int j = 0; j < f->ny; j++) {
+        for (int i = 0; i < f->nx; i++) {
+            size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+            double x = f->x0 + i * f->dx, y = f->y0 + j * f->dy;
+            fprintf(fp, "%.10g %.10g ", x, y);
+            put_float(fp, f->u[k]);
+            fputc(' ', fp);
+            put_float(fp, f->v[k]);
+            fprintf(fp, " %d ", f->flag[k]);
+            put_float(fp, f->peak_ratio[k]);
+            fputc(' ', fp);
+            put_float(fp, f->corr[k]);
+            if (phys) {
+                double s = f->scale_mm_per_px, ms = s * 1e-3 / f->dt_s;
+                fprintf(fp, " %.10g %.10g %.9g %.9g", x * s, y * s, (double)f->u[k] * ms,
+                        (double)f->v[k] * ms);
+            }
+            if (fputc('\n', fp) == EOF)
+                return rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(errno));
+        }
+    }
+    if (ferror(fp))
+        return rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(errno));
+    return RPIV_OK;
+}

@@ -1,0 +1,418 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/field_load.c - reading whitespace column files (rpiv's own, OpenPIV's) back into a field
+ * on a regular grid. */
+#include "rpiv/field.h"
+
+#include "field_impl.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The rows of a column file, as read. */
+typedef struct rows {
+    size_t n, cap;
+    double *x, *y;
+    float *u, *v, *pr, *cc;
+    unsigned char *flag;
+    long *line;
+} rows;
+
+static void rows_free(rows *r)
+{
+    free(r->x);
+    free(r->y);
+    free(r->u);
+    free(r->v);
+    free(r->pr);
+    free(r->cc);
+    free(r->flag);
+    free(r->line);
+}
+
+#define GROW(p, cap) (tmp = realloc((p), (cap) * sizeof *(p))) ? ((p) = tmp, 1) : 0
+
+static int rows_push(rows *r)
+{
+    if (r->n < r->cap)
+        return 1;
+    size_t cap = r->cap ? 2 * r->cap : 256;
+    void *tmp;
+    if (!(GROW(r->x, cap)) || !(GROW(r->y, cap)) || !(GROW(r->u, cap)) || !(GROW(r->v, cap)) ||
+        !(GROW(r->pr, cap)) || !(GROW(r->cc, cap)) || !(GROW(r->flag, cap)) ||
+        !(GROW(r->line, cap)))
+        return 0;
+    r->cap = cap;
+    return 1;
+}
+
+/* "# key = value" header lines rpiv writes; only the ones that change the field are used. */
+static void header_line(const char *s, int *is_rpiv, double *scale, double *dt)
+{
+    while (*s == '#' || *s == ' ' || *s == '\t')
+        s++;
+    if (strncmp(s, "rpiv vector field", 17) == 0) {
+        *is_rpiv = 1;
+        return;
+    }
+    double val;
+    char key[32];
+    if (sscanf(s, "%31[A-Za-z0-9_] = %lf", key, &val) == 2) {
+        if (strcmp(key, "scale_mm_per_px") == 0 && val > 0)
+            *scale = val;
+        else if (strcmp(key, "dt_s") == 0 && val > 0)
+            *dt = val;
+    }
+}
+
+#define MAXCOL 7
+
+/* Parse one data line into vals; returns the number of columns or sets an error (< 0). */
+static int split_numbers(char *s, const char *path, long lineno, double *vals, rpiv_status *st)
+{
+    int nc = 0;
+    char *save = NULL;
+    for (char *tok = strtok_r(s, " \t\r\n,", &save); tok; tok = strtok_r(NULL, " \t\r\n,", &save)) {
+        char *end;
+        errno = 0;
+        double d = strtod(tok, &end);
+        if (end == tok || *end) {
+            *st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: column %d: '%.40s' is not a number", path,
+                            lineno, nc + 1, tok);
+            return -1;
+        }
+        if (!isfinite(d)) {
+            *st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: column %d is %s", path, lineno, nc + 1,
+                            isnan(d) ? "NaN" : "infinite");
+            return -1;
+        }
+        if (nc < MAXCOL)
+            vals[nc] = d;
+        nc++;
+    }
+    return nc;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Infer origin, step and count from the coordinates v[0..n-1]: distinct values (within a
+ * relative 1e-6) must be an arithmetic progression, possibly with gaps filled by other rows.
+ * *bad gets the index of a value that is off the grid, or n. */
+static rpiv_status infer_axis(const double *v, size_t n, double *o0, double *step, long *count,
+                              size_t *bad)
+{
+    double *s = malloc(n * sizeof *s);
+    if (!s)
+        return RPIV_ENOMEM;
+    memcpy(s, v, n * sizeof *s);
+    qsort(s, n, sizeof *s, cmp_double);
+    double span = s[n - 1] - s[0];
+    double tol = 1e-6 * fmax(1.0, fmax(fabs(s[0]), fabs(s[n - 1])));
+    double gap = INFINITY;
+    for (size_t k = 1; k < n; k++) {
+        double d = s[k] - s[k - 1];
+        if (d > tol && d < gap)
+            gap = d;
+    }
+    double lo = s[0];
+    free(s);
+    *bad = n;
+    *o0 = lo;
+    if (!isfinite(gap)) { /* one distinct value */
+        *count = 1;
+        *step = 0;
+        return RPIV_OK;
+    }
+    double c = span / gap;
+    if (c > 1e8) {
+        *count = -1;
+        return RPIV_OK;
+    }
+    /* every value must sit on lo + k * gap; the step is then refined over the whole span */
+    for (size_t k = 0; k < n; k++) {
+        double q = (v[k] - lo) / gap;
+        if (fabs(q - nearbyint(q)) > 1e-3) {
+            *bad = k;
+            break;
+        }
+    }
+    *count = lround(c) + 1;
+    /* off the grid: report the step that was tried */
+    *step = *bad < n ? gap : span / (double)(*count - 1);
+    return RPIV_OK;
+}
+
+static rpiv_status build_field(const rows *r, const char *path, double scale, double dt,
+                               rpiv_field **out)
+{
+    double x0, y0, dx, dy;
+    long nx, ny;
+    size_t badx, bady;
+    if (infer_axis(r->x, r->n, &x0, &dx, &nx, &badx) ||
+        infer_axis(r->y, r->n, &y0, &dy, &ny, &bady))
+        return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
+    if (nx < 0 || ny < 0)
+        return rpiv_fail(RPIV_EFORMAT, "%s: not a regular grid (coordinate steps too uneven)",
+                         path);
+    if (badx < r->n)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s:%ld: not a regular grid: x = %g is not on x0 + i*dx "
+                         "(x0 = %g, dx = %g)",
+                         path, r->line[badx], r->x[badx], x0, dx);
+    if (bady < r->n)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s:%ld: not a regular grid: y = %g is not on y0 + j*dy "
+                         "(y0 = %g, dy = %g)",
+                         path, r->line[bady], r->y[bady], y0, dy);
+    if ((double)nx * (double)ny != (double)r->n)
+        return rpiv_fail(RPIV_EFORMAT, "%s: not a regular grid: %zu vectors for %ld x %ld points",
+                         path, r->n, nx, ny);
+    /* a line or a single point: borrow the other axis' step, or 1 px */
+    if (nx == 1)
+        dx = ny > 1 ? dy : 1.0;
+    if (ny == 1)
+        dy = nx > 1 ? dx : 1.0;
+    rpiv_field *f;
+    rpiv_status st = rpiv_field_new((int)nx, (int)ny, x0, y0, dx, dy, &f);
+    if (st)
+        return st;
+    long *seen = calloc(r->n, sizeof *seen);
+    if (!seen) {
+        rpiv_field_free(f);
+        return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
+    }
+    for (size_t k = 0; k < r->n; k++) {
+        long i = lround((r->x[k] - x0) / dx), j = lround((r->y[k] - y0) / dy);
+        size_t idx = (size_t)j * (size_t)nx + (size_t)i;
+        if (seen[idx]) {
+            st = rpiv_fail(RPIV_EFORMAT,
+                           "%s:%ld: not a regular grid: point (%g, %g) repeats "
+                           "line %ld",
+                           path, r->line[k], r->x[k], r->y[k], seen[idx]);
+            break;
+        }
+        seen[idx] = r->line[k];
+        f->u[idx] = r->u[k];
+        f->v[idx] = r->v[k];
+        f->flag[idx] = r->flag[k];
+        f->peak_ratio[idx] = r->pr[k];
+        f->corr[idx] = r->cc[k];
+    }
+    free(seen);
+    if (st) {
+        rpiv_field_free(f);
+        return st;
+    }
+    f->scale_mm_per_px = scale;
+    f->dt_s = dt;
+    *out = f;
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
+{
+    *out = NULL;
+    FILE *fp = fopen(path, "r");
+    if (!fp)
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    rows r = {0};
+    char *line = NULL;
+    size_t cap = 0;
+    long lineno = 0, ncol_line = 0;
+    int is_rpiv = 0, ncol = 0;
+    double scale = 0, dt = 0;
+    rpiv_status st = RPIV_OK;
+    while (getline(&line, &cap, fp) >= 0) {
+        lineno++;
+        char *s = line + strspn(line, " \t\r\n");
+        if (*s == '#') {
+            if (r.n == 0)
+                header_line(s, &is_rpiv, &scale, &dt);
+            continue;
+        }
+        if (*s == '\0')
+            continue;
+        double val[MAXCOL] = {0};
+        int nc = split_numbers(s, path, lineno, val, &st);
+        if (nc < 0)
+            goto out_free;
+        if (nc < 4) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: %d column%s, need at least 4 (x y u v)", path,
+                           lineno, nc, nc == 1 ? "" : "s");
+            goto out_free;
+        }
+        if (!ncol) {
+            ncol = nc;
+            ncol_line = lineno;
+        } else if (nc != ncol) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: %d columns, line %ld has %d", path, lineno, nc,
+                           ncol_line, ncol);
+            goto out_free;
+        }
+        if (nc >= 5 && (val[4] < 0 || val[4] > 255 || val[4] != floor(val[4]))) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: flag %g is not an integer 0..255", path, lineno,
+                           val[4]);
+            goto out_free;
+        }
+        if (!rows_push(&r)) {
+            st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory at line %ld", path, lineno);
+            goto out_free;
+        }
+        size_t k = r.n++;
+        r.x[k] = val[0];
+        r.y[k] = val[1];
+        r.u[k] = (float)val[2];
+        r.v[k] = (float)val[3];
+        r.flag[k] = (unsigned char)val[4];
+        /* columns 6-7 mean peak ratio and correlation only in rpiv's files (OpenPIV's 6th
+         * column is a mask) */
+        r.pr[k] = is_rpiv ? (float)val[5] : 0.0f;
+        r.cc[k] = is_rpiv ? (float)val[6] : 0.0f;
+        r.line[k] = lineno;
+    }
+    if (ferror(fp)) {
+        st = rpiv_fail(RPIV_EIO, "%s: read error: %s", path, strerror(errno));
+        goto out_free;
+    }
+    if (r.n == 0) {
+        st = rpiv_fail(RPIV_EFORMAT, "%s: no vectors (expected columns x y u v)", path);
+        goto out_free;
+    }
+    st = build_field(&r, path, scale, dt, out);
+out_free:
+    free(line);
+    rows_free(&r);
+    fclose(fp);
+    return st;
+}
+
+/* ---- profiles ----------------------------------------------------------------- */
+
+void rpiv_profile_free(rpiv_profile *p)
+{
+    if (!p)
+        return;
+    free(p->alpha);
+    free(p->value);
+    free(p);
+}
+
+rpiv_status rpiv_text_columns(const char *path, int *ncol)
+{
+    FILE *fp = fopen(path, "r");
+    if (!fp)
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    char *line = NULL;
+    size_t cap = 0;
+    long lineno = 0;
+    rpiv_status st = rpiv_fail(RPIV_EFORMAT, "%s: no data lines", path);
+    while (getline(&line, &cap, fp) >= 0) {
+        lineno++;
+        char *s = line + strspn(line, " \t\r\n");
+        if (*s == '#' || *s == '\0')
+            continue;
+        double val[MAXCOL];
+        int nc = split_numbers(s, path, lineno, val, &st);
+        if (nc >= 0) {
+            *ncol = nc;
+            st = RPIV_OK;
+        }
+        break;
+    }
+    free(line);
+    fclose(fp);
+    return st;
+}
+
+rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out)
+{
+    *out = NULL;
+    FILE *fp = fopen(path, "r");
+    if (!fp)
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    rpiv_profile *p = calloc(1, sizeof *p);
+    char *line = NULL;
+    size_t cap = 0, pcap = 0;
+    long lineno = 0;
+    rpiv_status st = RPIV_OK;
+    int dir = 0; /* +1 increasing, -1 decreasing */
+    if (!p) {
+        st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
+        goto out_close;
+    }
+    while (getline(&line, &cap, fp) >= 0) {
+        lineno++;
+        char *s = line + strspn(line, " \t\r\n");
+        if (*s == '#' || *s == '\0')
+            continue;
+        double val[MAXCOL];
+        int nc = split_numbers(s, path, lineno, val, &st);
+        if (nc < 0)
+            goto out_close;
+        if (nc < 2) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: 1 column, a profile needs 2 (alpha value)", path,
+                           lineno);
+            goto out_close;
+        }
+        if (p->n) {
+            double prev = p->alpha[p->n - 1];
+            int d = val[0] > prev ? 1 : val[0] < prev ? -1 : 0;
+            if (!dir)
+                dir = d;
+            if (!d || d != dir) {
+                st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: alpha %g is not %s (previous %g)", path,
+                               lineno, val[0], dir < 0 ? "decreasing" : "increasing", prev);
+                goto out_close;
+            }
+        }
+        if (p->n == pcap) {
+            size_t nc2 = pcap ? 2 * pcap : 128;
+            double *a = realloc(p->alpha, nc2 * sizeof *a);
+            if (a)
+                p->alpha = a;
+            double *v = a ? realloc(p->value, nc2 * sizeof *v) : NULL;
+            if (v)
+                p->value = v;
+            if (!a || !v) {
+                st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory at line %ld", path, lineno);
+                goto out_close;
+            }
+            pcap = nc2;
+        }
+        p->alpha[p->n] = val[0];
+        p->value[p->n] = val[1];
+        p->n++;
+    }
+    if (ferror(fp)) {
+        st = rpiv_fail(RPIV_EIO, "%s: read error: %s", path, strerror(errno));
+        goto out_close;
+    }
+    if (p->n < 2) {
+        st = rpiv_fail(RPIV_EFORMAT, "%s: %zu point%s, a profile needs at least 2", path, p->n,
+                       p->n == 1 ? "" : "s");
+        goto out_close;
+    }
+    if (dir < 0) {
+        for (size_t a = 0, b = p->n - 1; a < b; a++, b--) {
+            double t = p->alpha[a];
+            p->alpha[a] = p->alpha[b];
+            p->alpha[b] = t;
+            t = p->value[a];
+            p->value[a] = p->value[b];
+            p->value[b] = t;
+        }
+    }
+    *out = p;
+    p = NULL;
+out_close:
+    rpiv_profile_free(p);
+    free(line);
+    fclose(fp);
+    return st;
+}

@@ -1,0 +1,53 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/image_impl.h - helpers shared by the image module's source files (not installed). */
+#ifndef RPIV_IMAGE_IMPL_H
+#define RPIV_IMAGE_IMPL_H
+
+#include "rpiv/image.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#if defined(__GNUC__) || defined(__clang__)
+#define IMG_HIDDEN __attribute__((visibility("hidden")))
+#else
+#define IMG_HIDDEN
+#endif
+
+/* Largest image accepted, in pixels (2^31). */
+#define IMG_MAX_PIXELS ((uint64_t)1 << 31)
+
+/* Luminance of an RGB triple, ITU-R BT.601 weights; a grey triple keeps its exact level. */
+static inline float img_luma(double r, double g, double b)
+{
+    if (r == g && g == b)
+        return (float)r;
+    return (float)(0.299 * r + 0.587 * g + 0.114 * b);
+}
+
+/* RPIV_OK if a w x h image is acceptable: w, h >= 1 and w*h <= IMG_MAX_PIXELS; else
+ * RPIV_EFORMAT naming path. */
+IMG_HIDDEN rpiv_status img_check_size(const char *path, uint64_t w, uint64_t h);
+
+/* A new w x h image (uninitialised pixels are zero) after checking the size: w, h >= 1 and
+ * w*h <= IMG_MAX_PIXELS, else RPIV_EFORMAT naming path. */
+IMG_HIDDEN rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits,
+                                 rpiv_image **out);
+
+/* Readers: each fills *out (NULL on failure) and sets *warned to 1 for colour input. */
+IMG_HIDDEN rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *warned);
+IMG_HIDDEN rpiv_status img_tiff_pages(const char *path, int *npages);
+IMG_HIDDEN rpiv_status img_png_load(const char *path, rpiv_image **out, int *warned);
+IMG_HIDDEN rpiv_status img_pgm_load(const char *path, const unsigned char *buf, size_t n,
+                                    rpiv_image **out);
+IMG_HIDDEN rpiv_status img_stb_load(const char *path, rpiv_image_format fmt,
+                                    const unsigned char *buf, size_t n, rpiv_image **out,
+                                    int *warned);
+
+/* Writers' plumbing: create a unique temporary file next to path (mode 0666 & ~umask);
+ * *fd and tmp (size cap) receive it. img_commit fsyncs fd's file, closes nothing, renames tmp
+ * to path and syncs the folder. */
+IMG_HIDDEN rpiv_status img_tmp_open(const char *path, char *tmp, size_t cap, int *fd);
+IMG_HIDDEN rpiv_status img_tmp_commit(const char *tmp, const char *path);
+
+#endif /* RPIV_IMAGE_IMPL_H */

@@ -1,0 +1,578 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/plot.c - PNG figures through PLplot's pngcairo device. PLplot is global state: one
+ * plot at a time (see plot.h). Its fatal errors (plexit) would call exit(); the exit hook
+ * jumps back into the running rpiv_plot_* call instead, and its non-fatal errors (plabort)
+ * go into a buffer (plsError) rather than to stderr. */
+#include "rpiv/plot.h"
+
+#include "field_impl.h"
+
+#include <math.h>
+#include <plplot/plplot.h>
+#include <setjmp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The call in progress, for the exit hook (PLplot's hook has no user pointer). */
+typedef struct plot_call {
+    jmp_buf env;
+    char exit_msg[256];
+    char err_msg[1024]; /* plsError buffer */
+    PLINT err_code;
+} plot_call;
+
+static plot_call *current;
+
+static int exit_hook(PLCHAR_VECTOR msg)
+{
+    snprintf(current->exit_msg, sizeof current->exit_msg, "%s", msg ? msg : "");
+    longjmp(current->env, 1);
+}
+
+rpiv_plot_opts rpiv_plot_opts_default(void)
+{
+    return (rpiv_plot_opts){.width_px = 800,
+                            .height_px = 600,
+                            .xlabel = "x (px)",
+                            .ylabel = "y (px)",
+                            .cmap = RPIV_PLOT_CMAP_VIRIDIS,
+                            .background = 1,
+                            .stride = 1};
+}
+
+static rpiv_status opts_check(const rpiv_plot_opts *o, const char *path)
+{
+    if (o->width_px < 100 || o->width_px > 10000 || o->height_px < 100 || o->height_px > 10000)
+        return rpiv_fail(RPIV_EINVAL, "%s: plot size %d x %d px outside 100..10000", path,
+                         o->width_px, o->height_px);
+    if (o->stride < 1)
+        return rpiv_fail(RPIV_EINVAL, "%s: plot stride %d must be >= 1", path, o->stride);
+    if (!(o->arrow_scale >= 0) || !isfinite(o->arrow_scale))
+        return rpiv_fail(RPIV_EINVAL, "%s: arrow scale %g must be >= 0", path, o->arrow_scale);
+    if (o->y_axis < 0 || o->y_axis > RPIV_PLOT_DOWN || o->aspect < 0 || o->aspect > RPIV_PLOT_FREE)
+        return rpiv_fail(RPIV_EINVAL, "%s: y_axis %d / aspect %d not AUTO, 1 or 2", path, o->y_axis,
+                         o->aspect);
+    if ((unsigned)o->cmap > RPIV_PLOT_CMAP_DIVERGING)
+        return rpiv_fail(RPIV_EINVAL, "%s: unknown colour map %d", path, (int)o->cmap);
+    return RPIV_OK;
+}
+
+/* Replace RPIV_PLOT_AUTO by what suits the kind of plot. */
+static void resolve_auto(rpiv_plot_opts *o, int y_axis, int aspect)
+{
+    if (o->y_axis == RPIV_PLOT_AUTO)
+        o->y_axis = y_axis;
+    if (o->aspect == RPIV_PLOT_AUTO)
+        o->aspect = aspect;
+}
+
+/* ---- colours ---------------------------------------------------------------- */
+
+enum { COL_BG = 0, COL_FG = 1, COL_SERIES = 2, NSERIES_COL = 10, COL_REPLACED = 12, NCOL0 = 16 };
+
+static void set_cmap0(void)
+{
+    /* a qualitative palette of ten distinguishable colours for curves */
+    static const PLINT rgb[NSERIES_COL][3] = {
+        {31, 119, 180}, {255, 127, 14},  {44, 160, 44},   {214, 39, 40},  {148, 103, 189},
+        {140, 86, 75},  {227, 119, 194}, {127, 127, 127}, {188, 189, 34}, {23, 190, 207}};
+    plscmap0n(NCOL0);
+    plscol0(COL_BG, 255, 255, 255);
+    plscol0(COL_FG, 0, 0, 0);
+    for (int k = 0; k < NSERIES_COL; k++)
+        plscol0(COL_SERIES + k, rgb[k][0], rgb[k][1], rgb[k][2]);
+    plscol0(COL_REPLACED, 220, 20, 20);
+}
+
+static void set_cmap1(rpiv_plot_cmap cm)
+{
+    /* viridis sampled at five points; linear RGB interpolation between them */
+    static const PLFLT vi[5] = {0, 0.25, 0.5, 0.75, 1};
+    static const PLFLT vr[5] = {68 / 255., 59 / 255., 33 / 255., 94 / 255., 253 / 255.};
+    static const PLFLT vg[5] = {1 / 255., 82 / 255., 145 / 255., 201 / 255., 231 / 255.};
+    static const PLFLT vb[5] = {84 / 255., 139 / 255., 140 / 255., 98 / 255., 37 / 255.};
+    static const PLFLT gi[2] = {0, 1}, gv0[2] = {0, 1};
+    static const PLFLT di[3] = {0, 0.5, 1};
+    static const PLFLT dr[3] = {0.23, 1, 0.71}, dg[3] = {0.30, 1, 0.02}, db[3] = {0.75, 1, 0.15};
+    plscmap1n(256);
+    if (cm == RPIV_PLOT_CMAP_GRAY)
+        plscmap1l(1, 2, gi, gv0, gv0, gv0, NULL);
+    else if (cm == RPIV_PLOT_CMAP_DIVERGING)
+        plscmap1l(1, 3, di, dr, dg, db, NULL);
+    else
+        plscmap1l(1, 5, vi, vr, vg, vb, NULL);
+}
+
+/* ---- the frame around every plot ------------------------------------------- */
+
+typedef rpiv_status (*draw_fn)(const void *ctx, const rpiv_plot_opts *o);
+
+static int is_png(const char *path)
+{
+    static const unsigned char sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    unsigned char buf[8];
+    FILE *fp = fopen(path, "rb");
+    if (!fp)
+        return 0;
+    size_t got = fread(buf, 1, 8, fp);
+    fclose(fp);
+    return got == 8 && memcmp(buf, sig, 8) == 0;
+}
+
+/* Open a pngcairo stream on a temporary file next to path, run draw, close, check, publish. */
+static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn draw,
+                            const void *ctx)
+{
+    atomic_file af;
+    rpiv_status st = atomic_begin(&af, path, 0);
+    if (st)
+        return st;
+    plot_call call;
+    memset(&call, 0, sizeof call);
+    current = &call;
+    if (setjmp(call.env)) {
+        plend1();
+        plsexit(NULL);
+        current = NULL;
+        atomic_abort(&af);
+        return rpiv_fail(RPIV_EFORMAT, "%s: PLplot: %s", path,
+                         call.exit_msg[0] ? call.exit_msg : "fatal error");
+    }
+    plsexit(exit_hook);
+    plsError(&call.err_code, call.err_msg);
+    plsdev("pngcairo");
+    plsfnam(af.tmp);
+    plspage(0, 0, o->width_px, o->height_px, 0, 0);
+    set_cmap0();
+    plinit();
+    plsError(&call.err_code, call.err_msg);
+    set_cmap1(o->cmap);
+    pladv(0);
+    plschr(0, 0.9);
+    plcol0(COL_FG);
+    rpiv_status dst = draw(ctx, o);
+    /* plend1, not plend: the stream closes (the file is complete) but the driver stays
+     * loaded for the next plot; plend would dlopen it again each time and leak the handle */
+    plend1();
+    plsexit(NULL);
+    current = NULL;
+    if (dst) {
+        atomic_abort(&af);
+        return dst;
+    }
+    if (call.err_code) {
+        char *m = call.err_msg;
+        m += strspn(m, "\n");
+        for (char *p = m; *p; p++)
+            if (*p == '\n')
+                *p = ' ';
+        atomic_abort(&af);
+        return rpiv_fail(RPIV_EFORMAT, "%s: PLplot: %s", path, m);
+    }
+    if (!is_png(af.tmp)) {
+        atomic_abort(&af);
+        return rpiv_fail(RPIV_EIO, "%s: PLplot's pngcairo device did not write a PNG", path);
+    }
+    return atomic_commit(&af);
+}
+
+/* The viewport (leaving room for a colour bar on the right when cbar) and world window. */
+static void frame(const rpiv_plot_opts *o, double x0, double x1, double y0, double y1, int cbar,
+                  const char *xl, const char *yl, const char *title)
+{
+    double right = cbar ? 0.80 : 0.95;
+    if (o->aspect == RPIV_PLOT_EQUAL)
+        plvpas(0.10, right, 0.11, 0.92, (y1 - y0) / (x1 - x0));
+    else
+        plvpor(0.10, right, 0.11, 0.92);
+    if (o->y_axis == RPIV_PLOT_DOWN)
+        plwind(x0, x1, y1, y0);
+    else
+        plwind(x0, x1, y0, y1);
+    plcol0(COL_FG);
+    plbox("bcnst", 0, 0, "bcnstv", 0, 0);
+    pllab(xl ? xl : "", yl ? yl : "", title ? title : "");
+}
+
+static void colour_bar(double zmin, double zmax, const char *label)
+{
+    PLFLT w, h;
+    PLINT label_opts[1] = {PL_COLORBAR_LABEL_RIGHT};
+    PLCHAR_VECTOR labels[1] = {label ? label : ""};
+    PLCHAR_VECTOR axis_opts[1] = {"bcvtm"};
+    PLFLT ticks[1] = {0};
+    PLINT sub_ticks[1] = {0};
+    enum { NV = 128 };
+    PLINT n_values[1] = {NV};
+    PLFLT v[NV];
+    for (int k = 0; k < NV; k++)
+        v[k] = zmin + (zmax - zmin) * k / (NV - 1);
+    const PLFLT *values[1] = {v};
+    plcol0(COL_FG);
+    /* an image bar: PLplot's cairo gradient (PL_COLORBAR_GRADIENT) leaks its pattern */
+    plcolorbar(&w, &h, PL_COLORBAR_IMAGE, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0, 0.03,
+               0.9, COL_BG, COL_FG, 1, 0, 0, 0, 0, 1, label_opts, labels, 1, axis_opts, ticks,
+               sub_ticks, n_values, values);
+}
+
+static void zrange(const double *z, size_t n, const rpiv_plot_opts *o, double *lo, double *hi)
+{
+    if (o->zmin < o->zmax) {
+        *lo = o->zmin;
+        *hi = o->zmax;
+        return;
+    }
+    *lo = INFINITY;
+    *hi = -INFINITY;
+    for (size_t k = 0; k < n; k++)
+        if (isfinite(z[k])) {
+            *lo = fmin(*lo, z[k]);
+            *hi = fmax(*hi, z[k]);
+        }
+    if (!isfinite(*lo)) {
+        *lo = 0;
+        *hi = 1;
+    }
+    if (*hi - *lo <= 1e-12 * fmax(1.0, fabs(*hi))) {
+        double pad = fmax(0.5, 0.05 * fabs(*hi));
+        *lo -= pad;
+        *hi += pad;
+    }
+}
+
+/* Draw z (nx x ny, row-major) as cells over [x0,x1] x [y0,y1]; reduce by block averages to
+ * at most max_cells per axis first (PLplot fills one polygon per cell). */
+static rpiv_status draw_cells(const double *z, int nx, int ny, double x0, double x1, double y0,
+                              double y1, double zlo, double zhi, int max_x, int max_y)
+{
+    int bx = (nx + max_x - 1) / max_x, by = (ny + max_y - 1) / max_y;
+    int mx = (nx + bx - 1) / bx, my = (ny + by - 1) / by;
+    PLFLT *buf = malloc((size_t)mx * (size_t)my * sizeof *buf);
+    const PLFLT **cols = malloc((size_t)mx * sizeof *cols);
+    if (!buf || !cols) {
+        free(buf);
+        free(cols);
+        return rpiv_fail(RPIV_ENOMEM, "plot: out of memory for a %d x %d map", mx, my);
+    }
+    /* PLplot's matrices are indexed [i][j] with i along x */
+    for (int i = 0; i < mx; i++) {
+        cols[i] = buf + (size_t)i * (size_t)my;
+        for (int j = 0; j < my; j++) {
+            double s = 0;
+            int c = 0;
+            for (int jj = j * by; jj < (j + 1) * by && jj < ny; jj++)
+                for (int ii = i * bx; ii < (i + 1) * bx && ii < nx; ii++) {
+                    double val = z[(size_t)jj * (size_t)nx + (size_t)ii];
+                    if (isfinite(val)) {
+                        s += val;
+                        c++;
+                    }
+                }
+            buf[(size_t)i * (size_t)my + (size_t)j] = c ? s / c : (double)NAN;
+        }
+    }
+    /* the edge cells of a reduced map are partly empty: its extent shrinks accordingly */
+    double ex1 = x0 + (x1 - x0) * (double)(mx * bx) / nx;
+    double ey1 = y0 + (y1 - y0) * (double)(my * by) / ny;
+    /* values outside [zlo, zhi] saturate; blank cells go below zlo, which plimage skips */
+    double blank = zlo - (zhi - zlo) - 1;
+    for (size_t k = 0; k < (size_t)mx * (size_t)my; k++)
+        buf[k] = isnan(buf[k]) ? blank : fmin(fmax(buf[k], zlo), zhi);
+    plimage(cols, mx, my, x0, ex1, y0, ey1, zlo, zhi, x0, ex1, y0, ey1);
+    free(cols);
+    free(buf);
+    return RPIV_OK;
+}
+
+/* ---- maps --------------------------------------------------------------------- */
+
+typedef struct map_ctx {
+    const double *z;
+    int nx, ny;
+    double ext[4];
+    const char *title;
+} map_ctx;
+
+static rpiv_status draw_map(const void *vctx, const rpiv_plot_opts *o)
+{
+    const map_ctx *c = vctx;
+    double zlo, zhi;
+    zrange(c->z, (size_t)c->nx * (size_t)c->ny, o, &zlo, &zhi);
+    double x0 = c->ext[0], x1 = c->ext[1], y0 = c->ext[2], y1 = c->ext[3];
+    if (o->xmin < o->xmax) {
+        x0 = o->xmin;
+        x1 = o->xmax;
+    }
+    if (o->ymin < o->ymax) {
+        y0 = o->ymin;
+        y1 = o->ymax;
+    }
+    frame(o, x0, x1, y0, y1, 1, o->xlabel, o->ylabel, c->title);
+    rpiv_status st = draw_cells(c->z, c->nx, c->ny, c->ext[0], c->ext[1], c->ext[2], c->ext[3], zlo,
+                                zhi, o->width_px, o->height_px);
+    if (st)
+        return st;
+    plcol0(COL_FG);
+    plbox("bc", 0, 0, "bc", 0, 0); /* the image covers the frame: redraw it */
+    colour_bar(zlo, zhi, o->zlabel);
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_plot_map(const char *path, const char *title, const double *z, int nx, int ny,
+                          const double *extent, const rpiv_plot_opts *opts)
+{
+    rpiv_plot_opts o = opts ? *opts : rpiv_plot_opts_default();
+    rpiv_status st = opts_check(&o, path);
+    if (st)
+        return st;
+    resolve_auto(&o, RPIV_PLOT_DOWN, RPIV_PLOT_EQUAL);
+    if (nx < 1 || ny < 1)
+        return rpiv_fail(RPIV_EINVAL, "%s: map size %d x %d is empty", path, nx, ny);
+    map_ctx c = {z, nx, ny, {-0.5, nx - 0.5, -0.5, ny - 0.5}, title};
+    if (extent) {
+        if (!(extent[1] > extent[0]) || !(extent[3] > extent[2]) || !isfinite(extent[0]) ||
+            !isfinite(extent[1]) || !isfinite(extent[2]) || !isfinite(extent[3]))
+            return rpiv_fail(RPIV_EINVAL, "%s: map extent [%g, %g] x [%g, %g] is empty", path,
+                             extent[0], extent[1], extent[2], extent[3]);
+        memcpy(c.ext, extent, sizeof c.ext);
+    }
+    return run_plot(path, &o, draw_map, &c);
+}
+
+/* ---- quiver -------------------------------------------------------------------- */
+
+typedef struct quiver_ctx {
+    const rpiv_field *f;
+    const char *title;
+} quiver_ctx;
+
+typedef struct grid_map {
+    double x0, y0, dx, dy;
+} grid_map;
+
+static void grid_xform(PLFLT i, PLFLT j, PLFLT *x, PLFLT *y, PLPointer data)
+{
+    const grid_map *g = data;
+    *x = g->x0 + i * g->dx;
+    *y = g->y0 + j * g->dy;
+}
+
+static rpiv_status draw_quiver(const void *vctx, const rpiv_plot_opts *o)
+{
+    const quiver_ctx *c = vctx;
+    const rpiv_field *f = c->f;
+    int nx = f->nx, ny = f->ny, s = o->stride;
+    size_t n = (size_t)nx * (size_t)ny;
+    double x0 = f->x0 - 0.5 * f->dx, x1 = f->x0 + (nx - 0.5) * f->dx;
+    double y0 = f->y0 - 0.5 * f->dy, y1 = f->y0 + (ny - 0.5) * f->dy;
+    double *mag = malloc(n * sizeof *mag);
+    int mx = (nx + s - 1) / s, my = (ny + s - 1) / s;
+    PLFLT *ub = calloc(4 * (size_t)mx * (size_t)my, sizeof *ub);
+    const PLFLT **cols = malloc(4 * (size_t)mx * sizeof *cols);
+    if (!mag || !ub || !cols) {
+        free(mag);
+        free(ub);
+        free(cols);
+        return rpiv_fail(RPIV_ENOMEM, "plot: out of memory for a %d x %d quiver", nx, ny);
+    }
+    double umax = 0;
+    for (size_t k = 0; k < n; k++) {
+        mag[k] =
+            f->flag[k] == RPIV_FLAG_MASKED ? (double)NAN : hypot((double)f->u[k], (double)f->v[k]);
+        if (isfinite(mag[k]))
+            umax = fmax(umax, mag[k]);
+    }
+    if (o->xmin < o->xmax) {
+        x0 = o->xmin;
+        x1 = o->xmax;
+    }
+    if (o->ymin < o->ymax) {
+        y0 = o->ymin;
+        y1 = o->ymax;
+    }
+    frame(o, x0, x1, y0, y1, o->background, o->xlabel, o->ylabel, c->title);
+    rpiv_status st = RPIV_OK;
+    if (o->background) {
+        double zlo, zhi;
+        zrange(mag, n, o, &zlo, &zhi);
+        st = draw_cells(mag, nx, ny, f->x0 - 0.5 * f->dx, f->x0 + (nx - 0.5) * f->dx,
+                        f->y0 - 0.5 * f->dy, f->y0 + (ny - 0.5) * f->dy, zlo, zhi, o->width_px,
+                        o->height_px);
+        plcol0(COL_FG);
+        plbox("bc", 0, 0, "bc", 0, 0);
+        colour_bar(zlo, zhi, o->zlabel ? o->zlabel : "|u| (px)");
+    }
+    /* two layers: valid vectors (black) and replaced ones (red); zero arrows are not drawn */
+    size_t m = (size_t)mx * (size_t)my;
+    PLFLT *uv[4] = {ub, ub + m, ub + 2 * m, ub + 3 * m}; /* u valid, v valid, u repl, v repl */
+    for (int l = 0; l < 4; l++)
+        for (int i = 0; i < mx; i++)
+            cols[(size_t)l * (size_t)mx + (size_t)i] = uv[l] + (size_t)i * (size_t)my;
+    for (int i = 0; i < mx; i++)
+        for (int j = 0; j < my; j++) {
+            size_t k = (size_t)(j * s) * (size_t)nx + (size_t)(i * s),
+                   q = (size_t)i * (size_t)my + (size_t)j;
+            int layer = f->flag[k] == RPIV_FLAG_REPLACED ? 2 : 0;
+            if (f->flag[k] == RPIV_FLAG_MASKED)
+                continue;
+            uv[layer][q] = f->u[k];
+            uv[layer + 1][q] = f->v[k];
+        }
+    double scale = o->arrow_scale;
+    if (scale <= 0)
+        scale = umax > 0 ? 0.9 * s * fmin(f->dx, f->dy) / umax : 1.0;
+    grid_map g = {f->x0, f->y0, f->dx * s, f->dy * s};
+    if (st == RPIV_OK && umax > 0) {
+        plcol0(COL_FG);
+        plvect(cols, cols + mx, mx, my, scale, grid_xform, &g);
+        plcol0(COL_REPLACED);
+        plvect(cols + 2 * mx, cols + 3 * mx, mx, my, scale, grid_xform, &g);
+    }
+    free(mag);
+    free(ub);
+    free(cols);
+    return st;
+}
+
+rpiv_status rpiv_plot_quiver(const rpiv_field *f, const char *path, const char *title,
+                             const rpiv_plot_opts *opts)
+{
+    rpiv_plot_opts o = opts ? *opts : rpiv_plot_opts_default();
+    rpiv_status st = opts_check(&o, path);
+    if (st)
+        return st;
+    resolve_auto(&o, RPIV_PLOT_DOWN, RPIV_PLOT_EQUAL);
+    quiver_ctx c = {f, title};
+    return run_plot(path, &o, draw_quiver, &c);
+}
+
+/* ---- lines --------------------------------------------------------------------- */
+
+typedef struct lines_ctx {
+    const rpiv_plot_series *s;
+    size_t ns;
+    const char *title, *xl, *yl;
+    double x0, x1, y0, y1;
+} lines_ctx;
+
+/* markers, chosen to be told apart in black and white too */
+static const char *const marker[] = {"●", "■", "▲", "◆", "▼", "✚", "✖", "★"};
+#define NMARKER (sizeof marker / sizeof marker[0])
+
+static rpiv_status draw_lines(const void *vctx, const rpiv_plot_opts *o)
+{
+    const lines_ctx *c = vctx;
+    frame(o, c->x0, c->x1, c->y0, c->y1, 0, c->xl, c->yl, c->title);
+    size_t nleg = 0;
+    for (size_t k = 0; k < c->ns; k++) {
+        const rpiv_plot_series *s = &c->s[k];
+        plcol0(COL_SERIES + (PLINT)(k % NSERIES_COL));
+        plwidth(1.5);
+        if (s->style != RPIV_PLOT_POINTS) {
+            /* a line through each run of finite points */
+            size_t a = 0;
+            while (a < s->n) {
+                while (a < s->n && !(isfinite(s->x[a]) && isfinite(s->y[a])))
+                    a++;
+                size_t b = a;
+                while (b < s->n && isfinite(s->x[b]) && isfinite(s->y[b]))
+                    b++;
+                if (b - a >= 2)
+                    plline((PLINT)(b - a), s->x + a, s->y + a);
+                a = b;
+            }
+        }
+        if (s->style != RPIV_PLOT_LINE) {
+            plschr(0, 0.6);
+            for (size_t q = 0; q < s->n; q++)
+                if (isfinite(s->x[q]) && isfinite(s->y[q]))
+                    plstring(1, s->x + q, s->y + q, marker[k % NMARKER]);
+            plschr(0, 0.9);
+        }
+        if (s->label && *s->label)
+            nleg++;
+    }
+    plwidth(1);
+    if (nleg) {
+        PLINT *opt = calloc(nleg, sizeof *opt), *col = calloc(nleg, sizeof *col);
+        PLINT *lsty = calloc(nleg, sizeof *lsty), *tcol = calloc(nleg, sizeof *tcol);
+        PLINT *nsym = calloc(nleg, sizeof *nsym);
+        PLFLT *lw = calloc(nleg, sizeof *lw), *ssc = calloc(nleg, sizeof *ssc);
+        PLCHAR_VECTOR *text = calloc(nleg, sizeof *text), *sym = calloc(nleg, sizeof *sym);
+        if (!opt || !col || !lsty || !tcol || !nsym || !lw || !ssc || !text || !sym) {
+            free(opt), free(col), free(lsty), free(tcol), free(nsym), free(lw), free(ssc);
+            free(text), free(sym);
+            return rpiv_fail(RPIV_ENOMEM, "plot: out of memory for the legend");
+        }
+        size_t e = 0;
+        for (size_t k = 0; k < c->ns; k++) {
+            const rpiv_plot_series *s = &c->s[k];
+            if (!s->label || !*s->label)
+                continue;
+            opt[e] = (s->style != RPIV_PLOT_POINTS ? PL_LEGEND_LINE : 0) |
+                     (s->style != RPIV_PLOT_LINE ? PL_LEGEND_SYMBOL : 0);
+            col[e] = COL_SERIES + (PLINT)(k % NSERIES_COL);
+            tcol[e] = COL_FG;
+            lsty[e] = 1;
+            lw[e] = 1.5;
+            nsym[e] = 1;
+            ssc[e] = 0.6;
+            text[e] = s->label;
+            sym[e] = marker[k % NMARKER];
+            e++;
+        }
+        PLFLT w, h;
+        plcol0(COL_FG);
+        pllegend(&w, &h, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
+                 PL_POSITION_TOP | PL_POSITION_RIGHT | PL_POSITION_INSIDE, 0.02, 0.02, 0.08, COL_BG,
+                 COL_FG, 1, 0, 0, (PLINT)nleg, opt, 0.8, 0.8, 2.0, 0, tcol, text, NULL, NULL, NULL,
+                 NULL, col, lsty, lw, col, ssc, nsym, sym);
+        free(opt), free(col), free(lsty), free(tcol), free(nsym), free(lw), free(ssc);
+        free(text), free(sym);
+    }
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_plot_lines(const char *path, const char *title, const char *xlabel,
+                            const char *ylabel, const rpiv_plot_series *series, size_t nseries,
+                            const rpiv_plot_opts *opts)
+{
+    rpiv_plot_opts o = opts ? *opts : rpiv_plot_opts_default();
+    rpiv_status st = opts_check(&o, path);
+    if (st)
+        return st;
+    resolve_auto(&o, RPIV_PLOT_UP, RPIV_PLOT_FREE);
+    if (nseries == 0)
+        return rpiv_fail(RPIV_EINVAL, "%s: no series to plot", path);
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+    for (size_t k = 0; k < nseries; k++) {
+        size_t good = 0;
+        for (size_t q = 0; q < series[k].n; q++) {
+            double x = series[k].x[q], y = series[k].y[q];
+            if (!isfinite(x) || !isfinite(y))
+                continue;
+            good++;
+            x0 = fmin(x0, x);
+            x1 = fmax(x1, x);
+            y0 = fmin(y0, y);
+            y1 = fmax(y1, y);
+        }
+        if (!good)
+            return rpiv_fail(RPIV_EINVAL, "%s: series %zu (%s) has no finite point", path, k,
+                             series[k].label ? series[k].label : "unlabelled");
+    }
+    /* a little room around the data; degenerate ranges get a unit width */
+    double px = x1 > x0 ? 0.02 * (x1 - x0) : fmax(0.5, 0.05 * fabs(x0));
+    double py = y1 > y0 ? 0.05 * (y1 - y0) : fmax(0.5, 0.05 * fabs(y0));
+    lines_ctx c = {series, nseries, title, xlabel, ylabel, x0 - px, x1 + px, y0 - py, y1 + py};
+    if (o.xmin < o.xmax) {
+        c.x0 = o.xmin;
+        c.x1 = o.xmax;
+    }
+    if (o.ymin < o.ymax) {
+        c.y0 = o.ymin;
+        c.y1 = o.ymax;
+    }
+    return run_plot(path, &o, draw_lines, &c);
+}

@@ -1,0 +1,193 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/validate.c - normalised median test and median replacement. */
+#include "rpiv/validate.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Median of v[0..n-1] (n <= 8, reordered in place). */
+static double median(float *v, int n)
+{
+    for (int i = 1; i < n; i++) {
+        float x = v[i];
+        int j = i - 1;
+        for (; j >= 0 && v[j] > x; j--)
+            v[j + 1] = v[j];
+        v[j + 1] = x;
+    }
+    return n % 2 ? (double)v[n / 2] : 0.5 * ((double)v[n / 2 - 1] + (double)v[n / 2]);
+}
+
+/* Value of the neighbour (ii, jj) of (i, j): the vector itself when inside the grid and
+ * usable; beyond the grid's edge the point-symmetric extrapolation 2 U(E) - U(M), with E the
+ * in-grid point nearest to it and M its mirror image through E, when both are usable and E
+ * is not (i, j) itself. Returns 0 when there is no value. */
+static int neighbour(const rpiv_field *f, const unsigned char *ok, int i, int j, int ii, int jj,
+                     float *u, float *v)
+{
+    const int nx = f->nx, ny = f->ny;
+    if (ii >= 0 && jj >= 0 && ii < nx && jj < ny) {
+        size_t q = (size_t)jj * (size_t)nx + (size_t)ii;
+        if (ok[q] != 1)
+            return 0;
+        *u = f->u[q];
+        *v = f->v[q];
+        return 1;
+    }
+    int ei = ii < 0 ? 0 : (ii >= nx ? nx - 1 : ii);
+    int ej = jj < 0 ? 0 : (jj >= ny ? ny - 1 : jj);
+    int mi = 2 * ei - ii, mj = 2 * ej - jj;
+    if ((ei == i && ej == j) || mi < 0 || mj < 0 || mi >= nx || mj >= ny)
+        return 0;
+    size_t e = (size_t)ej * (size_t)nx + (size_t)ei, q = (size_t)mj * (size_t)nx + (size_t)mi;
+    if (ok[e] != 1 || ok[q] != 1)
+        return 0;
+    *u = 2 * f->u[e] - f->u[q];
+    *v = 2 * f->v[e] - f->v[q];
+    return 1;
+}
+
+/* The neighbourhood of (i, j) (ok[k] == 1: usable) into nu/nv; returns the count.
+ * Inside the grid it is the usable vectors of the 3 x 3 block (Westerweel & Scarano). At an
+ * edge the block is completed by extrapolation (see neighbour()) and a vector is used only if
+ * its point-symmetric partner about (i, j) is there too: the neighbourhood stays balanced,
+ * so a linear velocity gradient across the edge does not move its median. (Without this,
+ * the median of a one-sided neighbourhood is the value half a grid step inside, and the
+ * edge vectors of a steep profile are all rejected.) */
+static int gather(const rpiv_field *f, const unsigned char *ok, int i, int j, float *nu,
+                  float *nv)
+{
+    const int nx = f->nx, ny = f->ny;
+    int m = 0;
+    for (int dj = -1; dj <= 1; dj++)
+        for (int di = -1; di <= 1; di++) {
+            if (!di && !dj)
+                continue;
+            int ii = i + di, jj = j + dj, pi = i - di, pj = j - dj;
+            int inside = ii >= 0 && jj >= 0 && ii < nx && jj < ny;
+            int partner_out = pi < 0 || pj < 0 || pi >= nx || pj >= ny;
+            float u, v, pu, pv;
+            if (!neighbour(f, ok, i, j, ii, jj, &u, &v))
+                continue;
+            if (inside && partner_out && !neighbour(f, ok, i, j, pi, pj, &pu, &pv))
+                continue;
+            nu[m] = u;
+            nv[m] = v;
+            m++;
+        }
+    return m;
+}
+
+/* Normalised residual of component c[k] against neighbours nb[0..n-1]. */
+static double residual(double c0, const float *nb, int n, double eps)
+{
+    float tmp[8], r[8];
+    memcpy(tmp, nb, (size_t)n * sizeof *tmp);
+    double um = median(tmp, n);
+    for (int i = 0; i < n; i++)
+        r[i] = (float)fabs((double)nb[i] - um);
+    double rm = median(r, n);
+    return fabs(c0 - um) / (rm + eps);
+}
+
+rpiv_status rpiv_validate_median(rpiv_field *f, double threshold, double eps, size_t *nrejected)
+{
+    if (nrejected)
+        *nrejected = 0;
+    if (!(threshold > 0) || !(eps >= 0))
+        return rpiv_fail(RPIV_EINVAL, "validate: threshold %g must be > 0 and eps %g >= 0",
+                         threshold, eps);
+    const int nx = f->nx, ny = f->ny;
+    size_t n = (size_t)nx * (size_t)ny, count = 0;
+    unsigned char *rej = calloc(2 * n, 1);
+    if (!rej)
+        return rpiv_fail(RPIV_ENOMEM, "validate: out of memory");
+    unsigned char *ok = rej + n;
+    for (size_t k = 0; k < n; k++)
+        ok[k] = f->flag[k] == RPIV_FLAG_VALID;
+    for (int j = 0; j < ny; j++)
+        for (int i = 0; i < nx; i++) {
+            size_t k = (size_t)j * (size_t)nx + (size_t)i;
+            if (!ok[k])
+                continue;
+            float nu[8], nv[8];
+            int m = gather(f, ok, i, j, nu, nv);
+            if (m < 2)
+                continue;
+            if (residual(f->u[k], nu, m, eps) > threshold ||
+                residual(f->v[k], nv, m, eps) > threshold)
+                rej[k] = 1;
+        }
+    for (size_t k = 0; k < n; k++)
+        if (rej[k]) {
+            f->flag[k] = RPIV_FLAG_REPLACED;
+            count++;
+        }
+    free(rej);
+    if (nrejected)
+        *nrejected = count;
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_validate_replace(rpiv_field *f, int fill_masked, size_t *nfilled)
+{
+    if (nfilled)
+        *nfilled = 0;
+    const int nx = f->nx, ny = f->ny;
+    size_t n = (size_t)nx * (size_t)ny, pending = 0, filled = 0;
+    /* known: 1 = usable as a neighbour; 0 = to fill; 2 = neither (masked, not filled) */
+    unsigned char *known = malloc(2 * n);
+    float *nu = malloc(2 * n * sizeof *nu);
+    if (!known || !nu) {
+        free(known);
+        free(nu);
+        return rpiv_fail(RPIV_ENOMEM, "validate: out of memory");
+    }
+    unsigned char *now = known + n;
+    float *nv = nu + n;
+    for (size_t k = 0; k < n; k++) {
+        unsigned char fl = f->flag[k];
+        known[k] = fl == RPIV_FLAG_VALID ? 1 : (fl == RPIV_FLAG_REPLACED || fill_masked ? 0 : 2);
+        pending += known[k] == 0;
+    }
+    while (pending) {
+        size_t done = 0;
+        memset(now, 0, n);
+        for (int j = 0; j < ny; j++)
+            for (int i = 0; i < nx; i++) {
+                size_t k = (size_t)j * (size_t)nx + (size_t)i;
+                if (known[k] != 0)
+                    continue;
+                float bu[8], bv[8];
+                int m = gather(f, known, i, j, bu, bv);
+                if (m) {
+                    nu[k] = (float)median(bu, m);
+                    nv[k] = (float)median(bv, m);
+                    now[k] = 1;
+                    done++;
+                }
+            }
+        if (!done)
+            break;
+        for (size_t k = 0; k < n; k++)
+            if (now[k]) {
+                f->u[k] = nu[k];
+                f->v[k] = nv[k];
+                known[k] = 1;
+            }
+        pending -= done;
+        filled += done;
+    }
+    if (pending) /* no valid vector anywhere */
+        for (size_t k = 0; k < n; k++)
+            if (known[k] == 0) {
+                f->u[k] = f->v[k] = 0;
+                filled++;
+            }
+    free(known);
+    free(nu);
+    if (nfilled)
+        *nfilled = filled;
+    return RPIV_OK;
+}

@@ -1,0 +1,245 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* tests/test_plot.c - each plot kind writes a valid PNG of the requested size (signature, and
+ * libpng reads width and height), writes nothing else, and rejects bad arguments. */
+#include "check.h"
+#include "rpiv/field.h"
+#include "rpiv/plot.h"
+
+#include <dirent.h>
+#include <png.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static char dir[256];
+
+/* Under AddressSanitizer: fontconfig (through cairo and pango) keeps its font caches for the
+ * life of the process and never frees them; that is not rpiv's leak. LeakSanitizer calls this
+ * hook, when it is linked in, for its default suppressions. */
+const char *__lsan_default_suppressions(void);
+const char *__lsan_default_suppressions(void)
+{
+    return "leak:libfontconfig.so\n";
+}
+
+static const char *tpath(const char *name)
+{
+    static char buf[512];
+    snprintf(buf, sizeof buf, "%s/%s", dir, name);
+    return buf;
+}
+
+/* Width and height through libpng, after checking the 8-byte signature; 0 on any failure.
+ * Also reads every row, so a truncated file fails. *nonwhite counts pixels that are not
+ * white (something was drawn). */
+static int png_size(const char *path, unsigned *w, unsigned *h, size_t *nonwhite)
+{
+    *w = *h = 0;
+    *nonwhite = 0;
+    FILE *fp = fopen(path, "rb");
+    if (!fp)
+        return 0;
+    unsigned char sig[8];
+    if (fread(sig, 1, 8, fp) != 8 || png_sig_cmp(sig, 0, 8)) {
+        fclose(fp);
+        return 0;
+    }
+    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    png_bytep row = NULL;
+    if (!png || !info || setjmp(png_jmpbuf(png))) {
+        png_destroy_read_struct(&png, &info, NULL);
+        free(row);
+        fclose(fp);
+        *w = *h = 0;
+        return 0;
+    }
+    png_init_io(png, fp);
+    png_set_sig_bytes(png, 8);
+    png_read_info(png, info);
+    png_set_expand(png);
+    png_set_strip_16(png);
+    png_set_gray_to_rgb(png);
+    png_set_strip_alpha(png);
+    png_read_update_info(png, info);
+    *w = png_get_image_width(png, info);
+    *h = png_get_image_height(png, info);
+    size_t rb = png_get_rowbytes(png, info);
+    row = malloc(rb);
+    for (unsigned y = 0; y < *h; y++) {
+        png_read_row(png, row, NULL);
+        for (size_t x = 0; x + 2 < rb; x += 3)
+            *nonwhite += row[x] != 255 || row[x + 1] != 255 || row[x + 2] != 255;
+    }
+    png_read_end(png, NULL);
+    png_destroy_read_struct(&png, &info, NULL);
+    free(row);
+    fclose(fp);
+    return 1;
+}
+
+static int nfiles(void)
+{
+    int n = 0;
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    while (d && (e = readdir(d)))
+        n += e->d_name[0] != '.';
+    if (d)
+        closedir(d);
+    return n;
+}
+
+static void quiver_writes_png_of_requested_size(void)
+{
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_field_new(24, 18, 16, 16, 16, 16, &f));
+    if (!f)
+        return;
+    /* a Lamb-Oseen-like swirl with one replaced and one masked vector */
+    for (int j = 0; j < 18; j++)
+        for (int i = 0; i < 24; i++) {
+            double x = i - 11.3187, y = j - 8.71, r2 = x * x + y * y + 1e-9;
+            double ut = 6.0 * (1 - exp(-r2 / 16.0)) / sqrt(r2);
+            f->u[j * 24 + i] = (float)(-ut * y / sqrt(r2));
+            f->v[j * 24 + i] = (float)(ut * x / sqrt(r2));
+        }
+    f->flag[5] = RPIV_FLAG_REPLACED;
+    f->flag[6] = RPIV_FLAG_MASKED;
+    rpiv_plot_opts o = rpiv_plot_opts_default();
+    o.width_px = 640;
+    o.height_px = 480;
+    CHECK_OK(rpiv_plot_quiver(f, tpath("quiver.png"), "swirl", &o));
+    unsigned w, h;
+    size_t ink;
+    CHECK(png_size(tpath("quiver.png"), &w, &h, &ink));
+    CHECK(w == 640 && h == 480);
+    CHECK(ink > 640 * 480 / 10); /* the background map covers much of the frame */
+    /* without the background, with a stride and default options */
+    o.background = 0;
+    o.stride = 2;
+    CHECK_OK(rpiv_plot_quiver(f, tpath("quiver2.png"), "swirl, every 2nd", &o));
+    CHECK(png_size(tpath("quiver2.png"), &w, &h, &ink) && w == 640 && h == 480);
+    CHECK(ink > 1000 && ink < 640 * 480 / 3);
+    CHECK_OK(rpiv_plot_quiver(f, tpath("quiver3.png"), NULL, NULL));
+    CHECK(png_size(tpath("quiver3.png"), &w, &h, &ink) && w == 800 && h == 600);
+    o.stride = 0;
+    CHECK_FAILS(rpiv_plot_quiver(f, tpath("bad.png"), "x", &o), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "stride 0") != NULL);
+    CHECK(access(tpath("bad.png"), F_OK) != 0);
+    rpiv_field_free(f);
+}
+
+static void lines_writes_png_with_legend(void)
+{
+    double z[101], a[101], b[101], c[11], cz[11];
+    for (int k = 0; k <= 100; k++) {
+        z[k] = k / 100.0;
+        a[k] = 6 * z[k] * (1 - z[k]);
+        b[k] = k == 50 ? (double)NAN : 1.1 * a[k]; /* a gap */
+    }
+    for (int k = 0; k <= 10; k++) {
+        cz[k] = k / 10.0 + 0.013;
+        c[k] = 6 * cz[k] * (1 - cz[k]) - 0.05;
+    }
+    rpiv_plot_series s[3] = {{z, a, 101, "exact", RPIV_PLOT_LINE},
+                             {z, b, 101, "scaled 1.1", RPIV_PLOT_BOTH},
+                             {cz, c, 11, NULL, RPIV_PLOT_POINTS}};
+    CHECK_OK(rpiv_plot_lines(tpath("lines.png"), "Poiseuille", "z*", "U*", s, 3, NULL));
+    unsigned w, h;
+    size_t ink;
+    CHECK(png_size(tpath("lines.png"), &w, &h, &ink) && w == 800 && h == 600);
+    CHECK(ink > 2000);
+    rpiv_plot_opts o = rpiv_plot_opts_default();
+    o.width_px = 400;
+    o.height_px = 1000;
+    o.ymin = -1;
+    o.ymax = 2;
+    CHECK_OK(rpiv_plot_lines(tpath("lines2.png"), NULL, NULL, NULL, s, 1, &o));
+    CHECK(png_size(tpath("lines2.png"), &w, &h, &ink) && w == 400 && h == 1000);
+    CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", s, 0, NULL), RPIV_EINVAL);
+    double nan2[2] = {NAN, NAN};
+    rpiv_plot_series bad = {nan2, nan2, 2, "all nan", RPIV_PLOT_LINE};
+    CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", &bad, 1, NULL), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "all nan") != NULL);
+    o.aspect = 3;
+    CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", s, 1, &o), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "aspect 3") != NULL);
+    o.aspect = RPIV_PLOT_AUTO;
+    o.width_px = 20;
+    CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", s, 1, &o), RPIV_EINVAL);
+    CHECK(access(tpath("bad.png"), F_OK) != 0);
+}
+
+static void map_writes_png_for_image_and_scalar(void)
+{
+    /* a camera-sized image (reduced internally) and a small scalar map with blank cells */
+    int nx = 1280, ny = 1080;
+    double *im = malloc((size_t)nx * ny * sizeof *im);
+    if (!im)
+        return;
+    for (int j = 0; j < ny; j++)
+        for (int i = 0; i < nx; i++)
+            im[(size_t)j * nx + i] = 1000 + 800 * sin(i * 0.0131) * cos(j * 0.0217);
+    rpiv_plot_opts o = rpiv_plot_opts_default();
+    o.cmap = RPIV_PLOT_CMAP_GRAY;
+    o.zlabel = "counts";
+    CHECK_OK(rpiv_plot_map(tpath("image.png"), "image", im, nx, ny, NULL, &o));
+    unsigned w, h;
+    size_t ink;
+    CHECK(png_size(tpath("image.png"), &w, &h, &ink) && w == 800 && h == 600);
+    CHECK(ink > 800 * 600 / 10);
+    double m[12 * 7];
+    for (int k = 0; k < 12 * 7; k++)
+        m[k] = k % 5 == 0 ? (double)NAN : 0.3187 * k - 4;
+    double ext[4] = {0, 1.2, -0.35, 0.35};
+    o = rpiv_plot_opts_default();
+    o.cmap = RPIV_PLOT_CMAP_DIVERGING;
+    o.y_axis = RPIV_PLOT_UP;
+    o.aspect = RPIV_PLOT_FREE;
+    o.xlabel = "x*";
+    o.ylabel = "z*";
+    CHECK_OK(rpiv_plot_map(tpath("map.png"), "map", m, 12, 7, ext, &o));
+    CHECK(png_size(tpath("map.png"), &w, &h, &ink) && w == 800 && h == 600);
+    double bad_ext[4] = {1, 0, 0, 1};
+    CHECK_FAILS(rpiv_plot_map(tpath("bad.png"), "m", m, 12, 7, bad_ext, &o), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_plot_map(tpath("bad.png"), "m", m, 0, 7, NULL, &o), RPIV_EINVAL);
+    CHECK(access(tpath("bad.png"), F_OK) != 0);
+    free(im);
+}
+
+static void plot_into_missing_folder_fails_with_path(void)
+{
+    double x[2] = {0, 1};
+    rpiv_plot_series s = {x, x, 2, "a", RPIV_PLOT_LINE};
+    CHECK_FAILS(rpiv_plot_lines(tpath("no/such/lines.png"), "t", "x", "y", &s, 1, NULL), RPIV_EIO);
+    CHECK(strstr(rpiv_errmsg(), "no/such/lines.png") != NULL);
+}
+
+int main(void)
+{
+    const char *tmp = getenv("TMPDIR");
+    snprintf(dir, sizeof dir, "%s/rpiv_test_plot_XXXXXX", tmp && *tmp ? tmp : "/tmp");
+    if (!mkdtemp(dir)) {
+        perror("mkdtemp");
+        return 1;
+    }
+    RUN_TEST(quiver_writes_png_of_requested_size);
+    RUN_TEST(lines_writes_png_with_legend);
+    RUN_TEST(map_writes_png_for_image_and_scalar);
+    RUN_TEST(plot_into_missing_folder_fails_with_path);
+    /* exactly the PNGs asked for, no temporary files left behind */
+    CHECK(nfiles() == 7);
+    int keep = getenv("RPIV_KEEP_PLOTS") != NULL;
+    if (keep) {
+        printf("plots kept in %s\n", dir);
+    } else {
+        const char *names[] = {"quiver.png", "quiver2.png", "quiver3.png", "lines.png",
+                               "lines2.png", "image.png",   "map.png"};
+        for (size_t k = 0; k < sizeof names / sizeof names[0]; k++)
+            unlink(tpath(names[k]));
+        rmdir(dir);
+    }
+    return check_summary();
+}
