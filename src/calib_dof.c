@@ -315,6 +315,17 @@ rpiv_status rpiv_calib_focus_write(const rpiv_calib_focus *c, FILE *fp)
 /* Nodes per axis of the average over the dot centre's position in its pixel. */
 #define PHASE_NODES 4
 
+static rpiv_status phase_nodes(double *node, double *wt)
+{
+    gsl_integration_glfixed_table *t = gsl_integration_glfixed_table_alloc(PHASE_NODES);
+    if (!t)
+        return rpiv_fail(RPIV_ENOMEM, "calib dof model: out of memory");
+    for (size_t i = 0; i < PHASE_NODES; i++)
+        gsl_integration_glfixed_point(-0.5, 0.5, i, &node[i], &wt[i], t);
+    gsl_integration_glfixed_table_free(t);
+    return RPIV_OK;
+}
+
 rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
                                  double h_m, double reflectance, double zstep,
                                  rpiv_calib_focus *c)
@@ -334,14 +345,8 @@ rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_came
         return rpiv_fail(RPIV_EINVAL, "calib dof model: channel height %g m must be > 0", h_m);
     calib_gl gl;
     double node[PHASE_NODES], wt[PHASE_NODES];
-    if ((st = calib_gl_init(&gl)))
+    if ((st = calib_gl_init(&gl)) || (st = phase_nodes(node, wt)))
         return st;
-    gsl_integration_glfixed_table *t = gsl_integration_glfixed_table_alloc(PHASE_NODES);
-    if (!t)
-        return rpiv_fail(RPIV_ENOMEM, "calib dof model: out of memory");
-    for (size_t i = 0; i < PHASE_NODES; i++)
-        gsl_integration_glfixed_point(-0.5, 0.5, i, &node[i], &wt[i], t);
-    gsl_integration_glfixed_table_free(t);
     double scale = calib_scale(p->geom.scale_px_m, cam);
     double ca = fabs(cos(p->geom.angle_deg * M_PI / 180));
     double r = 0.5 * p->dot_d_m * scale, ax = r * ca, ay = r;
@@ -361,6 +366,39 @@ rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_came
     if ((st = focus_analyse(c, 0, "calib dof model")))
         rpiv_calib_focus_free(c);
     return st;
+}
+
+rpiv_status rpiv_calib_dof_reflectance(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
+                                       double h_m, double inv_max, double *reflectance)
+{
+    rpiv_status st = rpiv_calib_dof_params_check(p);
+    if (st || (st = rpiv_camera_check(cam)))
+        return st;
+    if (p->geom.angle_deg == 0)
+        return rpiv_fail(RPIV_EINVAL, "calib dof model: the plate angle must be given");
+    if (!(h_m > 0) || !(inv_max > 1))
+        return rpiv_fail(RPIV_EINVAL, "calib dof model: need h > 0 and a peak 1/I* > 1 (%g)",
+                         inv_max);
+    calib_gl gl;
+    double node[PHASE_NODES], wt[PHASE_NODES];
+    if ((st = calib_gl_init(&gl)) || (st = phase_nodes(node, wt)))
+        return st;
+    double scale = calib_scale(p->geom.scale_px_m, cam);
+    double ca = fabs(cos(p->geom.angle_deg * M_PI / 180));
+    double r = 0.5 * p->dot_d_m * scale, ax = r * ca, ay = r;
+    double ppx = p->pitch_m * ca * scale, ppy = p->pitch_m * scale;
+    double fill = M_PI * ax * ay / (ppx * ppy);
+    double s = calib_blur_px(cam, h_m, scale, cam->zop_star);
+    double c0 = calib_lattice_pixel(&gl, ax, ay, ppx, ppy, s, node, wt, PHASE_NODES);
+    /* I* = (1 - (1 - rho) c0) / (1 - (1 - rho) fill), solved for rho */
+    double i = 1 / inv_max, q = (1 - i) / (c0 - i * fill), rho = 1 - q;
+    if (!(c0 - i * fill > 0) || !(rho >= 0 && rho < 1))
+        return rpiv_fail(RPIV_ENUMERIC,
+                         "calib dof model: no dot reflectance in [0, 1) gives a peak 1/I* of %g "
+                         "(a black dot gives %g)",
+                         inv_max, (1 - fill) / (1 - c0));
+    *reflectance = rho;
+    return RPIV_OK;
 }
 
 /* ---- measurement ------------------------------------------------------------------------- */
@@ -751,4 +789,18 @@ rpiv_status rpiv_calib_dof_run(const rpiv_calib_dof_params *p, const rpiv_camera
 out_fail:
     rpiv_calib_dof_result_free(r);
     return st;
+}
+
+rpiv_status rpiv_calib_dof_write_dots(const rpiv_calib_dof_result *r, FILE *fp)
+{
+    fprintf(fp, "# rpiv calib dof: detected dots (grey and ref above dark)\n"
+                "# image x_px y_px zstar grey ref Istar\n");
+    for (size_t i = 0; i < r->ndots; i++) {
+        const rpiv_calib_dot *d = &r->dot[i];
+        fprintf(fp, "%zu %.3f %.3f %.6f %.4f %.4f %.6f\n", d->shot + 1, d->x, d->y, d->zstar,
+                d->grey, d->ref, d->istar);
+    }
+    if (ferror(fp))
+        return rpiv_fail(RPIV_EIO, "calib dof: write error");
+    return RPIV_OK;
 }

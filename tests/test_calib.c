@@ -672,11 +672,18 @@ static void dof_pooled_shots_with_detected_feet(void)
         CHECK_NEAR(r->foot_px[1], 47.9131, 1);
         CHECK_NEAR(r->curve.zop, cam.zop_star, 0.02);
         CHECK_NEAR(r->curve.dof, mc.dof, 0.02);
+        double rho = -1;
+        CHECK_OK(rpiv_calib_dof_reflectance(&p, &cam, ch.h_m, r->curve.inv_max, &rho));
+        printf("  dot reflectance inferred from the measured peak 1/I* %.3f: %.4f (0.1)\n",
+               r->curve.inv_max, rho);
+        CHECK_NEAR(rho, rp.reflectance, 0.02);
+        CHECK_FAILS(rpiv_calib_dof_reflectance(&p, &cam, ch.h_m, 500, &rho), RPIV_ENUMERIC);
         FILE *fp = tmpfile();
         CHECK(fp != NULL);
         if (fp) {
             CHECK_OK(rpiv_calib_focus_write(&r->curve, fp));
             CHECK(ftell(fp) > 100 * (long)r->curve.n / 4);
+            CHECK_OK(rpiv_calib_dof_write_dots(r, fp));
             fclose(fp);
         }
     }

@@ -218,6 +218,17 @@ RPIV_NODISCARD rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p,
                                                 rpiv_calib_focus *c);
 void rpiv_calib_focus_free(rpiv_calib_focus *c); /* frees the arrays, not c */
 
+/* The dot reflectance for which the model's 1/I* at the object plane equals inv_max (a
+ * measured maximum), so that rpiv_calib_dof_model can be compared with a measurement whose
+ * target contrast is unknown. RPIV_ENUMERIC if no reflectance in [0, 1) gives that peak (the
+ * measured dots are darker than a black dot of the model, or not darker than the mean). */
+RPIV_NODISCARD rpiv_status rpiv_calib_dof_reflectance(const rpiv_calib_dof_params *p,
+                                                      const rpiv_camera *cam, double h_m,
+                                                      double inv_max, double *reflectance);
+
+/* Text table of the detected dots (image, x, y, z*, grey, reference, I*). */
+RPIV_NODISCARD rpiv_status rpiv_calib_dof_write_dots(const rpiv_calib_dof_result *r, FILE *fp);
+
 /* ---- target images from the model ------------------------------------------------------- */
 
 typedef struct rpiv_calib_render_params {
