@@ -361,7 +361,6 @@ static void images_free(images *s)
 static rpiv_status load_images(job *j, int nargs, char **args, const char *name, images *s)
 {
     rpiv_status st;
-    memset(s, 0, sizeof *s);
     if (nargs < 1)
         return cli_usage_error(name, "no image given");
     size_t n = (size_t)nargs;
@@ -491,7 +490,7 @@ out:
 
 static rpiv_status run_sheet(job *j, int nargs, char **args)
 {
-    images s;
+    images s = {0, NULL, NULL, NULL};
     rpiv_calib_sheet_result *r = NULL;
     char path[RPIV_PATH_MAX];
     rpiv_calib_sheet_params p = rpiv_calib_sheet_params_default();
@@ -580,7 +579,7 @@ static rpiv_status plot_dof(const rpiv_calib_focus *c, const rpiv_calib_focus *m
 
 static rpiv_status run_dof(job *j, int nargs, char **args)
 {
-    images s;
+    images s = {0, NULL, NULL, NULL};
     rpiv_calib_dof_result *r = NULL;
     rpiv_calib_focus model;
     char path[RPIV_PATH_MAX];

@@ -26,6 +26,7 @@ rpiv_calib_dof_params rpiv_calib_dof_params_default(void)
                                    .dot_d_m = 62.5e-6,
                                    .pitch_m = 125e-6,
                                    .min_contrast = 0.03,
+                                   .min_snr = 1,
                                    .smooth_px = 0.7,
                                    .lattice_tol = 0.25,
                                    .ref_cells = 2,
@@ -48,6 +49,9 @@ rpiv_status rpiv_calib_dof_params_check(const rpiv_calib_dof_params *p)
     if (!(p->min_contrast > 0 && p->min_contrast < 1))
         return rpiv_fail(RPIV_EINVAL, "calib dof: minimum contrast %g outside (0, 1)",
                          p->min_contrast);
+    if (!(p->min_snr >= 0 && p->min_snr <= 100))
+        return rpiv_fail(RPIV_EINVAL, "calib dof: minimum significance %g outside 0..100",
+                         p->min_snr);
     if (!(p->smooth_px >= 0 && p->smooth_px <= 10))
         return rpiv_fail(RPIV_EINVAL, "calib dof: smoothing %g px outside 0..10",
                          p->smooth_px);
@@ -469,9 +473,9 @@ static double overlap(int i, double a, double b)
 
 /* Mean grey over the box of lx x ly px centred at (cx, cy), with fractional edge pixels, so that
  * it spans whole lattice cells exactly; shifted to stay inside rows [r0, r1) and the columns.
- * NAN if the image is too small. */
+ * NAN if the image is too small. With sd, also the (weighted) standard deviation in the box. */
 static double box_mean(const dof_img *im, int r0, int r1, double cx, double cy, double lx,
-                       double ly)
+                       double ly, double *sd)
 {
     double x0 = cx - lx / 2, y0 = cy - ly / 2;
     if (lx > im->w || ly > r1 - r0)
@@ -480,19 +484,26 @@ static double box_mean(const dof_img *im, int r0, int r1, double cx, double cy, 
     y0 = fmin(fmax(y0, r0 - 0.5), r1 - 0.5 - ly);
     int i0 = (int)floor(x0 + 0.5), i1 = (int)ceil(x0 + lx - 0.5);
     int j0 = (int)floor(y0 + 0.5), j1 = (int)ceil(y0 + ly - 0.5);
-    double sum = 0;
+    double sum = 0, sum2 = 0;
     for (int j = j0; j <= j1; j++) {
         if (j < r0 || j >= r1)
             continue;
-        double wy = overlap(j, y0, y0 + ly), row = 0;
+        double wy = overlap(j, y0, y0 + ly), row = 0, row2 = 0;
         if (wy <= 0)
             continue;
         for (int i = i0; i <= i1; i++)
-            if (i >= 0 && i < im->w)
-                row += overlap(i, x0, x0 + lx) * im->d[(size_t)j * im->w + i];
+            if (i >= 0 && i < im->w) {
+                double v = im->d[(size_t)j * im->w + i], wx = overlap(i, x0, x0 + lx);
+                row += wx * v;
+                row2 += wx * v * v;
+            }
         sum += wy * row;
+        sum2 += wy * row2;
     }
-    return sum / (lx * ly);
+    double mean = sum / (lx * ly);
+    if (sd)
+        *sd = sqrt(fmax(0, sum2 / (lx * ly) - mean * mean));
+    return mean;
 }
 
 typedef struct cand {
@@ -608,8 +619,8 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
             double z = (x - pl.foot) * pl.k;
             if (z < 0 || z > zcap)
                 continue;
-            double ref = box_mean(&di, fr.row0, fr.row1, x, y, lx, ly);
-            if (!(ref > 0) || !(v < (1 - p->min_contrast) * ref))
+            double sd, ref = box_mean(&di, fr.row0, fr.row1, x, y, lx, ly, &sd);
+            if (!(ref > 0) || !(v < (1 - p->min_contrast) * ref) || !(ref - v > p->min_snr * sd))
                 continue;
             if (nc == ccap) {
                 cand *t = realloc(cs, 2 * ccap * sizeof *cs);
@@ -658,7 +669,7 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
         vertex3(sm[(size_t)(y - 1) * w + x], b, sm[(size_t)(y + 1) * w + x], &oy);
         double grey = di.d[(size_t)y * w + x];
         double cx = x + ox, cy = y + oy;
-        double ref = box_mean(&di, fr.row0, fr.row1, cx, cy, lx, ly);
+        double ref = box_mean(&di, fr.row0, fr.row1, cx, cy, lx, ly, NULL);
         if (!(ref > 0) || !(grey > 0))
             continue;
         if (r->ndots == *cap) {

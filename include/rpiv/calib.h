@@ -134,6 +134,9 @@ typedef struct rpiv_calib_dof_params {
     double dot_d_m;         /* dot diameter on the target, m (62.5e-6)                       */
     double pitch_m;         /* dot pitch on the target, both directions, m (125e-6)          */
     double min_contrast;    /* a dot centre must be this fraction below the local mean (0.03) */
+    double min_snr;         /* ... and below it by min_snr x the standard deviation of the
+                               pixels around it (whole cells): a lattice of dots gives >= 1.4
+                               (a blurred lattice is a sinusoid), noise minima less (1)      */
     double smooth_px;       /* Gaussian smoothing (sigma) of the image used to detect the dots
                                and locate their centres, px (0.7); the grey level is read on
                                the unsmoothed image                                          */
@@ -192,7 +195,7 @@ typedef struct rpiv_calib_dof_result {
 } rpiv_calib_dof_result;
 
 /* Detect the dots (local minima of the lightly smoothed image darker than the local mean by
- * min_contrast, one per lattice cell, with a lattice neighbour), measure each dot's centre grey
+ * min_contrast and min_snr, one per lattice cell, with a lattice neighbour), measure each dot's centre grey
  * level relative to the local mean, average the columns of dots along the span (pooling all
  * shots by z*), and find DOF* and z*_OP. Errors: as rpiv_calib_sheet_run; RPIV_ENUMERIC when no
  * dot is found, fewer than 5 columns of dots remain, or the curve does not fall to half its
