@@ -783,6 +783,95 @@ static void dof_errors_have_clear_statuses(void)
     img_free(im);
 }
 
+/* The remaining failure paths of the plate geometry and of the parameters. */
+static void geometry_and_parameter_errors(void)
+{
+    rpiv_camera cam = rpiv_camera_default();
+    rpiv_channel ch = rpiv_channel_default();
+    rpiv_sheet_params sp = default_selfsim();
+    rpiv_calib_render_params rp = rpiv_calib_render_params_default();
+    rp.glow = 0.1 * rp.level;
+    const double xf[1] = {5.3};
+    rpiv_image *im = NULL;
+    rpiv_calib_shot shot;
+    CHECK_OK(render_plates(&sp, &rp, xf, 1, 560, 8, &im, &shot));
+    rpiv_calib_sheet_params p = rpiv_calib_sheet_params_default();
+    p.geom.dark = rp.dark;
+    rpiv_calib_sheet_result *r = NULL;
+    /* the angle detected from a plate said to be 1 m high is out of range */
+    p.geom.angle_deg = 0;
+    p.geom.plate_height_m = 1;
+    shot.foot_px = NAN;
+    CHECK_FAILS(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
+    CHECK(strstr(rpiv_errmsg(), "detected plate angle") != NULL);
+    p.geom.angle_deg = 45;
+    p.geom.plate_height_m = 0;
+    /* an edge window wider than a quarter of the image */
+    p.geom.edge_window = 200;
+    CHECK_FAILS(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
+    CHECK(strstr(rpiv_errmsg(), "too narrow") != NULL);
+    p.geom.edge_window = 8;
+    /* the plate is off the image */
+    shot.foot_px = 900;
+    CHECK_FAILS(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
+    CHECK(strstr(rpiv_errmsg(), "at least 8 needed") != NULL);
+    img_free(im);
+    /* a plate that starts at the image's right edge */
+    rp.foot_px = 553.4;
+    CHECK_OK(render_plates(&sp, &rp, xf, 1, 560, 8, &im, &shot));
+    shot.foot_px = NAN;
+    CHECK_FAILS(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
+    CHECK(strstr(rpiv_errmsg(), "too close to the image edge") != NULL);
+    img_free(im);
+    /* parameters */
+    rpiv_calib_sheet_params q = rpiv_calib_sheet_params_default();
+    q.margin = 0.5;
+    CHECK_FAILS(rpiv_calib_sheet_params_check(&q), RPIV_EINVAL);
+    q = rpiv_calib_sheet_params_default();
+    q.zplus_step = 0;
+    CHECK_FAILS(rpiv_calib_sheet_params_check(&q), RPIV_EINVAL);
+    q = rpiv_calib_sheet_params_default();
+    q.min_signal = -1;
+    CHECK_FAILS(rpiv_calib_sheet_params_check(&q), RPIV_EINVAL);
+    q = rpiv_calib_sheet_params_default();
+    q.geom.edge_window = 1;
+    CHECK_FAILS(rpiv_calib_sheet_params_check(&q), RPIV_EINVAL);
+    q.geom.edge_window = 8;
+    q.geom.dark_w = 4; /* no height */
+    CHECK_FAILS(rpiv_calib_sheet_params_check(&q), RPIV_EINVAL);
+    rpiv_calib_dof_params d = rpiv_calib_dof_params_default();
+    CHECK_OK(rpiv_calib_dof_params_check(&d));
+    d.min_contrast = 0;
+    CHECK_FAILS(rpiv_calib_dof_params_check(&d), RPIV_EINVAL);
+    d = rpiv_calib_dof_params_default();
+    d.fit_columns = -1;
+    CHECK_FAILS(rpiv_calib_dof_params_check(&d), RPIV_EINVAL);
+    d = rpiv_calib_dof_params_default();
+    d.ref_cells = 0;
+    CHECK_FAILS(rpiv_calib_dof_params_check(&d), RPIV_EINVAL);
+    d = rpiv_calib_dof_params_default();
+    d.lattice_tol = 0.7;
+    CHECK_FAILS(rpiv_calib_dof_params_check(&d), RPIV_EINVAL);
+    d = rpiv_calib_dof_params_default();
+    d.min_snr = -1;
+    CHECK_FAILS(rpiv_calib_dof_params_check(&d), RPIV_EINVAL);
+    /* a target image with too few columns of dots */
+    rpiv_calib_render_params rd = rpiv_calib_render_params_default();
+    rd.foot_px = 10.3187;
+    rpiv_image *t = render_target(&cam, &rd, 36, 32);
+    CHECK(t != NULL);
+    if (t) {
+        rpiv_calib_dof_params dp = rpiv_calib_dof_params_default();
+        dp.geom.dark = rd.dark;
+        rpiv_calib_shot ts = {t, rd.foot_px, NAN};
+        rpiv_calib_dof_result *dr = NULL;
+        CHECK_FAILS(rpiv_calib_dof_run(&dp, &cam, &ch, &ts, 1, NULL, &dr), RPIV_ENUMERIC);
+        CHECK(strstr(rpiv_errmsg(), "columns of dots") != NULL);
+        printf("  narrow target: %s\n", rpiv_errmsg());
+    }
+    img_free(t);
+}
+
 int main(void)
 {
     rpiv_init();
@@ -800,5 +889,6 @@ int main(void)
     RUN_TEST(dof_pooled_shots_with_detected_feet);
     RUN_TEST(dof_default_camera_model_finding);
     RUN_TEST(dof_errors_have_clear_statuses);
+    RUN_TEST(geometry_and_parameter_errors);
     return check_summary();
 }

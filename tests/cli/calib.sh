@@ -93,6 +93,10 @@ check 1 'no dots found' dof --dark 100 --foot-px 40.3187 "$one"
 check 2 'missing -o' render-dots
 check 2 '--size' render-dots --size 10 -o "$tmp/x.tif"
 check 2 'unexpected argument' render-dots -o "$tmp/x.tif" extra
+check 2 "unknown option" sheet --bogus "$one"
+: >"$tmp/file"
+check 1 "$tmp/file" sheet --dark 100 --foot-px 40.3187 --out "$tmp/file/sub" "$one"
+check 1 "$tmp/nodir" render-dots --size 64x16 -o "$tmp/nodir/x.tif"
 # a blank image: the sheet misses the channel and nothing else is lit
 "$bin" calib render-sheet -q --size 300x8 --background 0 --set sheet.zm0=5 -o "$tmp/blank.tif" && ok || ko "render blank"
 check 1 'blank image' sheet --foot-px 40 "$tmp/blank.tif"
