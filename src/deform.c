@@ -134,17 +134,23 @@ static inline int mirror(int i, int n)
     return i < n ? i : p - i;
 }
 
-/* Sample at (xi + ox, yi + oy); xi, yi integers, ox, oy small offsets (full precision). */
-static inline float sample_at(const float *c, int w, int h, int xi, int yi, float ox, float oy,
-                              float fill)
+/* 1 if (xi + ox, yi + oy) lies in [-0.5, w - 0.5] x [-0.5, h - 0.5]. */
+static inline int inside(int w, int h, int xi, int yi, float ox, float oy)
 {
     float fx = floorf(ox), fy = floorf(oy);
     int ix = xi + (int)fx, iy = yi + (int)fy;
     float tx = ox - fx, ty = oy - fy;
-    /* outside [-0.5, w - 0.5]: ix + tx < -0.5 or > w - 0.5 */
-    if (ix < -1 || (ix == -1 && tx < 0.5f) || ix > w - 1 || (ix == w - 1 && tx > 0.5f) ||
-        iy < -1 || (iy == -1 && ty < 0.5f) || iy > h - 1 || (iy == h - 1 && ty > 0.5f))
-        return fill;
+    return !(ix < -1 || (ix == -1 && tx < 0.5f) || ix > w - 1 || (ix == w - 1 && tx > 0.5f) ||
+             iy < -1 || (iy == -1 && ty < 0.5f) || iy > h - 1 || (iy == h - 1 && ty > 0.5f));
+}
+
+/* Sample at (xi + ox, yi + oy), a point inside the image; xi, yi integers and ox, oy small
+ * offsets (so the fraction keeps full float precision). */
+static inline float sample_at(const float *c, int w, int h, int xi, int yi, float ox, float oy)
+{
+    float fx = floorf(ox), fy = floorf(oy);
+    int ix = xi + (int)fx, iy = yi + (int)fy;
+    float tx = ox - fx, ty = oy - fy;
     float wx[4], wy[4];
     bweights(tx, wx);
     bweights(ty, wy);
@@ -171,7 +177,7 @@ float rpiv_deform_sample(const float *coef, int w, int h, double x, double y, fl
     if (!(x >= -0.5 && x <= w - 0.5 && y >= -0.5 && y <= h - 0.5))
         return fill;
     double fx = floor(x), fy = floor(y);
-    return sample_at(coef, w, h, (int)fx, (int)fy, (float)(x - fx), (float)(y - fy), fill);
+    return sample_at(coef, w, h, (int)fx, (int)fy, (float)(x - fx), (float)(y - fy));
 }
 
 /* ---- predictor ----------------------------------------------------------------------------- */
@@ -181,6 +187,7 @@ struct rpiv_deform_pred {
     double x0, y0, dx, dy;
     float *cu, *cv;     /* spline coefficients, ny x nx */
     int w, h;           /* image size */
+    double shift;       /* rows and columns evaluated at pixel + shift */
     int *ix, *iy;       /* first tap per pixel column / row */
     float *wx, *wy;     /* 4 weights per pixel column / row */
 };
@@ -243,7 +250,8 @@ static void tap(double t, int n, int *i0, float wt[4])
     *i0 = i - 1 + PAD;
 }
 
-rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, rpiv_deform_pred **out)
+rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift,
+                                 rpiv_deform_pred **out)
 {
     const int G = PAD;
     *out = NULL;
@@ -260,6 +268,7 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, rpiv_deform_
     p->dy = f->dy;
     p->w = w;
     p->h = h;
+    p->shift = shift;
     size_t n = (size_t)p->nx * (size_t)p->ny, snx = (size_t)p->nx;
     p->cu = malloc(n * sizeof *p->cu);
     p->cv = malloc(n * sizeof *p->cv);
@@ -284,9 +293,9 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, rpiv_deform_
         rpiv_deform_prefilter(g, p->nx, p->ny, 1);
     }
     for (int x = 0; x < w; x++)
-        tap((x - f->x0) / f->dx, f->nx, &p->ix[x], p->wx + 4 * (size_t)x);
+        tap((x + shift - f->x0) / f->dx, f->nx, &p->ix[x], p->wx + 4 * (size_t)x);
     for (int y = 0; y < h; y++)
-        tap((y - f->y0) / f->dy, f->ny, &p->iy[y], p->wy + 4 * (size_t)y);
+        tap((y + shift - f->y0) / f->dy, f->ny, &p->iy[y], p->wy + 4 * (size_t)y);
     *out = p;
     return RPIV_OK;
 }
@@ -346,6 +355,7 @@ rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int
         return rpiv_fail(RPIV_EINVAL, "deform: rectangle %d,%d,%d,%d outside the %dx%d image",
                          x0, y0, x1, y1, w, h);
     int nt = nthr(nthreads);
+    const float c = (float)p->shift;
     size_t nw = (size_t)(x1 - x0), per = 2 * nw + rpiv_deform_pred_scratch(p);
     float *scr = malloc((size_t)nt * per * sizeof *scr);
     if (!scr)
@@ -359,8 +369,13 @@ rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int
             float *ra = out_a + (size_t)y * (size_t)w, *rb = out_b + (size_t)y * (size_t)w;
             for (int x = x0; x < x1; x++) {
                 float hx = 0.5f * pu[x - x0], hy = 0.5f * pv[x - x0];
-                ra[x] = sample_at(coef_a, w, h, x, y, -hx, -hy, fill_a);
-                rb[x] = sample_at(coef_b, w, h, x, y, hx, hy, fill_b);
+                if (inside(w, h, x, y, c - hx, c - hy) && inside(w, h, x, y, c + hx, c + hy)) {
+                    ra[x] = sample_at(coef_a, w, h, x, y, c - hx, c - hy);
+                    rb[x] = sample_at(coef_b, w, h, x, y, c + hx, c + hy);
+                } else { /* a particle here has no partner in the other frame */
+                    ra[x] = fill_a;
+                    rb[x] = fill_b;
+                }
             }
         }
     }
