@@ -39,8 +39,7 @@ rpiv_status rpiv_calib_dof_params_check(const rpiv_calib_dof_params *p)
     if (st)
         return st;
     if (!(p->dot_d_m > 0 && p->dot_d_m < 0.1))
-        return rpiv_fail(RPIV_EINVAL, "calib dof: dot diameter %g m outside (0, 0.1)",
-                         p->dot_d_m);
+        return rpiv_fail(RPIV_EINVAL, "calib dof: dot diameter %g m outside (0, 0.1)", p->dot_d_m);
     if (!(p->pitch_m > p->dot_d_m && p->pitch_m < 0.1))
         return rpiv_fail(RPIV_EINVAL,
                          "calib dof: dot pitch %g m must exceed the dot diameter %g m (and be "
@@ -53,14 +52,12 @@ rpiv_status rpiv_calib_dof_params_check(const rpiv_calib_dof_params *p)
         return rpiv_fail(RPIV_EINVAL, "calib dof: minimum significance %g outside 0..100",
                          p->min_snr);
     if (!(p->smooth_px >= 0 && p->smooth_px <= 10))
-        return rpiv_fail(RPIV_EINVAL, "calib dof: smoothing %g px outside 0..10",
-                         p->smooth_px);
+        return rpiv_fail(RPIV_EINVAL, "calib dof: smoothing %g px outside 0..10", p->smooth_px);
     if (!(p->lattice_tol > 0 && p->lattice_tol <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "calib dof: lattice tolerance %g outside (0, 0.5]",
                          p->lattice_tol);
     if (p->ref_cells < 1 || p->ref_cells > 20)
-        return rpiv_fail(RPIV_EINVAL, "calib dof: reference cells %d outside 1..20",
-                         p->ref_cells);
+        return rpiv_fail(RPIV_EINVAL, "calib dof: reference cells %d outside 1..20", p->ref_cells);
     if (p->fit_columns < 0 || p->fit_columns > 50)
         return rpiv_fail(RPIV_EINVAL, "calib dof: fit half-window %d columns outside 0..50",
                          p->fit_columns);
@@ -159,7 +156,8 @@ static rpiv_status local_quad(const double *z, const double *v, size_t n, int m,
         goto out_free;
     }
     for (size_t i = 0; i < n; i++) {
-        size_t a = i >= (size_t)m ? i - (size_t)m : 0, b = i + (size_t)m < n ? i + (size_t)m : n - 1;
+        size_t a = i >= (size_t)m ? i - (size_t)m : 0,
+               b = i + (size_t)m < n ? i + (size_t)m : n - 1;
         size_t len = b - a + 1;
         if (len < 3) {
             out[i] = v[i];
@@ -330,9 +328,8 @@ static rpiv_status phase_nodes(double *node, double *wt)
     return RPIV_OK;
 }
 
-rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
-                                 double h_m, double reflectance, double zstep,
-                                 rpiv_calib_focus *c)
+rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_camera *cam, double h_m,
+                                 double reflectance, double zstep, rpiv_calib_focus *c)
 {
     memset(c, 0, sizeof *c);
     rpiv_status st = rpiv_calib_dof_params_check(p);
@@ -768,9 +765,8 @@ out_free:
 }
 
 rpiv_status rpiv_calib_dof_run(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
-                               const rpiv_channel *ch, const rpiv_calib_shot *shots,
-                               size_t nshots, const rpiv_image *dark,
-                               rpiv_calib_dof_result **out)
+                               const rpiv_channel *ch, const rpiv_calib_shot *shots, size_t nshots,
+                               const rpiv_image *dark, rpiv_calib_dof_result **out)
 {
     *out = NULL;
     rpiv_status st = rpiv_calib_dof_params_check(p);
