@@ -543,6 +543,7 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
     calib_place pl;
     dof_img di = {im->w, im->h, NULL, NULL};
     cand *cs = NULL;
+    long *head = NULL, *next = NULL;
     double *prof = NULL;
     rpiv_status st = calib_frame_init(&p->geom, im, dark, what, &fr);
     if (st)
@@ -630,29 +631,55 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
             }
             cs[nc++] = (cand){x, y, v};
         }
-    /* one dot per lattice cell: darkest first, nothing else within half a pitch */
+    /* one dot per lattice cell: darkest first, nothing else within half a pitch; the accepted
+     * ones are indexed in a grid of cells one pitch wide, so each test looks at a few cells */
     qsort(cs, nc, sizeof *cs, cand_cmp);
+    int gx = (int)(w / ppx) + 1, gy = (int)(im->h / ppy) + 1;
+    head = malloc((size_t)gx * gy * sizeof *head);
+    next = malloc((nc ? nc : 1) * sizeof *next);
+    if (!head || !next) {
+        st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", what);
+        goto out_free;
+    }
+    for (long c = 0; c < (long)gx * gy; c++)
+        head[c] = -1;
     size_t na = 0;
     for (size_t i = 0; i < nc; i++) {
-        int keep = 1;
-        for (size_t j = 0; j < na && keep; j++) {
-            double dx = (cs[i].x - cs[j].x) / (0.5 * ppx), dy = (cs[i].y - cs[j].y) / (0.5 * ppy);
-            if (dx * dx + dy * dy < 1)
-                keep = 0;
-        }
-        if (keep)
-            cs[na++] = cs[i];
+        int cx = (int)(cs[i].x / ppx), cy = (int)(cs[i].y / ppy), keep = 1;
+        for (int by = cy - 1; by <= cy + 1 && keep; by++)
+            for (int bx = cx - 1; bx <= cx + 1 && keep; bx++) {
+                if (bx < 0 || by < 0 || bx >= gx || by >= gy)
+                    continue;
+                for (long j = head[(long)by * gx + bx]; j >= 0 && keep; j = next[j]) {
+                    double dx = (cs[i].x - cs[j].x) / (0.5 * ppx),
+                           dy = (cs[i].y - cs[j].y) / (0.5 * ppy);
+                    if (dx * dx + dy * dy < 1)
+                        keep = 0;
+                }
+            }
+        if (!keep)
+            continue;
+        cs[na] = cs[i];
+        next[na] = head[(long)cy * gx + cx];
+        head[(long)cy * gx + cx] = (long)na;
+        na++;
     }
     /* lattice check: a real dot has a neighbour one pitch away along x or y */
     size_t first = r->ndots;
     for (size_t i = 0; i < na; i++) {
-        int nb = 0;
-        for (size_t j = 0; j < na && !nb; j++) {
-            double dx = fabs((double)(cs[j].x - cs[i].x)), dy = fabs((double)(cs[j].y - cs[i].y));
-            if ((fabs(dx - ppx) < p->lattice_tol * ppx && dy < p->lattice_tol * ppy) ||
-                (fabs(dy - ppy) < p->lattice_tol * ppy && dx < p->lattice_tol * ppx))
-                nb = 1;
-        }
+        int nb = 0, bcx = (int)(cs[i].x / ppx), bcy = (int)(cs[i].y / ppy);
+        for (int by = bcy - 2; by <= bcy + 2 && !nb; by++)
+            for (int bx = bcx - 2; bx <= bcx + 2 && !nb; bx++) {
+                if (bx < 0 || by < 0 || bx >= gx || by >= gy)
+                    continue;
+                for (long j = head[(long)by * gx + bx]; j >= 0 && !nb; j = next[j]) {
+                    double dx = fabs((double)(cs[j].x - cs[i].x)),
+                           dy = fabs((double)(cs[j].y - cs[i].y));
+                    if ((fabs(dx - ppx) < p->lattice_tol * ppx && dy < p->lattice_tol * ppy) ||
+                        (fabs(dy - ppy) < p->lattice_tol * ppy && dx < p->lattice_tol * ppx))
+                        nb = 1;
+                }
+            }
         if (!nb)
             continue;
         /* the centre grey: the unsmoothed pixel at the minimum of the smoothed image, i.e.
@@ -693,6 +720,8 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
                        ppy, p->min_contrast);
 out_free:
     free(cs);
+    free(head);
+    free(next);
     free(prof);
     free(di.d);
     free(di.s);
