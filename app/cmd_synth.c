@@ -5,6 +5,7 @@
 
 #include "rpiv/field.h"
 #include "rpiv/image.h"
+#include "rpiv/piv.h"
 #include "rpiv/synth.h"
 
 #include <stdio.h>
@@ -99,17 +100,25 @@ static rpiv_status apply(const synth_opts *o, rpiv_experiment *e)
     return RPIV_OK;
 }
 
-/* Write truth.txt on the [piv] grid. */
-static rpiv_status write_truth(const rpiv_synth *s, const rpiv_experiment *e, const char *path)
+/* The grid of the final pass of `rpiv piv` for this image size and the [piv] section. */
+static rpiv_status piv_grid(const rpiv_synth *s, const rpiv_experiment *e, rpiv_field **out)
 {
-    rpiv_synth_grid g;
-    rpiv_field *f = NULL;
+    rpiv_synth_info in;
+    rpiv_piv *pv = NULL;
+    rpiv_synth_get_info(s, &in);
+    rpiv_status st = rpiv_piv_new(&e->piv, in.width_px, in.height_px, NULL, &pv);
+    if (!st)
+        st = rpiv_piv_grid(pv, rpiv_piv_npass(pv) - 1, out);
+    rpiv_piv_free(pv);
+    return st;
+}
+
+/* Write truth.txt on the grid f. */
+static rpiv_status write_truth(const rpiv_synth *s, const rpiv_experiment *e, rpiv_field *f,
+                               const char *path)
+{
     rpiv_meta m = {0};
-    rpiv_status st = rpiv_synth_grid_of(s, &e->piv, &g);
-    if (st)
-        return st;
-    if ((st = rpiv_field_new(g.nx, g.ny, g.x0, g.y0, g.dx, g.dy, &f)))
-        return st;
+    rpiv_status st;
     rpiv_synth_truth(s, f);
     if ((st = rpiv_meta_add(&m, "source", "rpiv synth ground truth")) ||
         (st = rpiv_meta_add(&m, "flow", "%s", e->synth.flow)) ||
@@ -123,7 +132,6 @@ static rpiv_status write_truth(const rpiv_synth *s, const rpiv_experiment *e, co
         st = rpiv_field_save(f, &m, path);
 out:
     rpiv_meta_clear(&m);
-    rpiv_field_free(f);
     return st;
 }
 
@@ -226,17 +234,17 @@ rpiv_status cmd_synth(int argc, char **argv)
         return st;
     const char *dir = e->output.dir;
     rpiv_synth *s = NULL;
+    rpiv_field *grid = NULL;
     char path[RPIV_PATH_MAX + 64];
     if ((st = rpiv_synth_new(e, NULL, &s)))
         return st;
-    rpiv_synth_grid g;
-    if ((st = rpiv_synth_grid_of(s, &e->piv, &g)) || (st = cli_mkdirs(dir)))
+    if ((st = piv_grid(s, e, &grid)) || (st = cli_mkdirs(dir)))
         goto out;
     snprintf(path, sizeof path, "%s/synth.ini", dir);
     if ((st = rpiv_synth_save_params(s, path)))
         goto out;
     snprintf(path, sizeof path, "%s/truth.txt", dir);
-    if ((st = write_truth(s, e, path)))
+    if ((st = write_truth(s, e, grid, path)))
         goto out;
     if ((st = write_pairs(s, e, dir, c.quiet)))
         goto out;
@@ -248,6 +256,7 @@ rpiv_status cmd_synth(int argc, char **argv)
                in.nparticles, e->synth.flow, e->synth.seed, dir);
     }
 out:
+    rpiv_field_free(grid);
     rpiv_synth_free(s);
     return st;
 }

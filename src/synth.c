@@ -749,35 +749,6 @@ rpiv_status rpiv_synth_pair_double(const rpiv_synth *s, unsigned long index, rpi
 
 /* ---- ground truth ----------------------------------------------------------------------- */
 
-rpiv_status rpiv_synth_grid_of(const rpiv_synth *s, const rpiv_piv_params *piv, rpiv_synth_grid *g)
-{
-    int last = piv->npass - 1, ww = piv->win_w[last], wh = piv->win_h[last];
-    int sx = piv->step_px, sy = piv->step_px;
-    if (!sx) {
-        sx = (int)lround(ww * (1 - piv->overlap));
-        sy = (int)lround(wh * (1 - piv->overlap));
-    }
-    sx = sx < 1 ? 1 : sx;
-    sy = sy < 1 ? 1 : sy;
-    int r0 = 0, r1 = 0, r2 = s->w, r3 = s->h;
-    if (piv->roi[0] || piv->roi[1] || piv->roi[2] || piv->roi[3]) {
-        r0 = piv->roi[0];
-        r1 = piv->roi[1];
-        r2 = piv->roi[2] < s->w ? piv->roi[2] : s->w;
-        r3 = piv->roi[3] < s->h ? piv->roi[3] : s->h;
-    }
-    if (r2 - r0 < ww || r3 - r1 < wh)
-        return rpiv_fail(RPIV_ESIZE, "synth: window %dx%d larger than the region %dx%d", ww, wh,
-                         r2 - r0 > 0 ? r2 - r0 : 0, r3 - r1 > 0 ? r3 - r1 : 0);
-    g->nx = (r2 - r0 - ww) / sx + 1;
-    g->ny = (r3 - r1 - wh) / sy + 1;
-    g->x0 = r0 + 0.5 * (ww - 1);
-    g->y0 = r1 + 0.5 * (wh - 1);
-    g->dx = sx;
-    g->dy = sy;
-    return RPIV_OK;
-}
-
 /* z* of the sheet's peak at x*: the best of a scan of the channel height, refined by Brent's
  * minimiser of -I0 (the default R-PIV shape has a kink at its peak: no parabola fit). */
 typedef struct peak_ctx {

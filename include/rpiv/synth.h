@@ -144,17 +144,8 @@ RPIV_NODISCARD rpiv_status rpiv_synth_pair(const rpiv_synth *s, unsigned long in
 RPIV_NODISCARD rpiv_status rpiv_synth_pair_double(const rpiv_synth *s, unsigned long index,
                                                   rpiv_image *ab);
 
-/* The grid of the PIV output for the [piv] section: the final pass's window w x h, step
- * step_px or round(w (1 - overlap)) (at least 1), inside the ROI (whole image if all zero),
- * first centre at (roi_x0 + (w-1)/2, roi_y0 + (h-1)/2). RPIV_ESIZE if the window does not fit. */
-typedef struct rpiv_synth_grid {
-    int nx, ny;
-    double x0, y0, dx, dy;
-} rpiv_synth_grid;
-RPIV_NODISCARD rpiv_status rpiv_synth_grid_of(const rpiv_synth *s, const rpiv_piv_params *piv,
-                                              rpiv_synth_grid *g);
-
-/* Fill the field's u, v (px over dt) with the ground truth at its grid points: the flow's
+/* Fill the field's u, v (px over dt) with the ground truth at its grid points (any grid, e.g.
+ * the final pass's of rpiv_piv_grid, as `rpiv synth` writes truth.txt): the flow's
  * displacement at (x, y) and z* = truth_z (or the sheet's peak there, see truth_z); flag
  * RPIV_FLAG_MASKED where there is no fluid (duct rows outside 0 < y* < 1), else VALID;
  * peak_ratio and corr are set to 0; scale_mm_per_px and dt_s are set. */

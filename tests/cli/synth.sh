@@ -23,9 +23,9 @@ done
 grep -q '^seed = 2385$' "$tmp/r1/synth.ini" && ok || ko "seed not in synth.ini"
 grep -q '^flow = duct$' "$tmp/r1/synth.ini" && ok || ko "flow not in synth.ini"
 grep -q '^width_px = 256$' "$tmp/r1/synth.ini" && ok || ko "size not in synth.ini"
-# the [piv] grid of 32 px windows at 50 %: 15 x 15 points, first at 15.5
+# the final [piv] grid of rpiv piv (32 px windows at 50 %, deformation): 15 x 15 points
 [ "$(grep -vc '^#' "$tmp/r1/truth.txt")" -eq 225 ] && ok || ko "truth.txt: 225 points expected"
-awk '!/^#/ { print $1, $2; exit }' "$tmp/r1/truth.txt" | grep -qx '15.5 15.5' && ok || ko "first truth point not at (15.5, 15.5)"
+awk '!/^#/ { print $1, $2; exit }' "$tmp/r1/truth.txt" | grep -qx '15.75 15.75' && ok || ko "first truth point not at rpiv piv's (15.75, 15.75)"
 
 # same seed again: identical bytes; through --config DIR/synth.ini; with 1 thread
 "$bin" synth --size 256x256 --pairs 2 --seed 2385 --out "$tmp/r2" -q && ok || ko "run 2"
@@ -83,7 +83,7 @@ err1() { # expected-substring args...: exit 1 and one stderr line
 }
 err1 "no-such.ini" --config "$tmp/no-such.ini"
 err1 "no-such-pz.txt" --size 64x64 --set "synth.pz_profile=$tmp/no-such-pz.txt"
-err1 "window 32x32 larger" --size 16x16
+err1 "is larger than the image" --size 16x16
 "$bin" synth --help | grep -q '^usage: rpiv synth' && ok || ko "synth --help"
 
 echo "synth.sh: $pass passed, $fail failed"
