@@ -80,7 +80,7 @@ RPIV_NODISCARD rpiv_status rpiv_calib_sheet_params_check(const rpiv_calib_sheet_
 typedef struct rpiv_calib_sheet_plate {
     double foot_px, angle_deg;  /* used (given or detected)                                   */
     double x_foot;              /* x* of the foot                                              */
-    double dark, floor;         /* grey levels subtracted (dark level, then the profile floor) */
+    double dark, floor;         /* grey levels subtracted: dark (NAN: dark image), floor   */
     double peak;                /* grey level of the profile maximum after subtraction         */
     size_t n;                   /* samples along the plate, z* increasing                      */
     double *z, *x, *inten;      /* z*, x* of each sample, and I0* = I / max                     */
