@@ -3,6 +3,8 @@
  * and the correction of the R-PIV bias (docs/ccm.md). */
 #include "cli.h"
 #include "rpiv/ccm.h"
+#include "rpiv/plot.h"
+#include "rpiv/synth.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -35,15 +37,19 @@ static void help(void)
         "      --no-mirror       rpiv: do not extend by symmetry\n"
         "      --ystar Y         reference profile: the duct at y* = Y (default 0.5)\n"
         "      --profile FILE    reference profile U*(z*) as two columns instead of the duct\n"
-        "      --presence FILE   particle-presence law P(z*), two columns (default uniform)\n"
+        "      --presence FILE   particle-presence law P(z*), two columns (default: [synth]\n"
+        "                        pz_profile if set, else uniform)\n"
         "  convergence:\n"
         "      --xstar X         section of the [sheet] (default 6.5)\n"
         "      --particles N     particles per window (15)\n"
         "      --repeats R       repetitions (20)\n"
-        "      --nim LIST        N_im values (1,2,3,5,7,10,15,20,30,50,70,100,150,200,300,400,500)\n"
+        "      --nim LIST        N_im values "
+        "(1,2,3,5,7,10,15,20,30,50,70,100,150,200,300,400,500)\n"
         "      --seed S          random seed (1)\n"
         "  invert:\n"
-        "      --input FILE      measured R-PIV profile: rows 'x* U* [sigma]'\n"
+        "      --input FILE      measured R-PIV velocities: rows 'x* U* [sigma]', or a vector\n"
+        "                        file of rpiv piv (.txt), read along the row at --ystar with\n"
+        "                        the image placed as rpiv synth places it ([channel] fov_*)\n"
         "      --coef N          B-spline coefficients (16)\n"
         "      --lambda L        smoothness weight (1e-4)\n"
         "      --symmetric       assume U*(z*) = U*(1 - z*)\n"
@@ -52,8 +58,9 @@ static void help(void)
         "                        the reference profile (--ystar / --profile)\n"
         "  -c, --config FILE  -S, --set SEC.KEY=V  -j, --threads N  -q, --quiet  -h, --help\n\n"
         "Outputs: DIR/ccm_<scenario>[_e<e*>].txt tables (x* z* U*_ref U*_model U*_subpixel\n"
-        "err err_subpixel mirrored), DIR/ccm_convergence.txt, DIR/ccm_invert.txt; a summary\n"
-        "with E1 (Eq. E1) and the largest pointwise relative error on stdout.\n");
+        "err err_subpixel mirrored), DIR/ccm_convergence.txt, DIR/ccm_invert.txt, and PNG\n"
+        "figures like the paper's 18-22 unless [output] plots = 0; a summary with E1 (Eq. E1)\n"
+        "and the largest pointwise relative error on stdout.\n");
 }
 
 enum {
@@ -164,8 +171,7 @@ static rpiv_status parse_opt(opts *o, int c, const char *arg)
             break;
         for (size_t k = 0; k < n; k++) {
             if (v[k] != floor(v[k]) || (k && v[k] <= v[k - 1]))
-                return rpiv_fail(RPIV_EINVAL, "--nim: expected increasing integers, got '%s'",
-                                 arg);
+                return rpiv_fail(RPIV_EINVAL, "--nim: expected increasing integers, got '%s'", arg);
             o->nim[k] = (size_t)v[k];
         }
         o->nnim = n;
@@ -225,7 +231,7 @@ static rpiv_status run_setup(run *r)
     } else {
         r->m.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &r->o.ystar};
     }
-    const char *pz = r->o.presence;
+    const char *pz = r->o.presence ? r->o.presence : e->synth.pz_profile;
     if (pz && pz[0]) {
         if ((st = rpiv_ccm_curve_load(pz, &r->presence)))
             return st;
@@ -261,8 +267,57 @@ static void header(const run *r, const char *scenario, char *buf, size_t n)
              "channel h = %g mm, particle d_p = %g um\nreference profile = %s\n"
              "presence law = %s",
              scenario, r->m.scale_px, cam->focal_m * 1e3, cam->fnumber, cam->magnification,
-             cam->s0_m * 1e3, cam->lambda_p_m * 1e9, rpiv_camera_pixel_m(cam) * 1e6,
-             r->m.h_m * 1e3, r->m.dp_m * 1e6, prof, r->presence ? "tabulated" : "uniform");
+             cam->s0_m * 1e3, cam->lambda_p_m * 1e9, rpiv_camera_pixel_m(cam) * 1e6, r->m.h_m * 1e3,
+             r->m.dp_m * 1e6, prof, r->presence ? "tabulated" : "uniform");
+}
+
+/* The paper's figures 19-22: the profiles (left panel) and the pointwise relative error
+ * (right panel), one series per table. */
+static rpiv_status plot_tables(const run *r, const char *name, rpiv_ccm_table *const *t,
+                               const double *e, size_t nt)
+{
+    rpiv_status st = RPIV_OK;
+    size_t nmax = 0;
+    for (size_t k = 0; k < nt; k++)
+        nmax = t[k]->n > nmax ? t[k]->n : nmax;
+    double *buf = malloc(4 * nt * nmax * sizeof *buf);
+    char(*lab)[64] = calloc(nt + 1, sizeof *lab);
+    rpiv_plot_series *ser = calloc(2 * nt + 1, sizeof *ser);
+    if (!buf || !lab || !ser) {
+        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
+        goto out_free;
+    }
+    for (size_t k = 0; k < nt; k++) {
+        double *z = buf + 4 * k * nmax, *um = z + nmax, *ur = um + nmax, *er = ur + nmax;
+        for (size_t i = 0; i < t[k]->n; i++) {
+            z[i] = t[k]->row[i].zstar;
+            um[i] = t[k]->row[i].umodel;
+            ur[i] = t[k]->row[i].uref;
+            er[i] = 100 * t[k]->row[i].err;
+        }
+        if (e)
+            snprintf(lab[k], sizeof lab[k], "model, e* = %g", e[k]);
+        else
+            snprintf(lab[k], sizeof lab[k], "model, velocity at z*_max");
+        ser[k + 1] = (rpiv_plot_series){z, um, t[k]->n, lab[k], RPIV_PLOT_BOTH};
+        if (!k)
+            ser[0] = (rpiv_plot_series){z, ur, t[k]->n, "reference (White)", RPIV_PLOT_LINE};
+        ser[nt + 1 + k] = (rpiv_plot_series){z, er, t[k]->n, lab[k], RPIV_PLOT_BOTH};
+    }
+    char path[RPIV_PATH_MAX + 64], title[128];
+    snprintf(path, sizeof path, "%s/ccm_%s_profile.png", r->out, name);
+    snprintf(title, sizeof title, "%s: U*(z*)", name);
+    if ((st = rpiv_plot_lines(path, title, "z*", "U*", ser, nt + 1, NULL)))
+        goto out_free;
+    snprintf(path, sizeof path, "%s/ccm_%s_error.png", r->out, name);
+    snprintf(title, sizeof title, "%s: pointwise relative error", name);
+    st = rpiv_plot_lines(path, title, "z*", "(U*#dmodel#u - U*#dref#u) / U*#dref#u (%)",
+                         ser + nt + 1, nt, NULL);
+out_free:
+    free(buf);
+    free(lab);
+    free(ser);
+    return st;
 }
 
 static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
@@ -277,7 +332,8 @@ static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
         sc.n = (size_t)r->o.range[2];
     }
     sc.symmetric = !r->o.nomirror;
-    size_t nt = kind == RPIV_CCM_RPIV ? 1 : r->o.nthick;
+    size_t nt = kind == RPIV_CCM_RPIV ? 1 : r->o.nthick, done = 0;
+    rpiv_ccm_table *tabs[8] = {0};
     for (size_t k = 0; k < nt && !st; k++) {
         sc.e_star = r->o.thick[k];
         cli_progress pr;
@@ -286,33 +342,36 @@ static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
         rpiv_ccm_table *t = NULL;
         if ((st = rpiv_ccm_scenario_run(&sc, &r->m, r->sheet, &r->p, r->c.threads, &prog, &t)))
             break;
+        tabs[done++] = t;
         char path[RPIV_PATH_MAX + 64], hdr[1536], h0[1024];
         header(r, name, h0, sizeof h0);
         if (kind == RPIV_CCM_RPIV) {
             snprintf(path, sizeof path, "%s/ccm_%s.txt", r->out, name);
-            snprintf(hdr, sizeof hdr, "%s\nz*_OP = %g\nsheet = [sheet] of the configuration",
-                     h0, sc.zop_star);
+            snprintf(hdr, sizeof hdr, "%s\nz*_OP = %g\nsheet = [sheet] of the configuration", h0,
+                     sc.zop_star);
         } else {
             snprintf(path, sizeof path, "%s/ccm_%s_e%g.txt", r->out, name, sc.e_star);
             snprintf(hdr, sizeof hdr, "%s\ne* = %g\nz*_OP = %s", h0, sc.e_star,
                      kind == RPIV_CCM_PPIV_SCAN ? "z*_B" : "fixed");
         }
-        st = rpiv_ccm_table_save(t, hdr, path);
-        if (!st) {
-            size_t worst = 0;
-            for (size_t i = 0; i < t->n; i++)
-                if (fabs(t->row[i].err) > fabs(t->row[worst].err))
-                    worst = i;
-            printf("%s", name);
-            if (kind != RPIV_CCM_RPIV)
-                printf(" e*=%g", sc.e_star);
-            printf(": E1 = %.4f %%, max |err| = %.4f %% at z* = %.5g (sub-pixel estimator: E1 "
-                   "%.4f %%, max %.4f %%) -> %s\n",
-                   100 * t->e1, 100 * t->maxerr, t->row[worst].zstar, 100 * t->e1_sub,
-                   100 * t->maxerr_sub, path);
-        }
-        rpiv_ccm_table_free(t);
+        if ((st = rpiv_ccm_table_save(t, hdr, path)))
+            break;
+        size_t worst = 0;
+        for (size_t i = 0; i < t->n; i++)
+            if (fabs(t->row[i].err) > fabs(t->row[worst].err) + 1e-12)
+                worst = i;
+        printf("%s", name);
+        if (kind != RPIV_CCM_RPIV)
+            printf(" e*=%g", sc.e_star);
+        printf(": E1 = %.4f %%, max |err| = %.4f %% at z* = %.5g (sub-pixel estimator: E1 "
+               "%.4f %%, max %.4f %%) -> %s\n",
+               100 * t->e1, 100 * t->maxerr, t->row[worst].zstar, 100 * t->e1_sub,
+               100 * t->maxerr_sub, path);
     }
+    if (!st && r->c.exp.output.plots)
+        st = plot_tables(r, name, tabs, kind == RPIV_CCM_RPIV ? NULL : r->o.thick, done);
+    for (size_t k = 0; k < done; k++)
+        rpiv_ccm_table_free(tabs[k]);
     return st;
 }
 
@@ -351,6 +410,33 @@ static rpiv_status do_convergence(run *r)
     snprintf(path, sizeof path, "%s/ccm_convergence.txt", r->out);
     if ((st = rpiv_ccm_mc_save(res, r->m.scale_px, pk.dx, pk.dx_sub, hdr, path)))
         goto out_free;
+    if (r->c.exp.output.plots) {
+        size_t K = res->nnim;
+        double *v = malloc(5 * K * sizeof *v);
+        if (!v) {
+            st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
+            goto out_free;
+        }
+        double *lx = v, *mn = v + K, *lo = v + 2 * K, *hi = v + 3 * K, *in = v + 4 * K;
+        for (size_t i = 0; i < K; i++) {
+            lx[i] = log10((double)res->nim[i]);
+            mn[i] = res->mean[i] / r->m.scale_px;
+            lo[i] = mn[i] - res->std[i] / r->m.scale_px;
+            hi[i] = mn[i] + res->std[i] / r->m.scale_px;
+            in[i] = pk.dx / r->m.scale_px;
+        }
+        rpiv_plot_series ser[4] = {{lx, mn, K, "mean of the repetitions", RPIV_PLOT_BOTH},
+                                   {lx, lo, K, "mean - std", RPIV_PLOT_LINE},
+                                   {lx, hi, K, "mean + std", RPIV_PLOT_LINE},
+                                   {lx, in, K, "integral (Eq. statform)", RPIV_PLOT_LINE}};
+        char png[RPIV_PATH_MAX + 64];
+        snprintf(png, sizeof png, "%s/ccm_convergence.png", r->out);
+        st = rpiv_plot_lines(png, "Monte-Carlo sum of correlation", "log#d10#u N#dim#u", "U*", ser,
+                             4, NULL);
+        free(v);
+        if (st)
+            goto out_free;
+    }
     size_t k = res->nnim - 1;
     printf("convergence: integral U* = %.6f; N_im = %zu: mean %.6f std %.6f (sub-pixel %.6f "
            "std %.6f); N_im = %zu: std %.6f -> %s\n",
@@ -363,13 +449,73 @@ out_free:
     return st;
 }
 
+/* A vector file of rpiv piv, or rows "x* U* [sigma]". */
+static rpiv_status load_measurements(run *r, rpiv_ccm_curve **out)
+{
+    *out = NULL;
+    FILE *fp = fopen(r->o.input, "r");
+    char line[64] = "";
+    if (fp) {
+        if (!fgets(line, sizeof line, fp))
+            line[0] = 0;
+        fclose(fp);
+    }
+    if (strncmp(line, "# rpiv vector field", 19))
+        return rpiv_ccm_curve_load(r->o.input, out);
+    rpiv_field *f = NULL;
+    rpiv_synth *s = NULL;
+    rpiv_status st = rpiv_field_load_txt(r->o.input, &f);
+    if (!st)
+        st = rpiv_synth_new(&r->c.exp, NULL, &s);
+    if (!st) {
+        rpiv_synth_info in;
+        rpiv_synth_get_info(s, &in);
+        rpiv_ccm_geometry g = {in.x0_star, in.y0_star, in.star_per_px};
+        st = rpiv_ccm_profile_of_field(f, &g, r->m.scale_px, r->o.ystar, out);
+    }
+    rpiv_synth_free(s);
+    rpiv_field_free(f);
+    return st;
+}
+
+static rpiv_status plot_invert(const run *r, const rpiv_ccm_invert_result *res)
+{
+    size_t n = res->nout, m = res->nmeas;
+    double *v = malloc((4 * n + 2 * m) * sizeof *v);
+    if (!v)
+        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
+    double *lo = v, *hi = v + n, *ref = v + 2 * n, *zr = v + 3 * n, *zm = v + 4 * n, *um = zm + m;
+    for (size_t i = 0; i < n; i++) {
+        lo[i] = res->u[i] - 2 * res->u_std[i];
+        hi[i] = res->u[i] + 2 * res->u_std[i];
+        zr[i] = res->z[i];
+        ref[i] = r->m.u.fn(r->m.u.user, res->z[i]);
+    }
+    for (size_t j = 0; j < m; j++) {
+        zm[j] = res->zmax[j];
+        um[j] = res->umeas[j];
+    }
+    rpiv_plot_series ser[5] = {
+        {zm, um, m, "measured, at z*#dmax#u (association)", RPIV_PLOT_POINTS},
+        {zr, res->u, n, "corrected (inverse CCM)", RPIV_PLOT_LINE},
+        {zr, lo, n, "corrected - 2 sigma", RPIV_PLOT_LINE},
+        {zr, hi, n, "corrected + 2 sigma", RPIV_PLOT_LINE},
+        {zr, ref, n, "reference", RPIV_PLOT_LINE}};
+    char path[RPIV_PATH_MAX + 64];
+    snprintf(path, sizeof path, "%s/ccm_invert.png", r->out);
+    rpiv_status st =
+        rpiv_plot_lines(path, "R-PIV bias correction", "z*", "U*", ser, r->o.compare ? 5 : 4, NULL);
+    free(v);
+    return st;
+}
+
 static rpiv_status do_invert(run *r)
 {
     if (!r->o.input)
         return cli_usage_error("ccm", "invert needs --input FILE");
     rpiv_ccm_curve *in = NULL;
     rpiv_ccm_invert_result *res = NULL;
-    rpiv_status st = rpiv_ccm_curve_load(r->o.input, &in);
+    rpiv_status st = load_measurements(r, &in);
     if (st)
         return st;
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
@@ -384,8 +530,8 @@ static rpiv_status do_invert(run *r)
     cli_progress pr;
     cli_progress_init(&pr, "invert", r->c.quiet);
     rpiv_progress prog = cli_progress_of(&pr);
-    if ((st = rpiv_ccm_invert(&r->m, r->sheet, in->x, in->y, in->w, in->n, &ip, &r->p, &prog,
-                              &res)))
+    if ((st =
+             rpiv_ccm_invert(&r->m, r->sheet, in->x, in->y, in->w, in->n, &ip, &r->p, &prog, &res)))
         goto out_free;
     char path[RPIV_PATH_MAX + 64], hdr[1536], h0[1024];
     header(r, "invert", h0, sizeof h0);
@@ -396,8 +542,10 @@ static rpiv_status do_invert(run *r)
     snprintf(path, sizeof path, "%s/ccm_invert.txt", r->out);
     if ((st = rpiv_ccm_invert_save(res, hdr, path)))
         goto out_free;
-    printf("invert: %zu measurements, %zu iterations, sigma %.5g, chi2 %.5g -> %s\n",
-           res->nmeas, res->iterations, res->sigma, res->chi2, path);
+    if (r->c.exp.output.plots && (st = plot_invert(r, res)))
+        goto out_free;
+    printf("invert: %zu measurements, %zu iterations, sigma %.5g, chi2 %.5g -> %s\n", res->nmeas,
+           res->iterations, res->sigma, res->chi2, path);
     if (r->o.compare) {
         double ea, ec;
         if ((st = rpiv_ccm_invert_e1(res, r->m.u, 1, &ea, &ec)))
@@ -461,8 +609,8 @@ rpiv_status cmd_ccm(int argc, char **argv)
             goto out_free;
         }
         if (c == '?') {
-            st = cli_usage_error("ccm", "unknown option or missing argument '%s'",
-                                 argv[optind - 1]);
+            st =
+                cli_usage_error("ccm", "unknown option or missing argument '%s'", argv[optind - 1]);
             goto out_free;
         }
         if ((st = parse_opt(o, c, optarg)))
@@ -473,8 +621,7 @@ rpiv_status cmd_ccm(int argc, char **argv)
                             : cli_usage_error("ccm", "unexpected argument '%s'", argv[optind + 1]);
         goto out_free;
     }
-    static const char *const names[] = {"ppiv-scan", "ppiv-fixed", "rpiv", "convergence",
-                                        "invert"};
+    static const char *const names[] = {"ppiv-scan", "ppiv-fixed", "rpiv", "convergence", "invert"};
     const char *sc = argv[optind];
     int which = -1;
     for (int k = 0; k < 5; k++)

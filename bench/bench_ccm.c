@@ -142,8 +142,8 @@ static int case_predict(void)
     bad |= !(maxdiff < 1e-6);
     printf("%-28s %6s %7s %9s %9s %8s %s\n", "case", "size", "threads", "rpiv_ms", "ref_ms",
            "ratio", "checksum");
-    printf("%-28s %6d %7d %9.2f %9.2f %8.1f %.10g\n", "predict_rpiv_sections", NPOS, 1,
-           1e3 * tr, 1e3 * tn, tn / tr, sum);
+    printf("%-28s %6d %7d %9.2f %9.2f %8.1f %.10g\n", "predict_rpiv_sections", NPOS, 1, 1e3 * tr,
+           1e3 * tn, tn / tr, sum);
     printf("  (rpiv_ccm_predict with the duct's series evaluated at every node)\n");
     printf("  max |peak - naive peak| = %.2e px %s\n", maxdiff, bad ? "FAIL" : "ok");
     /* the library's path for many positions: rpiv_ccm_scenario_run (velocity tabulated) */
@@ -171,8 +171,8 @@ static int case_predict(void)
         md2 = fmax(md2, fabs(tab->row[i].xstar - zi / (0.5 / 6.3)));
     }
     bad |= !(md2 < 1e-6);
-    printf("%-28s %6d %7d %9.2f %9.2f %8.1f %.10g\n", "scenario_rpiv_sections", NPOS, 1,
-           1e3 * wall, 1e3 * tn, tn / wall, sum2);
+    printf("%-28s %6d %7d %9.2f %9.2f %8.1f %.10g\n", "scenario_rpiv_sections", NPOS, 1, 1e3 * wall,
+           1e3 * tn, tn / wall, sum2);
     printf("  target < 100 ms: %.1f %% of the target (wall); cpu time %.2f ms (%.1f %%)\n",
            100 * wall / 0.1, 1e3 * cpu, 100 * cpu / 0.1);
     rpiv_ccm_table_free(tab);

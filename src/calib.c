@@ -252,6 +252,32 @@ void calib_frame_profile(const calib_frame *f, double *p)
         p[x] /= f->row1 - f->row0;
 }
 
+rpiv_status calib_frame_noise(const calib_frame *f, double *noise)
+{
+    int w = f->im->w, nr = f->row1 - f->row0;
+    *noise = 0;
+    if (nr < 2)
+        return RPIV_OK;
+    double *sd = malloc((size_t)w * sizeof *sd);
+    if (!sd)
+        return rpiv_fail(RPIV_ENOMEM, "calib: out of memory");
+    for (int x = 0; x < w; x++) {
+        double m = 0, ss = 0;
+        for (int y = f->row0; y < f->row1; y++)
+            m += calib_frame_at(f, x, y);
+        m /= nr;
+        for (int y = f->row0; y < f->row1; y++) {
+            double d = calib_frame_at(f, x, y) - m;
+            ss += d * d;
+        }
+        sd[x] = sqrt(ss / (nr - 1));
+    }
+    gsl_sort(sd, 1, (size_t)w);
+    *noise = gsl_stats_median_from_sorted_data(sd, 1, (size_t)w) / sqrt((double)nr);
+    free(sd);
+    return RPIV_OK;
+}
+
 /* Median of p[idx(i)] for i in [i0, i1) (scan order), into tmp. */
 static double scan_median(const double *p, int w, int side, int i0, int i1, double *tmp)
 {
@@ -263,9 +289,10 @@ static double scan_median(const double *p, int w, int side, int i0, int i1, doub
 }
 
 /* Plate edge seen from one side of the span-averaged profile: the background is the first
- * `win` columns, the plate level the median of `win` columns just inside; the edge is where the
- * profile crosses half-way (the half-height point of a blurred step is the step itself). The
- * plate level is re-read once from the first estimate, so a blurred ramp does not lower it. */
+ * `win` columns, the plate level the median of `win` columns just inside (the plate may be
+ * brighter or darker than the floor); the edge is where the profile crosses half-way (the
+ * half-height point of a blurred step is the step itself). The plate level is re-read once from
+ * the first estimate, so a blurred ramp does not bias it. */
 static rpiv_status detect_edge(const double *p, int w, int side, int win, const char *what,
                                const char *name, double *edge)
 {
@@ -282,25 +309,26 @@ static rpiv_status detect_edge(const double *p, int w, int side, int win, const 
         tmp[i] = fabs(AT(i) - bg);
     gsl_sort(tmp, 1, (size_t)win);
     double noise = 1.4826 * gsl_stats_median_from_sorted_data(tmp, 1, (size_t)win);
-    double pmax = AT(0);
+    double dev = 0;
     for (int i = 0; i < w; i++)
-        pmax = fmax(pmax, AT(i));
-    double thr = bg + fmax(8 * noise, 0.02 * (pmax - bg));
+        dev = fmax(dev, fabs(AT(i) - bg));
+    double thr = fmax(8 * noise, 0.02 * dev);
     int i1 = -1;
     for (int i = win; i + 1 < w; i++)
-        if (AT(i) > thr && AT(i + 1) > thr) {
+        if (fabs(AT(i) - bg) > thr && fabs(AT(i + 1) - bg) > thr &&
+            (AT(i) > bg) == (AT(i + 1) > bg)) {
             i1 = i;
             break;
         }
     rpiv_status st = RPIV_OK;
-    if (i1 < 0 || !(pmax > bg)) {
+    if (i1 < 0 || !(dev > 0)) {
         st = rpiv_fail(RPIV_ENUMERIC,
-                       "%s: cannot detect the plate %s (no step above the background in the "
+                       "%s: cannot detect the plate %s (no step from the background in the "
                        "span-averaged profile); give it explicitly",
                        what, name);
         goto out_free;
     }
-    double pos = i1;
+    double sgn = AT(i1) > bg ? 1 : -1, pos = i1;
     for (int iter = 0; iter < 2; iter++) {
         int start = (int)floor(pos) + win / 2;
         if (start + win > w) {
@@ -311,16 +339,16 @@ static rpiv_status detect_edge(const double *p, int w, int side, int win, const 
         double level = scan_median(p, w, side, start, start + win, tmp);
         double half = bg + 0.5 * (level - bg);
         int j = i1 - 1;
-        while (j > 0 && AT(j) >= half)
+        while (j > 0 && sgn * (AT(j) - half) >= 0)
             j--;
-        while (j + 1 < w && AT(j + 1) < half)
+        while (j + 1 < w && sgn * (AT(j + 1) - half) < 0)
             j++;
-        if (j + 1 >= w) {
+        if (j + 1 >= w || !(sgn * (level - bg) > 0)) {
             st = rpiv_fail(RPIV_ENUMERIC, "%s: cannot locate the plate %s", what, name);
             goto out_free;
         }
         double a = AT(j), b = AT(j + 1);
-        pos = j + (b > a ? (half - a) / (b - a) : 0.5);
+        pos = j + (b != a ? (half - a) / (b - a) : 0.5);
     }
     *edge = side > 0 ? pos : w - 1 - pos;
 #undef AT
@@ -369,6 +397,7 @@ rpiv_calib_sheet_params rpiv_calib_sheet_params_default(void)
                                      .smooth_px = 0,
                                      .subtract_floor = 1,
                                      .margin = 0.03,
+                                     .min_signal = 0.1,
                                      .zplus_step = 0.01,
                                      .zplus_max = 3};
 }
@@ -380,6 +409,9 @@ rpiv_status rpiv_calib_sheet_params_check(const rpiv_calib_sheet_params *p)
         return st;
     if (!(p->smooth_px >= 0 && p->smooth_px <= 100))
         return rpiv_fail(RPIV_EINVAL, "calib sheet: smoothing %g px outside 0..100", p->smooth_px);
+    if (!(p->min_signal >= 0 && p->min_signal < 1e6))
+        return rpiv_fail(RPIV_EINVAL, "calib sheet: minimum signal %g must be >= 0",
+                         p->min_signal);
     if (!(p->margin >= 0 && p->margin < 0.4))
         return rpiv_fail(RPIV_EINVAL, "calib sheet: margin %g outside 0..0.4", p->margin);
     if (!(p->zplus_step >= 1e-4 && p->zplus_step <= 0.5))
@@ -465,6 +497,9 @@ static rpiv_status sheet_plate(const rpiv_calib_sheet_params *p, const rpiv_came
     if (!prof)
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", what);
     calib_frame_profile(&fr, prof);
+    double noise;
+    if ((st = calib_frame_noise(&fr, &noise)))
+        goto out_free;
     if (p->smooth_px > 0 && (st = smooth(prof, im->w, p->smooth_px, what)))
         goto out_free;
     if ((st = calib_place_init(&p->geom, cam, ch, shot, prof, im->w, what, &place)))
@@ -515,15 +550,20 @@ static rpiv_status sheet_plate(const rpiv_calib_sheet_params *p, const rpiv_came
         peak = fmax(peak, pl->inten[i]);
     }
     pl->peak = peak;
-    if (!(peak > 1e-9 * fmax(1.0, fabs(pl->floor)))) {
-        st = rpiv_fail(RPIV_ENUMERIC, "%s: no light on the plate above the background", what);
+    if (!(peak > p->min_signal * fabs(pl->floor) && peak > 10 * noise &&
+          peak > 1e-9)) {
+        st = rpiv_fail(RPIV_ENUMERIC,
+                       "%s: no sheet on the plate (peak %.3g above the floor %.3g, noise %.3g of "
+                       "the span average)",
+                       what, peak, pl->floor, noise);
         goto out_free;
     }
     for (size_t i = 0; i < n; i++)
         pl->inten[i] /= peak;
     if ((st = rpiv_sheet_metrics_of(pl->z, pl->inten, n, &pl->raw))) {
-        st = rpiv_fail(st, "%s: %s inside the channel (is the sheet on the plate?)", what,
-                       rpiv_errmsg());
+        char msg[256];
+        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+        st = rpiv_fail(st, "%s: %s inside the channel (is the sheet on the plate?)", what, msg);
         goto out_free;
     }
     pl->x_max = place.x_foot + pl->raw.zmax / tana;

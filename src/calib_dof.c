@@ -26,6 +26,7 @@ rpiv_calib_dof_params rpiv_calib_dof_params_default(void)
                                    .dot_d_m = 62.5e-6,
                                    .pitch_m = 125e-6,
                                    .min_contrast = 0.03,
+                                   .min_snr = 1,
                                    .smooth_px = 0.7,
                                    .lattice_tol = 0.25,
                                    .ref_cells = 2,
@@ -48,6 +49,9 @@ rpiv_status rpiv_calib_dof_params_check(const rpiv_calib_dof_params *p)
     if (!(p->min_contrast > 0 && p->min_contrast < 1))
         return rpiv_fail(RPIV_EINVAL, "calib dof: minimum contrast %g outside (0, 1)",
                          p->min_contrast);
+    if (!(p->min_snr >= 0 && p->min_snr <= 100))
+        return rpiv_fail(RPIV_EINVAL, "calib dof: minimum significance %g outside 0..100",
+                         p->min_snr);
     if (!(p->smooth_px >= 0 && p->smooth_px <= 10))
         return rpiv_fail(RPIV_EINVAL, "calib dof: smoothing %g px outside 0..10",
                          p->smooth_px);
@@ -315,6 +319,17 @@ rpiv_status rpiv_calib_focus_write(const rpiv_calib_focus *c, FILE *fp)
 /* Nodes per axis of the average over the dot centre's position in its pixel. */
 #define PHASE_NODES 4
 
+static rpiv_status phase_nodes(double *node, double *wt)
+{
+    gsl_integration_glfixed_table *t = gsl_integration_glfixed_table_alloc(PHASE_NODES);
+    if (!t)
+        return rpiv_fail(RPIV_ENOMEM, "calib dof model: out of memory");
+    for (size_t i = 0; i < PHASE_NODES; i++)
+        gsl_integration_glfixed_point(-0.5, 0.5, i, &node[i], &wt[i], t);
+    gsl_integration_glfixed_table_free(t);
+    return RPIV_OK;
+}
+
 rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
                                  double h_m, double reflectance, double zstep,
                                  rpiv_calib_focus *c)
@@ -334,14 +349,8 @@ rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_came
         return rpiv_fail(RPIV_EINVAL, "calib dof model: channel height %g m must be > 0", h_m);
     calib_gl gl;
     double node[PHASE_NODES], wt[PHASE_NODES];
-    if ((st = calib_gl_init(&gl)))
+    if ((st = calib_gl_init(&gl)) || (st = phase_nodes(node, wt)))
         return st;
-    gsl_integration_glfixed_table *t = gsl_integration_glfixed_table_alloc(PHASE_NODES);
-    if (!t)
-        return rpiv_fail(RPIV_ENOMEM, "calib dof model: out of memory");
-    for (size_t i = 0; i < PHASE_NODES; i++)
-        gsl_integration_glfixed_point(-0.5, 0.5, i, &node[i], &wt[i], t);
-    gsl_integration_glfixed_table_free(t);
     double scale = calib_scale(p->geom.scale_px_m, cam);
     double ca = fabs(cos(p->geom.angle_deg * M_PI / 180));
     double r = 0.5 * p->dot_d_m * scale, ax = r * ca, ay = r;
@@ -361,6 +370,39 @@ rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_came
     if ((st = focus_analyse(c, 0, "calib dof model")))
         rpiv_calib_focus_free(c);
     return st;
+}
+
+rpiv_status rpiv_calib_dof_reflectance(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
+                                       double h_m, double inv_max, double *reflectance)
+{
+    rpiv_status st = rpiv_calib_dof_params_check(p);
+    if (st || (st = rpiv_camera_check(cam)))
+        return st;
+    if (p->geom.angle_deg == 0)
+        return rpiv_fail(RPIV_EINVAL, "calib dof model: the plate angle must be given");
+    if (!(h_m > 0) || !(inv_max > 1))
+        return rpiv_fail(RPIV_EINVAL, "calib dof model: need h > 0 and a peak 1/I* > 1 (%g)",
+                         inv_max);
+    calib_gl gl;
+    double node[PHASE_NODES], wt[PHASE_NODES];
+    if ((st = calib_gl_init(&gl)) || (st = phase_nodes(node, wt)))
+        return st;
+    double scale = calib_scale(p->geom.scale_px_m, cam);
+    double ca = fabs(cos(p->geom.angle_deg * M_PI / 180));
+    double r = 0.5 * p->dot_d_m * scale, ax = r * ca, ay = r;
+    double ppx = p->pitch_m * ca * scale, ppy = p->pitch_m * scale;
+    double fill = M_PI * ax * ay / (ppx * ppy);
+    double s = calib_blur_px(cam, h_m, scale, cam->zop_star);
+    double c0 = calib_lattice_pixel(&gl, ax, ay, ppx, ppy, s, node, wt, PHASE_NODES);
+    /* I* = (1 - (1 - rho) c0) / (1 - (1 - rho) fill), solved for rho */
+    double i = 1 / inv_max, q = (1 - i) / (c0 - i * fill), rho = 1 - q;
+    if (!(c0 - i * fill > 0) || !(rho >= 0 && rho < 1))
+        return rpiv_fail(RPIV_ENUMERIC,
+                         "calib dof model: no dot reflectance in [0, 1) gives a peak 1/I* of %g "
+                         "(a black dot gives %g)",
+                         inv_max, (1 - fill) / (1 - c0));
+    *reflectance = rho;
+    return RPIV_OK;
 }
 
 /* ---- measurement ------------------------------------------------------------------------- */
@@ -431,9 +473,9 @@ static double overlap(int i, double a, double b)
 
 /* Mean grey over the box of lx x ly px centred at (cx, cy), with fractional edge pixels, so that
  * it spans whole lattice cells exactly; shifted to stay inside rows [r0, r1) and the columns.
- * NAN if the image is too small. */
+ * NAN if the image is too small. With sd, also the (weighted) standard deviation in the box. */
 static double box_mean(const dof_img *im, int r0, int r1, double cx, double cy, double lx,
-                       double ly)
+                       double ly, double *sd)
 {
     double x0 = cx - lx / 2, y0 = cy - ly / 2;
     if (lx > im->w || ly > r1 - r0)
@@ -442,19 +484,26 @@ static double box_mean(const dof_img *im, int r0, int r1, double cx, double cy, 
     y0 = fmin(fmax(y0, r0 - 0.5), r1 - 0.5 - ly);
     int i0 = (int)floor(x0 + 0.5), i1 = (int)ceil(x0 + lx - 0.5);
     int j0 = (int)floor(y0 + 0.5), j1 = (int)ceil(y0 + ly - 0.5);
-    double sum = 0;
+    double sum = 0, sum2 = 0;
     for (int j = j0; j <= j1; j++) {
         if (j < r0 || j >= r1)
             continue;
-        double wy = overlap(j, y0, y0 + ly), row = 0;
+        double wy = overlap(j, y0, y0 + ly), row = 0, row2 = 0;
         if (wy <= 0)
             continue;
         for (int i = i0; i <= i1; i++)
-            if (i >= 0 && i < im->w)
-                row += overlap(i, x0, x0 + lx) * im->d[(size_t)j * im->w + i];
+            if (i >= 0 && i < im->w) {
+                double v = im->d[(size_t)j * im->w + i], wx = overlap(i, x0, x0 + lx);
+                row += wx * v;
+                row2 += wx * v * v;
+            }
         sum += wy * row;
+        sum2 += wy * row2;
     }
-    return sum / (lx * ly);
+    double mean = sum / (lx * ly);
+    if (sd)
+        *sd = sqrt(fmax(0, sum2 / (lx * ly) - mean * mean));
+    return mean;
 }
 
 typedef struct cand {
@@ -570,8 +619,8 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
             double z = (x - pl.foot) * pl.k;
             if (z < 0 || z > zcap)
                 continue;
-            double ref = box_mean(&di, fr.row0, fr.row1, x, y, lx, ly);
-            if (!(ref > 0) || !(v < (1 - p->min_contrast) * ref))
+            double sd, ref = box_mean(&di, fr.row0, fr.row1, x, y, lx, ly, &sd);
+            if (!(ref > 0) || !(v < (1 - p->min_contrast) * ref) || !(ref - v > p->min_snr * sd))
                 continue;
             if (nc == ccap) {
                 cand *t = realloc(cs, 2 * ccap * sizeof *cs);
@@ -620,7 +669,7 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
         vertex3(sm[(size_t)(y - 1) * w + x], b, sm[(size_t)(y + 1) * w + x], &oy);
         double grey = di.d[(size_t)y * w + x];
         double cx = x + ox, cy = y + oy;
-        double ref = box_mean(&di, fr.row0, fr.row1, cx, cy, lx, ly);
+        double ref = box_mean(&di, fr.row0, fr.row1, cx, cy, lx, ly, NULL);
         if (!(ref > 0) || !(grey > 0))
             continue;
         if (r->ndots == *cap) {
@@ -751,4 +800,18 @@ rpiv_status rpiv_calib_dof_run(const rpiv_calib_dof_params *p, const rpiv_camera
 out_fail:
     rpiv_calib_dof_result_free(r);
     return st;
+}
+
+rpiv_status rpiv_calib_dof_write_dots(const rpiv_calib_dof_result *r, FILE *fp)
+{
+    fprintf(fp, "# rpiv calib dof: detected dots (grey and ref above dark)\n"
+                "# image x_px y_px zstar grey ref Istar\n");
+    for (size_t i = 0; i < r->ndots; i++) {
+        const rpiv_calib_dot *d = &r->dot[i];
+        fprintf(fp, "%zu %.3f %.3f %.6f %.4f %.4f %.6f\n", d->shot + 1, d->x, d->y, d->zstar,
+                d->grey, d->ref, d->istar);
+    }
+    if (ferror(fp))
+        return rpiv_fail(RPIV_EIO, "calib dof: write error");
+    return RPIV_OK;
 }

@@ -64,6 +64,9 @@ RPIV_NODISCARD rpiv_status calib_frame_init(const rpiv_calib_geom *g, const rpiv
                                             calib_frame *f);
 /* Grey above dark at pixel (x, y). */
 double calib_frame_at(const calib_frame *f, int x, int y);
+/* Noise of the span-averaged profile: median over columns of the standard deviation along the
+ * span, divided by sqrt(rows) (structure along the span counts as noise: conservative). */
+RPIV_NODISCARD rpiv_status calib_frame_noise(const calib_frame *f, double *noise);
 /* Span-averaged, dark-subtracted profile along x (w values). */
 void calib_frame_profile(const calib_frame *f, double *p);
 

@@ -238,12 +238,13 @@ rpiv_status rpiv_calib_render_dots(const rpiv_calib_render_params *rp, const rpi
         double z = scene_z(&sc, cx);
         double s = calib_blur_px(cam, ch->h_m, sc.scale, z);
         double amp = (1 - rp->reflectance) * emission(&sc, cx);
-        int x0 = (int)floor(cx) - half, nx = 2 * half + 1;
+        int hd = (int)ceil(fmax(ax, ay) + 6 * s + 1); /* this dot's reach, <= half */
+        int x0 = (int)floor(cx) - hd, nx = 2 * hd + 1;
         for (long j = (long)floor(-half / ppy - rp->phase_y) - 1;; j++) {
             double cy = (j + rp->phase_y) * ppy;
             if (cy > im->h - 1 + half)
                 break;
-            int y0 = (int)floor(cy) - half, ny = 2 * half + 1;
+            int y0 = (int)floor(cy) - hd, ny = 2 * hd + 1;
             memset(patch, 0, (size_t)nx * ny * sizeof *patch);
             calib_ellipse_add(&gl, cx, cy, ax, ay, s, x0, y0, nx, ny, amp, patch, work);
             for (int b = 0; b < ny; b++) {

@@ -3,6 +3,7 @@
  * Eq. "CCM_simp". */
 #include "ccm_impl.h"
 #include "rpiv/config.h"
+#include "rpiv/peak.h"
 
 #include <errno.h>
 #include <float.h>
@@ -160,8 +161,7 @@ double rpiv_ccm_corr_eval(const rpiv_ccm_corr *c, double dx, double dy)
 }
 
 /* R and its first and second derivatives at (x, y). */
-static void corr_d2(const rpiv_ccm_corr *c, double x, double y, double *r, double g[2],
-                    double h[3])
+static void corr_d2(const rpiv_ccm_corr *c, double x, double y, double *r, double g[2], double h[3])
 {
     double s = 0, gx = 0, gy = 0, hxx = 0, hyy = 0, hxy = 0;
     for (size_t k = 0; k < c->n; k++) {
@@ -183,22 +183,9 @@ static void corr_d2(const rpiv_ccm_corr *c, double x, double y, double *r, doubl
     h[2] = hyy;
 }
 
-/* Sub-pixel offset from three samples a, b, c around the maximum b (the PIV engine's
- * estimators: 3-point Gaussian falling back to the parabola when a sample is not positive). */
-static double est3(rpiv_subpixel kind, double a, double b, double c)
-{
-    if (kind == RPIV_SUBPIXEL_GAUSS && a > 0 && b > 0 && c > 0) {
-        double la = log(a), lb = log(b), lc = log(c), den = la - 2 * lb + lc;
-        if (den < 0)
-            return 0.5 * (la - lc) / den;
-    }
-    double den = a - 2 * b + c;
-    return den < 0 ? 0.5 * (a - c) / den : 0;
-}
-
 typedef struct span {
-    int mode;          /* 0 general, 1 all DY equal, 2 all DX equal, 3 all equal */
-    double dx0, dy0;   /* the common DX / DY */
+    int mode;           /* 0 general, 1 all DY equal, 2 all DX equal, 3 all equal */
+    double dx0, dy0;    /* the common DX / DY */
     int x0, x1, y0, y1; /* integer box */
 } span;
 
@@ -292,7 +279,7 @@ rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, in
 
 typedef struct pkline {
     const rpiv_ccm_corr *c;
-    int axis;     /* 0: along x at y = at; 1: along y at x = at */
+    int axis; /* 0: along x at y = at; 1: along y at x = at */
     double at;
 } pkline;
 
@@ -396,12 +383,12 @@ static double simplex_neg(const gsl_vector *v, void *u)
 }
 
 /* General 2-D case: Nelder-Mead on -R from the sub-pixel estimate, then Newton polish. */
-static rpiv_status plane_max(const rpiv_ccm_corr *c, double x0, double y0,
-                             const rpiv_ccm_params *p, double *xm, double *ym)
+static rpiv_status plane_max(const rpiv_ccm_corr *c, double x0, double y0, const rpiv_ccm_params *p,
+                             double *xm, double *ym)
 {
     rpiv_status st = RPIV_OK;
-    gsl_multimin_fminimizer *s = gsl_multimin_fminimizer_alloc(gsl_multimin_fminimizer_nmsimplex2,
-                                                                2);
+    gsl_multimin_fminimizer *s =
+        gsl_multimin_fminimizer_alloc(gsl_multimin_fminimizer_nmsimplex2, 2);
     gsl_vector *x = gsl_vector_alloc(2), *step = gsl_vector_alloc(2);
     if (!s || !x || !step) {
         st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
@@ -450,8 +437,7 @@ out_free:
     return st;
 }
 
-rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
-                               rpiv_ccm_peak *out)
+rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, rpiv_ccm_peak *out)
 {
     span s;
     rpiv_status st = corr_span(c, p, &s);
@@ -461,27 +447,22 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     sampled_argmax(c, &s, &mx, &my);
     out->mx = mx;
     out->my = my;
-    /* the sampled plane around the maximum, as the PIV engine sees it */
-    double r[3][3];
+    /* the sampled plane around the maximum, handed to the PIV engine's estimator
+     * (peak.h) as the 4 x 4 float plane in circular order that it reads after an FFT:
+     * shifts -2..1, the fits use -1..1, normalised by the centre */
+    float plane[16] = {0};
+    double r0 = rpiv_ccm_corr_eval(c, mx, my);
     for (int j = -1; j <= 1; j++)
-        for (int i = -1; i <= 1; i++)
-            r[j + 1][i + 1] = (i == 0 || j == 0 || p->subpixel == RPIV_SUBPIXEL_CENTROID)
-                                  ? rpiv_ccm_corr_eval(c, mx + i, my + j)
-                                  : 0;
-    if (p->subpixel == RPIV_SUBPIXEL_CENTROID) {
-        double sw = 0, sx = 0, sy = 0;
-        for (int j = -1; j <= 1; j++)
-            for (int i = -1; i <= 1; i++) {
-                sw += r[j + 1][i + 1];
-                sx += i * r[j + 1][i + 1];
-                sy += j * r[j + 1][i + 1];
-            }
-        out->dx_sub = mx + sx / sw;
-        out->dy_sub = my + sy / sw;
-    } else {
-        out->dx_sub = mx + est3(p->subpixel, r[1][0], r[1][1], r[1][2]);
-        out->dy_sub = my + est3(p->subpixel, r[0][1], r[1][1], r[2][1]);
-    }
+        for (int i = -1; i <= 1; i++) {
+            if (i && j && p->subpixel != RPIV_SUBPIXEL_CENTROID)
+                continue; /* the 3-point fits read the row and the column only */
+            double v = i || j ? rpiv_ccm_corr_eval(c, mx + i, my + j) / r0 : 1.0;
+            plane[((j + 4) % 4) * 4 + (i + 4) % 4] = (float)v;
+        }
+    rpiv_peak fit;
+    rpiv_peak_find(plane, 4, 4, 1, p->subpixel, &fit);
+    out->dx_sub = mx + fit.dx;
+    out->dy_sub = my + fit.dy;
     /* the continuous maximum */
     if (s.mode == 3) {
         out->dx = s.dx0;
@@ -541,8 +522,8 @@ rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m)
         return rpiv_fail(RPIV_EINVAL, "ccm: the illumination and the velocity profile are "
                                       "required");
     if (!(m->zlo < m->zhi) || !isfinite(m->zlo) || !isfinite(m->zhi))
-        return rpiv_fail(RPIV_EINVAL, "ccm: particle heights [%g, %g] are not an interval",
-                         m->zlo, m->zhi);
+        return rpiv_fail(RPIV_EINVAL, "ccm: particle heights [%g, %g] are not an interval", m->zlo,
+                         m->zhi);
     if (m->nbreaks > RPIV_CCM_MAX_BREAKS)
         return rpiv_fail(RPIV_EINVAL, "ccm: %zu breakpoints, at most %d", m->nbreaks,
                          RPIV_CCM_MAX_BREAKS);
@@ -676,8 +657,8 @@ rpiv_status rpiv_ccm_sheet_x_of_zmax(const rpiv_sheet *s, double target, double 
     zmax_ctx c = {s, p, target, 0};
     double flo = zmax_minus(xlo, &c), fhi = zmax_minus(xhi, &c);
     if (c.failed)
-        return rpiv_fail(RPIV_ENUMERIC, "ccm: the sheet is zero at the end of x* in [%g, %g]",
-                         xlo, xhi);
+        return rpiv_fail(RPIV_ENUMERIC, "ccm: the sheet is zero at the end of x* in [%g, %g]", xlo,
+                         xhi);
     if (flo == 0 || fhi == 0) {
         *xstar = flo == 0 ? xlo : xhi;
         return RPIV_OK;
@@ -705,8 +686,7 @@ rpiv_status rpiv_ccm_sheet_x_of_zmax(const rpiv_sheet *s, double target, double 
     *xstar = gsl_root_fsolver_root(r);
     gsl_root_fsolver_free(r);
     if (c.failed)
-        return rpiv_fail(RPIV_ENUMERIC, "ccm: the sheet vanishes inside x* in [%g, %g]", xlo,
-                         xhi);
+        return rpiv_fail(RPIV_ENUMERIC, "ccm: the sheet vanishes inside x* in [%g, %g]", xlo, xhi);
     return gs ? ccm_gsl_fail(gs, "search of the section of a given z*_max") : RPIV_OK;
 }
 
@@ -776,8 +756,8 @@ rpiv_status rpiv_ccm_curve_load(const char *path, rpiv_ccm_curve **out)
         if (!ncol)
             ncol = k;
         if (k != ncol) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: %d columns, the first row had %d", path, lineno,
-                           k, ncol);
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: %d columns, the first row had %d", path, lineno, k,
+                           ncol);
             goto out_free;
         }
         if (n && !(v[0] > x[n - 1])) {
@@ -861,11 +841,52 @@ double rpiv_ccm_curve_fn(const void *user, double x)
     return rpiv_ccm_curve_eval(user, x);
 }
 
+rpiv_status rpiv_ccm_profile_of_field(const rpiv_field *f, const rpiv_ccm_geometry *g,
+                                      double scale_px, double ystar, rpiv_ccm_curve **out)
+{
+    *out = NULL;
+    if (!(g->star_per_px > 0) || !(fabs(scale_px) > 0) || !(f->dx > 0) || !(f->dy != 0) ||
+        f->nx < 1 || f->ny < 1)
+        return rpiv_fail(RPIV_EINVAL, "ccm: field or geometry with a zero step or scale");
+    /* grid row j has y* = y0_star + (y0 + j dy + 0.5) star_per_px */
+    double yp = (ystar - g->y0_star) / g->star_per_px - 0.5;
+    double jj = (yp - f->y0) / f->dy;
+    long j = lround(jj);
+    if (jj < -1 || jj > f->ny) /* more than one step outside */
+        return rpiv_fail(RPIV_EINVAL, "ccm: y* = %g is outside the vector field (y* %g to %g)",
+                         ystar, g->y0_star + (f->y0 + 0.5) * g->star_per_px,
+                         g->y0_star + (f->y0 + (f->ny - 1) * f->dy + 0.5) * g->star_per_px);
+    j = j < 0 ? 0 : (j >= f->ny ? f->ny - 1 : j);
+    double *x = malloc((size_t)f->nx * sizeof *x), *u = malloc((size_t)f->nx * sizeof *u);
+    rpiv_status st = RPIV_OK;
+    if (!x || !u) {
+        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
+        goto out_free;
+    }
+    size_t n = 0;
+    for (int i = 0; i < f->nx; i++) {
+        size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+        if (f->flag[k] != RPIV_FLAG_VALID || !isfinite(f->u[k]))
+            continue;
+        x[n] = g->x0_star + (f->x0 + i * f->dx + 0.5) * g->star_per_px;
+        u[n++] = (double)f->u[k] / scale_px;
+    }
+    if (n < 3) {
+        st = rpiv_fail(RPIV_ENUMERIC, "ccm: %zu valid vectors in the field's row at y* = %g", n,
+                       ystar);
+        goto out_free;
+    }
+    st = rpiv_ccm_curve_new(x, u, n, out);
+out_free:
+    free(x);
+    free(u);
+    return st;
+}
+
 /* ---- Eq. "CCM_gen" and Eq. "CCM_simp" ------------------------------------------------- */
 
 /* Peak and variance (px^2) of the image of Eq. "int" of a particle at z with intensity i. */
-static void image_of(const ccm_frame *f, double z, double i, double dp, double *peak,
-                     double *var)
+static void image_of(const ccm_frame *f, double z, double i, double dp, double *peak, double *var)
 {
     const rpiv_camera *cam = &f->m->camera;
     double zd = rpiv_imaging_defocus_m(cam, f->m->h_m, z);
@@ -888,17 +909,15 @@ void ccm_frame_init(ccm_frame *f, const rpiv_ccm_model *m)
 
 /* The correlation of two Gaussian images P1 exp(-r^2/(2 s1^2)) and P2 exp(-|r-D|^2/(2 s2^2)):
  * P1 P2 2 pi s1^2 s2^2 / (s1^2 + s2^2) exp(-|D - d|^2 / (2 (s1^2 + s2^2))). */
-rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, double i2,
-                        double dp1, double dp2, double ddx, double ddy)
+rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, double i2, double dp1,
+                        double dp2, double ddx, double ddy)
 {
     double p1, v1, p2, v2;
     image_of(f, z1, i1, dp1, &p1, &v1);
     image_of(f, z2, i2, dp2, &p2, &v2);
     double vs = v1 + v2;
-    return (rpiv_ccm_gauss){.amp = p1 * p2 * 2 * M_PI * v1 * v2 / vs / f->ref,
-                            .c = 1 / (2 * vs),
-                            .dx = ddx,
-                            .dy = ddy};
+    return (rpiv_ccm_gauss){
+        .amp = p1 * p2 * 2 * M_PI * v1 * v2 / vs / f->ref, .c = 1 / (2 * vs), .dx = ddx, .dy = ddy};
 }
 
 rpiv_ccm_gauss ccm_amp_term(const ccm_frame *f, double z)
@@ -936,14 +955,14 @@ rpiv_status rpiv_ccm_gen(const rpiv_ccm_model *m, const rpiv_ccm_particle *pt, s
     ccm_frame_init(&f, m);
     for (size_t i = 0; i < n; i++) {
         const rpiv_ccm_particle *q = &pt[i];
-        if (!(q->i1 >= 0 && q->i2 >= 0) || !(q->dp_m > 0) || !isfinite(q->z1) ||
-            !isfinite(q->z2) || !isfinite(q->dx) || !isfinite(q->dy))
+        if (!(q->i1 >= 0 && q->i2 >= 0) || !(q->dp_m > 0) || !isfinite(q->z1) || !isfinite(q->z2) ||
+            !isfinite(q->dx) || !isfinite(q->dy))
             return rpiv_fail(RPIV_EINVAL,
                              "ccm: particle %zu: intensities must be >= 0, the diameter > 0 "
                              "and positions finite",
                              i);
-        st = rpiv_ccm_corr_add(out, ccm_term(&f, q->z1, q->z2, q->i1, q->i2, q->dp_m, q->dp_m,
-                                             q->dx, q->dy));
+        st = rpiv_ccm_corr_add(
+            out, ccm_term(&f, q->z1, q->z2, q->i1, q->i2, q->dp_m, q->dp_m, q->dx, q->dy));
         if (st)
             return st;
     }

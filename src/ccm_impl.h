@@ -15,9 +15,9 @@ struct rpiv_ccm_work {
     double *scan_z, *scan_v; /* p.scan samples */
     double *ia, *ib;         /* intervals of the last adaptive pass (p.limit) */
     size_t nint;
-    rpiv_ccm_corr *corr;     /* the rule of rpiv_ccm_predict */
+    rpiv_ccm_corr *corr;                /* the rule of rpiv_ccm_predict */
     gsl_integration_glfixed_table *gl1; /* coarse rule of the first pass */
-    double *zn;              /* heights of the terms of the last rule built */
+    double *zn;                         /* heights of the terms of the last rule built */
     size_t zcap;
 };
 
@@ -32,8 +32,8 @@ typedef struct ccm_frame {
 void ccm_frame_init(ccm_frame *f, const rpiv_ccm_model *m);
 
 /* The term of one particle (Eq. "CCM_gen"), relative to the reference. */
-rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, double i2,
-                        double dp1, double dp2, double ddx, double ddy);
+rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, double i2, double dp1,
+                        double dp2, double ddx, double ddy);
 /* The Eq. "CCM_simp" term of a particle at height z (I0, d_e, DX, DY from the model);
  * ccm_amp_term: the same without evaluating the velocity (DX = DY = 0). */
 rpiv_ccm_gauss ccm_amp_term(const ccm_frame *f, double z);

@@ -39,8 +39,7 @@ rpiv_status rpiv_ccm_invert_params_check(const rpiv_ccm_invert_params *p)
         return rpiv_fail(RPIV_EINVAL, "ccm invert: sigma %g outside 0..1e6", p->sigma);
     if (p->max_iter < 1 || p->max_iter > 100000)
         return rpiv_fail(RPIV_EINVAL, "ccm invert: %zu iterations outside 1..1e5", p->max_iter);
-    if (!(p->xtol > 0 && p->gtol > 0 && p->ftol > 0 && p->xtol < 1 && p->gtol < 1 &&
-          p->ftol < 1))
+    if (!(p->xtol > 0 && p->gtol > 0 && p->ftol > 0 && p->xtol < 1 && p->gtol < 1 && p->ftol < 1))
         return rpiv_fail(RPIV_EINVAL, "ccm invert: tolerances must be in (0, 1)");
     if (p->nout < 2 || p->nout > 1000000)
         return rpiv_fail(RPIV_EINVAL, "ccm invert: %zu output samples outside 2..1e6", p->nout);
@@ -74,11 +73,11 @@ typedef struct inv {
     size_t nm, ncoef, np;
     meas *m;
     const double *umeas;
-    double *wt;      /* sqrt of the weight of each measurement */
+    double *wt; /* sqrt of the weight of each measurement */
     double scale, slam;
-    int *map;        /* coefficient k -> unknown, -1 = fixed 0 */
-    double *coef;    /* full coefficient vector */
-    double *cached;  /* unknowns of the last forward pass */
+    int *map;       /* coefficient k -> unknown, -1 = fixed 0 */
+    double *coef;   /* full coefficient vector */
+    double *cached; /* unknowns of the last forward pass */
     int have_cache;
     rpiv_ccm_params p;
     rpiv_status *sts;
@@ -111,8 +110,7 @@ static int forward(inv *v, const gsl_vector *x)
 {
     if (v->stop)
         return GSL_EFAILED;
-    if (v->have_cache && !memcmp(v->cached, x->data, v->np * sizeof *v->cached) &&
-        x->stride == 1)
+    if (v->have_cache && !memcmp(v->cached, x->data, v->np * sizeof *v->cached) && x->stride == 1)
         return GSL_SUCCESS;
     expand(v, x);
     int bad = 0;
@@ -155,8 +153,7 @@ static int res_f(const gsl_vector *x, void *u, gsl_vector *f)
     for (size_t j = 0; j < v->nm; j++)
         gsl_vector_set(f, j, v->wt[j] * (v->m[j].delta / v->scale - v->umeas[j]));
     for (size_t k = 0; k + 2 < v->ncoef; k++)
-        gsl_vector_set(f, v->nm + k,
-                       v->slam * (v->coef[k] - 2 * v->coef[k + 1] + v->coef[k + 2]));
+        gsl_vector_set(f, v->nm + k, v->slam * (v->coef[k] - 2 * v->coef[k + 1] + v->coef[k + 2]));
     return GSL_SUCCESS;
 }
 
@@ -299,8 +296,7 @@ static rpiv_status alloc_result(size_t nout, size_t nm, size_t ncoef, rpiv_ccm_i
     r->umeas = malloc(nm * sizeof *r->umeas);
     r->ufit = malloc(nm * sizeof *r->ufit);
     r->coef = malloc(ncoef * sizeof *r->coef);
-    if (!r->z || !r->u || !r->u_std || !r->xstar || !r->zmax || !r->umeas || !r->ufit ||
-        !r->coef) {
+    if (!r->z || !r->u || !r->u_std || !r->xstar || !r->zmax || !r->umeas || !r->ufit || !r->coef) {
         rpiv_ccm_invert_free(r);
         return rpiv_fail(RPIV_ENOMEM, "ccm invert: out of memory");
     }
@@ -310,8 +306,7 @@ static rpiv_status alloc_result(size_t nout, size_t nm, size_t ncoef, rpiv_ccm_i
 
 rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
                             const double *xstar, const double *umeas, const double *usigma,
-                            size_t n,
-                            const rpiv_ccm_invert_params *ip, const rpiv_ccm_params *p,
+                            size_t n, const rpiv_ccm_invert_params *ip, const rpiv_ccm_params *p,
                             const rpiv_progress *progress, rpiv_ccm_invert_result **out)
 {
     *out = NULL;
@@ -327,8 +322,7 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
         if (!isfinite(xstar[j]) || !isfinite(umeas[j]) ||
             (usigma && !(usigma[j] > 0 && isfinite(usigma[j]))))
             return rpiv_fail(RPIV_EINVAL,
-                             "ccm invert: measurement %zu is not finite or its sigma not > 0",
-                             j);
+                             "ccm invert: measurement %zu is not finite or its sigma not > 0", j);
 
     inv v;
     memset(&v, 0, sizeof v);
@@ -355,15 +349,17 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     v.wt = malloc(n * sizeof *v.wt);
     v.msg = calloc(n, sizeof *v.msg);
     pairs = malloc(4 * n * sizeof *pairs);
-    if (!bw || !bk || !bfull || !v.m || !v.map || !v.coef || !v.sts || !v.wt || !v.msg ||
-        !pairs) {
+    if (!bw || !bk || !bfull || !v.m || !v.map || !v.coef || !v.sts || !v.wt || !v.msg || !pairs) {
         st = rpiv_fail(RPIV_ENOMEM, "ccm invert: out of memory");
         goto out_free;
     }
     gsl_bspline_knots_uniform(0, 1, bw);
+    /* weights sbar / sigma_j with sbar = 1 / sqrt(mean 1/sigma_j^2): their squares average to
+     * 1, so lambda keeps its meaning whatever the sigmas */
     double sbar = 0;
     for (size_t j = 0; j < n; j++)
-        sbar += usigma ? usigma[j] / (double)n : 0;
+        sbar += usigma ? 1 / (usigma[j] * usigma[j] * (double)n) : 0;
+    sbar = usigma ? 1 / sqrt(sbar) : 0;
     for (size_t j = 0; j < n; j++)
         v.wt[j] = usigma ? sbar / usigma[j] : 1;
     /* unknowns: the interior coefficients (the end ones are U at the walls, 0) */
@@ -546,8 +542,7 @@ out_free:
     return st;
 }
 
-rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hdr,
-                                 const char *path)
+rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hdr, const char *path)
 {
     char tmp[RPIV_PATH_MAX + 16];
     FILE *fp;
@@ -560,8 +555,7 @@ rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hd
             r->iterations);
     fprintf(fp, "# measurements: #m x* z*_max U*_meas U*_fit\n");
     for (size_t j = 0; j < r->nmeas; j++)
-        fprintf(fp, "#m %.8g %.8g %.10g %.10g\n", r->xstar[j], r->zmax[j], r->umeas[j],
-                r->ufit[j]);
+        fprintf(fp, "#m %.8g %.8g %.10g %.10g\n", r->xstar[j], r->zmax[j], r->umeas[j], r->ufit[j]);
     fprintf(fp, "# columns: z* U* std_U*\n");
     for (size_t i = 0; i < r->nout; i++)
         fprintf(fp, "%.8g %.10g %.6e\n", r->z[i], r->u[i], r->u_std[i]);

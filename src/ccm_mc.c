@@ -13,7 +13,7 @@
 
 rpiv_ccm_mc_params rpiv_ccm_mc_params_default(void)
 {
-    static const size_t nim[] = {1,  2,  3,  5,   7,   10,  15,  20,  30,
+    static const size_t nim[] = {1,  2,  3,   5,   7,   10,  15,  20, 30,
                                  50, 70, 100, 150, 200, 300, 400, 500};
     rpiv_ccm_mc_params p;
     memset(&p, 0, sizeof p);
@@ -98,8 +98,7 @@ static rpiv_status sampler_init(sampler *s, const rpiv_ccm_model *m, size_t n)
     if (!(tot > 0)) {
         free(s->cdf);
         s->cdf = NULL;
-        return rpiv_fail(RPIV_EINVAL, "ccm: the presence law is zero on [%g, %g]", m->zlo,
-                         m->zhi);
+        return rpiv_fail(RPIV_EINVAL, "ccm: the presence law is zero on [%g, %g]", m->zlo, m->zhi);
     }
     for (size_t i = 0; i < n; i++)
         s->cdf[i] /= tot;
@@ -210,8 +209,8 @@ rpiv_status rpiv_ccm_mc_run(const rpiv_ccm_model *m, const rpiv_ccm_params *p,
         res->mean_sub = malloc(K * sizeof *res->mean_sub);
         res->std_sub = malloc(K * sizeof *res->std_sub);
     }
-    if (!res || !sts || !msg || !res->nim || !res->dx || !res->dx_sub || !res->mean ||
-        !res->std || !res->mean_sub || !res->std_sub) {
+    if (!res || !sts || !msg || !res->nim || !res->dx || !res->dx_sub || !res->mean || !res->std ||
+        !res->mean_sub || !res->std_sub) {
         st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu x %zu results", R, K);
         goto out_free;
     }
@@ -233,8 +232,9 @@ rpiv_status rpiv_ccm_mc_run(const rpiv_ccm_model *m, const rpiv_ccm_params *p,
                 break;
             }
         if (!st && rpiv_progress_report(progress, e, R))
-            st = rpiv_fail(RPIV_EINTR, "ccm: Monte-Carlo interrupted after %zu of %zu "
-                                       "repetitions",
+            st = rpiv_fail(RPIV_EINTR,
+                           "ccm: Monte-Carlo interrupted after %zu of %zu "
+                           "repetitions",
                            e, R);
     }
     if (st)

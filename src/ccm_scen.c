@@ -44,8 +44,7 @@ rpiv_status rpiv_ccm_scenario_check(const rpiv_ccm_scenario *s)
         return rpiv_fail(RPIV_EINVAL, "ccm: positions [%g, %g] must be increasing inside (0, 1)",
                          s->z0, s->z1);
     if (s->kind == RPIV_CCM_RPIV && !(s->xlo < s->xhi))
-        return rpiv_fail(RPIV_EINVAL, "ccm: x* search bracket [%g, %g] is empty", s->xlo,
-                         s->xhi);
+        return rpiv_fail(RPIV_EINVAL, "ccm: x* search bracket [%g, %g] is empty", s->xlo, s->xhi);
     return RPIV_OK;
 }
 
@@ -176,8 +175,8 @@ rpiv_status rpiv_ccm_scenario_run(const rpiv_ccm_scenario *s, const rpiv_ccm_mod
         size_t e = b + batch < n ? b + batch : n;
 #pragma omp parallel for num_threads(nth) schedule(dynamic, 1)
         for (long i = (long)b; i < (long)e; i++) {
-            sts[i] = position(s, &tb, &base->u, sheet, w[omp_get_thread_num()], (size_t)i,
-                              &rows[i]);
+            sts[i] =
+                position(s, &tb, &base->u, sheet, w[omp_get_thread_num()], (size_t)i, &rows[i]);
             if (sts[i])
                 snprintf(msg[i], sizeof msg[i], "%s", rpiv_errmsg());
         }
@@ -187,8 +186,8 @@ rpiv_status rpiv_ccm_scenario_run(const rpiv_ccm_scenario *s, const rpiv_ccm_mod
                 break;
             }
         if (!st && rpiv_progress_report(progress, e, n))
-            st = rpiv_fail(RPIV_EINTR, "ccm: scenario interrupted after %zu of %zu positions",
-                           e, n);
+            st =
+                rpiv_fail(RPIV_EINTR, "ccm: scenario interrupted after %zu of %zu positions", e, n);
     }
     if (st)
         goto out_free;

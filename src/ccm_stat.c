@@ -130,7 +130,7 @@ size_t ccm_breakpoints(const rpiv_ccm_model *m, rpiv_ccm_work *w, double *pts, s
 /* The integrand of Eq. "statform" and its probes. */
 typedef struct integ {
     ccm_frame f;
-    int nshift;       /* 0: amplitude alone; else sum over the shifts */
+    int nshift; /* 0: amplitude alone; else sum over the shifts */
     double sx[5], sy[5];
 } integ;
 
@@ -188,8 +188,8 @@ static rpiv_status setup(const rpiv_ccm_model *m, rpiv_ccm_work *w, integ *q, do
     if ((st = qagp(w, &F, pts, *npts, &tot, "the integral of the presence law P")))
         return st;
     if (!(tot > 0))
-        return rpiv_fail(RPIV_EINVAL, "ccm: the presence law P integrates to %g over [%g, %g]",
-                         tot, m->zlo, m->zhi);
+        return rpiv_fail(RPIV_EINVAL, "ccm: the presence law P integrates to %g over [%g, %g]", tot,
+                         m->zlo, m->zhi);
     q->f.pnorm = 1 / tot;
     return RPIV_OK;
 }
@@ -274,8 +274,7 @@ static rpiv_status fill_rule(rpiv_ccm_work *w, const integ *q, int coarse, rpiv_
     return RPIV_OK;
 }
 
-rpiv_status rpiv_ccm_stat_corr_fixed(const rpiv_ccm_model *m, rpiv_ccm_work *w,
-                                     rpiv_ccm_corr *out)
+rpiv_status rpiv_ccm_stat_corr_fixed(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm_corr *out)
 {
     integ q;
     double pts[MAX_PTS];
@@ -354,8 +353,7 @@ static rpiv_status spline_of(rpiv_ccm_func f, double zlo, double zhi, size_t n, 
         x[i] = zlo + (zhi - zlo) * (double)i / (double)(n - 1);
         y[i] = f.fn(f.user, x[i]);
         if (!isfinite(y[i])) {
-            st = rpiv_fail(RPIV_EINVAL, "ccm: the velocity profile is not finite at z* = %g",
-                           x[i]);
+            st = rpiv_fail(RPIV_EINVAL, "ccm: the velocity profile is not finite at z* = %g", x[i]);
             goto out_free;
         }
     }

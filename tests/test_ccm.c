@@ -6,6 +6,7 @@
  * every error path. */
 #include "check.h"
 #include "rpiv/ccm.h"
+#include "rpiv/config.h"
 
 #include <gsl/gsl_randist.h>
 #include <gsl/gsl_rng.h>
@@ -96,9 +97,20 @@ static double paper_gen_m(const rpiv_camera *cam, double h, const rpiv_ccm_parti
 static void gen_matches_numerical_correlation_of_two_images(void)
 {
     rpiv_ccm_model m = rpiv_ccm_model_default();
-    rpiv_ccm_particle q[2] = {
-        {.z1 = 0.3187, .z2 = 0.3411, .i1 = 0.71, .i2 = 0.64, .dp_m = 9.3e-6, .dx = 2.37, .dy = -0.61},
-        {.z1 = 0.5213, .z2 = 0.5213, .i1 = 0.93, .i2 = 0.93, .dp_m = 11.2e-6, .dx = 1.13, .dy = 0.42}};
+    rpiv_ccm_particle q[2] = {{.z1 = 0.3187,
+                               .z2 = 0.3411,
+                               .i1 = 0.71,
+                               .i2 = 0.64,
+                               .dp_m = 9.3e-6,
+                               .dx = 2.37,
+                               .dy = -0.61},
+                              {.z1 = 0.5213,
+                               .z2 = 0.5213,
+                               .i1 = 0.93,
+                               .i2 = 0.93,
+                               .dp_m = 11.2e-6,
+                               .dx = 1.13,
+                               .dy = 0.42}};
     rpiv_ccm_corr *c = NULL;
     CHECK_OK(rpiv_ccm_corr_new(0, &c));
     CHECK_OK(rpiv_ccm_gen(&m, q, 2, c));
@@ -137,8 +149,13 @@ static void simp_equals_gen_under_the_three_hypotheses(void)
     CHECK_OK(rpiv_ccm_simp(&m, z, 3, 1.0, a));
     rpiv_ccm_particle q[3];
     for (int i = 0; i < 3; i++)
-        q[i] = (rpiv_ccm_particle){.z1 = z[i], .z2 = z[i], .i1 = i0, .i2 = i0, .dp_m = m.dp_m,
-                                   .dx = rpiv_duct_u(0.5, z[i]) * m.scale_px, .dy = 0};
+        q[i] = (rpiv_ccm_particle){.z1 = z[i],
+                                   .z2 = z[i],
+                                   .i1 = i0,
+                                   .i2 = i0,
+                                   .dp_m = m.dp_m,
+                                   .dx = rpiv_duct_u(0.5, z[i]) * m.scale_px,
+                                   .dy = 0};
     CHECK_OK(rpiv_ccm_gen(&m, q, 3, b));
     for (int i = 0; i < 3; i++) {
         CHECK_NEAR(a->g[i].amp, b->g[i].amp, 1e-12 * b->g[i].amp);
@@ -188,34 +205,39 @@ static void peak_of_one_gaussian_is_exact(void)
     CHECK_NEAR(pk.dx, 3.3187, 1e-12);
     CHECK_NEAR(pk.dy, -1.2093, 1e-12);
     CHECK(pk.mx == 3 && pk.my == -1);
-    /* the 3-point Gaussian is exact on samples of a Gaussian; the parabola is not */
-    CHECK_NEAR(pk.dx_sub, 3.3187, 1e-9);
-    CHECK_NEAR(pk.dy_sub, -1.2093, 1e-9);
+    /* the 3-point Gaussian is exact on samples of a Gaussian (to the float precision of the
+     * engine's plane); the parabola and the centroid are not */
+    CHECK_NEAR(pk.dx_sub, 3.3187, 1e-6);
+    CHECK_NEAR(pk.dy_sub, -1.2093, 1e-6);
     rpiv_ccm_params pp = P;
     pp.subpixel = RPIV_SUBPIXEL_PARABOLA;
     CHECK_OK(rpiv_ccm_corr_peak(&c, &pp, &pk));
     CHECK(fabs(pk.dx_sub - 3.3187) > 1e-3 && fabs(pk.dx_sub - 3.3187) < 0.2);
     CHECK_NEAR(pk.dx, 3.3187, 1e-12);
+    pp.subpixel = RPIV_SUBPIXEL_CENTROID;
+    CHECK_OK(rpiv_ccm_corr_peak(&c, &pp, &pk));
+    CHECK(fabs(pk.dx_sub - 3.3187) > 1e-3 && fabs(pk.dx_sub - 3.3187) < 0.3);
+    CHECK(pk.dx_sub > 3 && pk.dy_sub < -1); /* pulled towards the true peak */
 }
 
 static void peak_of_a_sum_is_a_stationary_maximum(void)
 {
     /* 1-D (common DY): Brent + Newton; 2-D: simplex + Newton */
-    rpiv_ccm_gauss g1[3] = {{1.0, 0.41, 2.113, 0.3},
-                            {0.62, 0.23, 3.871, 0.3},
-                            {0.35, 0.9, 1.402, 0.3}};
-    rpiv_ccm_gauss g2[3] = {{1.0, 0.41, 2.113, 0.3},
-                            {0.62, 0.23, 3.871, -0.77},
-                            {0.35, 0.9, 1.402, 1.21}};
+    rpiv_ccm_gauss g1[3] = {
+        {1.0, 0.41, 2.113, 0.3}, {0.62, 0.23, 3.871, 0.3}, {0.35, 0.9, 1.402, 0.3}};
+    rpiv_ccm_gauss g2[3] = {
+        {1.0, 0.41, 2.113, 0.3}, {0.62, 0.23, 3.871, -0.77}, {0.35, 0.9, 1.402, 1.21}};
     for (int k = 0; k < 2; k++) {
         rpiv_ccm_corr c = {3, 3, k ? g2 : g1};
         rpiv_ccm_peak pk;
         CHECK_OK(rpiv_ccm_corr_peak(&c, &P, &pk));
         double h = 1e-5;
-        double gx = (rpiv_ccm_corr_eval(&c, pk.dx + h, pk.dy) -
-                     rpiv_ccm_corr_eval(&c, pk.dx - h, pk.dy)) / (2 * h);
-        double gy = (rpiv_ccm_corr_eval(&c, pk.dx, pk.dy + h) -
-                     rpiv_ccm_corr_eval(&c, pk.dx, pk.dy - h)) / (2 * h);
+        double gx =
+            (rpiv_ccm_corr_eval(&c, pk.dx + h, pk.dy) - rpiv_ccm_corr_eval(&c, pk.dx - h, pk.dy)) /
+            (2 * h);
+        double gy =
+            (rpiv_ccm_corr_eval(&c, pk.dx, pk.dy + h) - rpiv_ccm_corr_eval(&c, pk.dx, pk.dy - h)) /
+            (2 * h);
         CHECK_NEAR(gx, 0, 1e-9);
         CHECK_NEAR(gy, 0, 1e-9);
         CHECK(pk.value >= rpiv_ccm_corr_eval(&c, pk.dx + 0.01, pk.dy));
@@ -645,6 +667,132 @@ static void invert_halves_the_association_error(void)
     rpiv_sheet_free(s);
 }
 
+/* Per-point sigmas weight the fit; the files of the Monte-Carlo and of the inversion. */
+static void invert_weights_and_files(void)
+{
+    rpiv_sheet *s = make_selfsim();
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.camera.zop_star = 0.5;
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    enum { NM = 12 };
+    double x[NM], um[NM], sg[NM];
+    for (int j = 0; j < NM; j++) {
+        x[j] = 0.5 + 5.7 * j / (NM - 1);
+        rpiv_ccm_sheet_at at = {s, x[j]};
+        m.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
+        rpiv_ccm_peak pk;
+        CHECK_OK(rpiv_ccm_predict(&m, w, &pk));
+        um[j] = pk.dx / m.scale_px;
+        sg[j] = 0.004;
+    }
+    /* one wild point with a huge sigma barely moves the fit */
+    um[5] += 0.3;
+    sg[5] = 100;
+    rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
+    ip.symmetric = 1;
+    rpiv_ccm_invert_result *r = NULL, *r2 = NULL;
+    CHECK_OK(rpiv_ccm_invert(&m, s, x, um, sg, NM, &ip, &P, NULL, &r));
+    CHECK_OK(rpiv_ccm_invert(&m, s, x, um, NULL, NM, &ip, &P, NULL, &r2));
+    if (r && r2) {
+        double e1a, e1c, e1a2, e1c2;
+        rpiv_ccm_func duct = {rpiv_ccm_duct_fn, NULL};
+        CHECK_OK(rpiv_ccm_invert_e1(r, duct, 1, &e1a, &e1c));
+        CHECK_OK(rpiv_ccm_invert_e1(r2, duct, 1, &e1a2, &e1c2));
+        CHECK(e1c < 0.002);    /* the outlier is ignored */
+        CHECK(e1c2 > 3 * e1c); /* and not without its sigma */
+        /* the band's sigma: (mean 1/sigma_j^2)^-1/2 of the given sigmas */
+        CHECK_NEAR(r->sigma, 1 / sqrt((11 / (0.004 * 0.004) + 1 / 1e4) / 12), 1e-12);
+        const char *path = tmp_path("invert.txt");
+        CHECK_OK(rpiv_ccm_invert_save(r, "test", path));
+        FILE *fp = fopen(path, "r");
+        char line[256];
+        int nm = 0, nrow = 0;
+        while (fp && fgets(line, sizeof line, fp)) {
+            nm += !strncmp(line, "#m ", 3);
+            nrow += line[0] != '#';
+        }
+        if (fp)
+            fclose(fp);
+        CHECK(nm == NM && nrow == (int)r->nout);
+        remove(path);
+        CHECK_FAILS(rpiv_ccm_invert_save(r, NULL, "/nonexistent/rpiv/i.txt"), RPIV_EIO);
+    }
+    rpiv_ccm_invert_free(r);
+    rpiv_ccm_invert_free(r2);
+    sg[3] = 0;
+    CHECK_FAILS(rpiv_ccm_invert(&m, s, x, um, sg, NM, &ip, &P, NULL, &r), RPIV_EINVAL);
+    /* Monte-Carlo file */
+    rpiv_ccm_mc_params mc = rpiv_ccm_mc_params_default();
+    mc.repeats = 2;
+    mc.nnim = 2;
+    mc.nim[0] = 1;
+    mc.nim[1] = 3;
+    rpiv_ccm_sheet_at at = {s, 4.1};
+    m.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
+    rpiv_ccm_mc_result *mr = NULL;
+    CHECK_OK(rpiv_ccm_mc_run(&m, &P, &mc, NULL, &mr));
+    if (mr) {
+        const char *path = tmp_path("mc.txt");
+        CHECK_OK(rpiv_ccm_mc_save(mr, m.scale_px, 7.0, 6.9, "x* = 4.1", path));
+        FILE *fp = fopen(path, "r");
+        char line[256];
+        int nrow = 0;
+        double first = 0;
+        while (fp && fgets(line, sizeof line, fp))
+            if (line[0] != '#' && nrow++ == 0)
+                sscanf(line, "%*d %lf", &first);
+        if (fp)
+            fclose(fp);
+        CHECK(nrow == 2);
+        CHECK_NEAR(first, mr->mean[0] / m.scale_px, 1e-9);
+        remove(path);
+        CHECK_FAILS(rpiv_ccm_mc_save(mr, 0, 7, 7, NULL, path), RPIV_EINVAL);
+    }
+    rpiv_ccm_mc_free(mr);
+    rpiv_ccm_work_free(w);
+    rpiv_sheet_free(s);
+}
+
+/* A vector field's row along x*, and the model of an experiment. */
+static void profile_of_field_and_model_of(void)
+{
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_field_new(6, 3, 16, 1040, 32, 32, &f));
+    if (!f)
+        return;
+    for (int j = 0; j < 3; j++)
+        for (int i = 0; i < 6; i++) {
+            f->u[j * 6 + i] = (float)(1.25 * (j + 1) + 0.1 * i);
+            f->flag[j * 6 + i] = RPIV_FLAG_VALID;
+        }
+    f->flag[1 * 6 + 2] = RPIV_FLAG_REPLACED;
+    rpiv_ccm_geometry g = {1.0, -1.73, 0.002};
+    rpiv_ccm_curve *c = NULL;
+    /* row j = 1 has y* = -1.73 + (1072 + 0.5) 0.002 = 0.415 */
+    CHECK_OK(rpiv_ccm_profile_of_field(f, &g, 2.5, 0.42, &c));
+    if (c) {
+        CHECK(c->n == 5); /* the replaced vector is left out */
+        CHECK_NEAR(c->x[0], 1.0 + 16.5 * 0.002, 1e-12);
+        CHECK_NEAR(c->y[0], 2.5 / 2.5, 1e-6);
+        CHECK_NEAR(c->x[2], 1.0 + (16 + 3 * 32 + 0.5) * 0.002, 1e-12);
+    }
+    rpiv_ccm_curve_free(c);
+    CHECK_FAILS(rpiv_ccm_profile_of_field(f, &g, 2.5, 0.9, &c), RPIV_EINVAL);
+    for (int i = 0; i < 6; i++)
+        f->flag[6 + i] = RPIV_FLAG_MASKED;
+    CHECK_FAILS(rpiv_ccm_profile_of_field(f, &g, 2.5, 0.42, &c), RPIV_ENUMERIC);
+    rpiv_field_free(f);
+
+    rpiv_experiment e = rpiv_experiment_default();
+    e.camera.fnumber = 8;
+    e.particles.dp_m = 7.3e-6;
+    rpiv_ccm_model m = rpiv_ccm_model_of(&e, 2e-3);
+    CHECK(m.camera.fnumber == 8 && m.dp_m == 7.3e-6 && m.h_m == e.channel.h_m);
+    /* U_b dt M / pixel = 465e-6/8e-3 * 2e-3 * 0.39 / (16.6e-3/2560) */
+    CHECK_NEAR(m.scale_px, 0.058125 * 2e-3 * 0.39 / (16.6e-3 / 2560), 1e-9);
+}
+
 /* ---- errors ----------------------------------------------------------------------------- */
 
 static int stop_now(void *user, size_t done, size_t total)
@@ -809,6 +957,8 @@ int main(void)
     RUN_TEST(fig18_monte_carlo_converges_to_the_integral);
     RUN_TEST(monte_carlo_is_independent_of_threads);
     RUN_TEST(invert_halves_the_association_error);
+    RUN_TEST(invert_weights_and_files);
+    RUN_TEST(profile_of_field_and_model_of);
     RUN_TEST(error_paths);
     return check_summary();
 }

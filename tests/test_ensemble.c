@@ -11,7 +11,7 @@
 #include <string.h>
 #include <unistd.h>
 
-enum { W = 128, H = 256 };
+enum { W = 96, H = 256 };
 
 /* Plane Poiseuille profile across the image rows: u = a 4 s (1 - s), s = y / H. */
 static const double AMP = 5.3187;
@@ -88,6 +88,7 @@ static void ensemble_recovers_parabolic_profile_from_sparse_pairs(void)
 {
     const int npairs = 200;
     rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = 1; /* the 1-vs-2-thread tests below cover the threads */
     rpiv_piv *pv = NULL;
     float *a = malloc(sizeof(float) * W * H), *b = malloc(sizeof(float) * W * H);
     rpiv_image ia = {W, H, 16, a}, ib = {W, H, 16, b};
@@ -128,13 +129,13 @@ static void ensemble_recovers_parabolic_profile_from_sparse_pairs(void)
     CHECK(nout == 0);
 
     /* the same pairs one by one: sparse windows give outliers */
-    int bad3 = instantaneous_outliers(pv, 40, "64,32,32");
+    int bad3 = instantaneous_outliers(pv, 30, "64,32,32");
     rpiv_piv_params one = prm;
     one.npass = 1;
     one.win_w[0] = one.win_h[0] = 32;
     rpiv_piv *pv1 = NULL;
     CHECK_OK(rpiv_piv_new(&one, W, H, NULL, &pv1));
-    int bad1 = pv1 ? instantaneous_outliers(pv1, 40, "one 32 px pass") : 0;
+    int bad1 = pv1 ? instantaneous_outliers(pv1, 30, "one 32 px pass") : 0;
     rpiv_piv_free(pv1);
     CHECK(bad3 > 0 && bad1 > 4 * bad3);
 out:
@@ -180,7 +181,7 @@ static void ensemble_sums_identical_for_1_and_2_threads(void)
     e2 = accumulate(v2, 1, f1, 0, 6);
     size_t n1, n2;
     float *d1 = rpiv_ensemble_data(e1, &n1), *d2 = rpiv_ensemble_data(e2, &n2);
-    CHECK(n1 == n2 && n1 == 15 * 7 * (32 * 32 + 2));
+    CHECK(n1 == n2 && n1 == 15 * 5 * (32 * 32 + 2));
     CHECK(!memcmp(d1, d2, n1 * sizeof(float)));
     CHECK_OK(rpiv_ensemble_finish(e2, &f2));
     rpiv_ensemble_free(e1);
@@ -317,7 +318,8 @@ static void ensemble_merge_save_and_load(void)
     rpiv_ensemble_free(empty);
     rpiv_piv_params small = prm;
     rpiv_piv *pvs = NULL;
-    small.max_mem_mb = 0.6; /* the frames fit (0.5 MB), their 105 planes of 4 KB do not */
+    /* room for the plan's buffers, not for its 75 planes of 4 KB */
+    small.max_mem_mb = (double)rpiv_piv_memory(pv) / 1048576.0 + 0.1;
     CHECK_OK(rpiv_piv_new(&small, W, H, NULL, &pvs));
     if (pvs)
         CHECK_FAILS(rpiv_ensemble_new(pvs, 1, NULL, &empty), RPIV_ELIMIT);

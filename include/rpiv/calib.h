@@ -63,8 +63,10 @@ typedef struct rpiv_calib_shot {
 typedef struct rpiv_calib_sheet_params {
     rpiv_calib_geom geom;
     double smooth_px;   /* Gaussian smoothing (sigma) of the span-averaged profile, px (0: none) */
-    int subtract_floor; /* 1: also subtract the profile's minimum over the plate interior
-                           (scattered light, plate glow) before normalising (1) */
+    int subtract_floor; /* 1: also subtract the profile's minimum along the plate (scattered
+                           light, plate glow) before normalising (1) */
+    double min_signal;  /* the sheet's peak above that floor must exceed min_signal x floor and
+                           10 x the noise of the span average, else "no sheet" (0.1) */
     double margin;      /* z* dropped next to the floor and the plate top, where the blurred image
                            of the floor or of the plate edge leaks into the profile (0.03) */
     double zplus_step;  /* step of the mean shape table in z+ (0.01) */
@@ -132,6 +134,9 @@ typedef struct rpiv_calib_dof_params {
     double dot_d_m;         /* dot diameter on the target, m (62.5e-6)                       */
     double pitch_m;         /* dot pitch on the target, both directions, m (125e-6)          */
     double min_contrast;    /* a dot centre must be this fraction below the local mean (0.03) */
+    double min_snr;         /* ... and below it by min_snr x the standard deviation of the
+                               pixels around it (whole cells): a lattice of dots gives >= 1.4
+                               (a blurred lattice is a sinusoid), noise minima less (1)      */
     double smooth_px;       /* Gaussian smoothing (sigma) of the image used to detect the dots
                                and locate their centres, px (0.7); the grey level is read on
                                the unsmoothed image                                          */
@@ -190,7 +195,7 @@ typedef struct rpiv_calib_dof_result {
 } rpiv_calib_dof_result;
 
 /* Detect the dots (local minima of the lightly smoothed image darker than the local mean by
- * min_contrast, one per lattice cell, with a lattice neighbour), measure each dot's centre grey
+ * min_contrast and min_snr, one per lattice cell, with a lattice neighbour), measure each dot's centre grey
  * level relative to the local mean, average the columns of dots along the span (pooling all
  * shots by z*), and find DOF* and z*_OP. Errors: as rpiv_calib_sheet_run; RPIV_ENUMERIC when no
  * dot is found, fewer than 5 columns of dots remain, or the curve does not fall to half its
@@ -215,6 +220,17 @@ RPIV_NODISCARD rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p,
                                                 double reflectance, double zstep,
                                                 rpiv_calib_focus *c);
 void rpiv_calib_focus_free(rpiv_calib_focus *c); /* frees the arrays, not c */
+
+/* The dot reflectance for which the model's 1/I* at the object plane equals inv_max (a
+ * measured maximum), so that rpiv_calib_dof_model can be compared with a measurement whose
+ * target contrast is unknown. RPIV_ENUMERIC if no reflectance in [0, 1) gives that peak (the
+ * measured dots are darker than a black dot of the model, or not darker than the mean). */
+RPIV_NODISCARD rpiv_status rpiv_calib_dof_reflectance(const rpiv_calib_dof_params *p,
+                                                      const rpiv_camera *cam, double h_m,
+                                                      double inv_max, double *reflectance);
+
+/* Text table of the detected dots (image, x, y, z*, grey, reference, I*). */
+RPIV_NODISCARD rpiv_status rpiv_calib_dof_write_dots(const rpiv_calib_dof_result *r, FILE *fp);
 
 /* ---- target images from the model ------------------------------------------------------- */
 

@@ -19,6 +19,7 @@
 #define RPIV_CCM_H
 
 #include "rpiv/error.h"
+#include "rpiv/field.h"
 #include "rpiv/flow.h"
 #include "rpiv/imaging.h"
 #include "rpiv/piv.h"
@@ -30,18 +31,18 @@
 /* ---- numerical parameters ---------------------------------------------------------------- */
 
 typedef struct rpiv_ccm_params {
-    double epsrel;        /* relative tolerance of the adaptive quadrature (1e-9)             */
-    size_t limit;         /* subintervals of the adaptive quadrature (1000)                   */
-    size_t gl_points;     /* Gauss-Legendre points per subinterval of a cached rule (20)      */
-    double max_width;     /* longest subinterval of a cached rule, z* (1/64)                  */
-    size_t scan;          /* samples of I0 and P over [zlo, zhi] to find their features (4001) */
-    double xtol_px;       /* location tolerance of the continuous peak, px (1e-10)            */
-    int max_iter;         /* iterations of the peak minimiser (500)                           */
-    int max_range_px;     /* widest integer-sampled correlation plane per axis, px (4096)     */
+    double epsrel;          /* relative tolerance of the adaptive quadrature (1e-9)             */
+    size_t limit;           /* subintervals of the adaptive quadrature (1000)                   */
+    size_t gl_points;       /* Gauss-Legendre points per subinterval of a cached rule (20)      */
+    double max_width;       /* longest subinterval of a cached rule, z* (1/64)                  */
+    size_t scan;            /* samples of I0 and P over [zlo, zhi] to find their features (4001) */
+    double xtol_px;         /* location tolerance of the continuous peak, px (1e-10)            */
+    int max_iter;           /* iterations of the peak minimiser (500)                           */
+    int max_range_px;       /* widest integer-sampled correlation plane per axis, px (4096)     */
     rpiv_subpixel subpixel; /* sub-pixel estimator on the sampled plane (gauss)               */
-    size_t utab;          /* runs over many windows (scenarios, Monte-Carlo) tabulate U*, V*
-                             on this many nodes of [zlo, zhi] (Akima spline; 3e-11 for the
-                             duct); 0 = evaluate the profile every time (4097)               */
+    size_t utab;            /* runs over many windows (scenarios, Monte-Carlo) tabulate U*, V*
+                               on this many nodes of [zlo, zhi] (Akima spline; 3e-11 for the
+                               duct); 0 = evaluate the profile every time (4097)               */
 } rpiv_ccm_params;
 
 rpiv_ccm_params rpiv_ccm_params_default(void);
@@ -148,9 +149,9 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_sheet_zmax(const rpiv_sheet *s, double xstar
                                                const rpiv_ccm_params *p, double *zmax);
 /* The section x* in [xlo, xhi] where z*_max(x*) = target (Brent root finder); RPIV_EINVAL if
  * z*_max - target does not change sign over [xlo, xhi]. */
-RPIV_NODISCARD rpiv_status rpiv_ccm_sheet_x_of_zmax(const rpiv_sheet *s, double target,
-                                                    double xlo, double xhi,
-                                                    const rpiv_ccm_params *p, double *xstar);
+RPIV_NODISCARD rpiv_status rpiv_ccm_sheet_x_of_zmax(const rpiv_sheet *s, double target, double xlo,
+                                                    double xhi, const rpiv_ccm_params *p,
+                                                    double *xstar);
 
 /* A tabulated curve y(x) (x increasing, linear interpolation, 0 outside [x0, x_{n-1}]), with
  * an optional third column w (e.g. the uncertainty of a measured profile; NULL if absent). */
@@ -166,6 +167,21 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_curve_load(const char *path, rpiv_ccm_curve 
 void rpiv_ccm_curve_free(rpiv_ccm_curve *c);
 double rpiv_ccm_curve_eval(const rpiv_ccm_curve *c, double x);
 double rpiv_ccm_curve_fn(const void *user, double x); /* user = const rpiv_ccm_curve * */
+
+/* Where an image sits in the channel: x* = x0_star + (x + 0.5) star_per_px for the pixel
+ * column x (centres at integers), likewise y* (rpiv_synth_get_info gives these). */
+typedef struct rpiv_ccm_geometry {
+    double x0_star, y0_star; /* x*, y* of the image's left and top edges */
+    double star_per_px;      /* pixel / (M h)                             */
+} rpiv_ccm_geometry;
+
+/* The streamwise profile along x* of a vector field (rpiv piv output) at the grid row nearest
+ * y* = ystar: (x*, U* = u / scale_px) of the valid vectors, as a curve. RPIV_EINVAL if ystar
+ * is more than one grid step outside the field, RPIV_ENUMERIC if that row has fewer than 3
+ * valid vectors. */
+RPIV_NODISCARD rpiv_status rpiv_ccm_profile_of_field(const rpiv_field *f,
+                                                     const rpiv_ccm_geometry *g, double scale_px,
+                                                     double ystar, rpiv_ccm_curve **out);
 
 /* ---- Eq. "CCM_gen" and Eq. "CCM_simp" ---------------------------------------------------- */
 
@@ -202,8 +218,8 @@ void rpiv_ccm_work_free(rpiv_ccm_work *w);
 /* <R_D>(dx, dy) = int P(z) R_Dz(z) dz over [zlo, zhi] by adaptive quadrature
  * (gsl_integration_qagp split at z*_OP, the model's breaks and the features of I0 and P), with
  * P normalised to unit integral. The reference evaluation; RPIV_ENUMERIC if GSL fails. */
-RPIV_NODISCARD rpiv_status rpiv_ccm_stat_eval(const rpiv_ccm_model *m, rpiv_ccm_work *w,
-                                              double dx, double dy, double *value);
+RPIV_NODISCARD rpiv_status rpiv_ccm_stat_eval(const rpiv_ccm_model *m, rpiv_ccm_work *w, double dx,
+                                              double dy, double *value);
 
 /* The integral as a cached quadrature rule: the subintervals chosen by gsl_integration_qagp on
  * the integrand at the sampled correlation peak (after a first pass on the amplitude alone),
@@ -249,8 +265,7 @@ typedef struct rpiv_ccm_mc_result {
  * rpiv_ccm_mc_free. RPIV_EINTR if progress asks to stop. */
 RPIV_NODISCARD rpiv_status rpiv_ccm_mc_run(const rpiv_ccm_model *m, const rpiv_ccm_params *p,
                                            const rpiv_ccm_mc_params *mc,
-                                           const rpiv_progress *progress,
-                                           rpiv_ccm_mc_result **out);
+                                           const rpiv_progress *progress, rpiv_ccm_mc_result **out);
 void rpiv_ccm_mc_free(rpiv_ccm_mc_result *r);
 
 /* Write a Monte-Carlo result as text: "# rpiv-ccm-mc 1", header lines hdr (may be NULL), the
@@ -270,12 +285,12 @@ typedef enum rpiv_ccm_kind {
 
 typedef struct rpiv_ccm_scenario {
     rpiv_ccm_kind kind;
-    double e_star;     /* P-PIV sheet thickness at a quarter of the maximum (0.05)            */
-    double zop_star;   /* fixed object plane (PPIV_FIXED, RPIV) (0.5)                          */
-    double z0, z1;     /* positions z*_B (P-PIV) or z*_max (R-PIV) from z0 to z1 (0.0625, 0.9375) */
-    size_t n;          /* number of positions (15)                                             */
-    int symmetric;     /* RPIV: mirror the rows to z* -> 1 - z* (the paper's extension) (1)    */
-    double xlo, xhi;   /* RPIV: bracket of the x* search (0.01, 100)                           */
+    double e_star;   /* P-PIV sheet thickness at a quarter of the maximum (0.05)            */
+    double zop_star; /* fixed object plane (PPIV_FIXED, RPIV) (0.5)                          */
+    double z0, z1;   /* positions z*_B (P-PIV) or z*_max (R-PIV) from z0 to z1 (0.0625, 0.9375) */
+    size_t n;        /* number of positions (15)                                             */
+    int symmetric;   /* RPIV: mirror the rows to z* -> 1 - z* (the paper's extension) (1)    */
+    double xlo, xhi; /* RPIV: bracket of the x* search (0.01, 100)                           */
 } rpiv_ccm_scenario;
 
 /* Defaults of each kind: the paper's values (RPIV: z*_max from 0.03125 to 0.5, 16 positions). */
@@ -293,8 +308,8 @@ typedef struct rpiv_ccm_row {
 
 typedef struct rpiv_ccm_table {
     size_t n;
-    rpiv_ccm_row *row;     /* increasing z*                                                  */
-    double e1, e1_sub;     /* Eq. "E1" over the rows (trapezoid in z*)                       */
+    rpiv_ccm_row *row;         /* increasing z*                                                  */
+    double e1, e1_sub;         /* Eq. "E1" over the rows (trapezoid in z*)                       */
     double maxerr, maxerr_sub; /* max |pointwise relative error|                            */
 } rpiv_ccm_table;
 
@@ -303,9 +318,8 @@ typedef struct rpiv_ccm_table {
  * OpenMP over positions; deterministic. *out: rpiv_ccm_table_free. */
 RPIV_NODISCARD rpiv_status rpiv_ccm_scenario_run(const rpiv_ccm_scenario *s,
                                                  const rpiv_ccm_model *base,
-                                                 const rpiv_sheet *sheet,
-                                                 const rpiv_ccm_params *p, int threads,
-                                                 const rpiv_progress *progress,
+                                                 const rpiv_sheet *sheet, const rpiv_ccm_params *p,
+                                                 int threads, const rpiv_progress *progress,
                                                  rpiv_ccm_table **out);
 void rpiv_ccm_table_free(rpiv_ccm_table *t);
 
@@ -317,17 +331,17 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_table_save(const rpiv_ccm_table *t, const ch
 /* ---- beyond the paper: the inverse problem ----------------------------------------------- */
 
 typedef struct rpiv_ccm_invert_params {
-    size_t ncoef;      /* cubic B-spline coefficients over [0, 1], the end ones 0 (U = 0 at the
-                          walls) (16)                                                          */
-    double lambda;     /* weight of the second-difference penalty on the coefficients (1e-4)   */
-    int symmetric;     /* 1: U(z*) = U(1 - z*) (0)                                             */
-    double sigma;      /* measurement standard deviation in U* (the mean one if usigma is
-                          given); 0 = the mean of usigma, else estimated from the fit (0)      */
-    size_t max_iter;   /* Levenberg-Marquardt iterations (100)                                 */
-    double xtol;       /* gsl_multifit_nlinear_driver tolerances (1e-10, 1e-10, 1e-12)         */
+    size_t ncoef;    /* cubic B-spline coefficients over [0, 1], the end ones 0 (U = 0 at the
+                        walls) (16)                                                          */
+    double lambda;   /* weight of the second-difference penalty on the coefficients (1e-4)   */
+    int symmetric;   /* 1: U(z*) = U(1 - z*) (0)                                             */
+    double sigma;    /* measurement standard deviation in U* (sbar if usigma is given);
+                        0 = sbar of usigma, else estimated from the fit (0)                  */
+    size_t max_iter; /* Levenberg-Marquardt iterations (100)                                 */
+    double xtol;     /* gsl_multifit_nlinear_driver tolerances (1e-10, 1e-10, 1e-12)         */
     double gtol;
     double ftol;
-    size_t nout;       /* samples of the reconstructed profile on [0, 1] (129)                 */
+    size_t nout; /* samples of the reconstructed profile on [0, 1] (129)                 */
 } rpiv_ccm_invert_params;
 
 rpiv_ccm_invert_params rpiv_ccm_invert_params_default(void);
@@ -335,33 +349,33 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_invert_params_check(const rpiv_ccm_invert_pa
 
 typedef struct rpiv_ccm_invert_result {
     size_t nout;
-    double *z, *u, *u_std;   /* reconstructed U*(z*) on nout points and its 1-sigma band       */
+    double *z, *u, *u_std; /* reconstructed U*(z*) on nout points and its 1-sigma band       */
     size_t nmeas;
-    double *xstar;           /* the measurement sections                                       */
-    double *zmax;            /* z*_max(x*) of the sheet there                                   */
-    double *umeas;           /* measured U*                                                    */
-    double *ufit;            /* the model's prediction of them with the reconstructed profile  */
+    double *xstar; /* the measurement sections                                       */
+    double *zmax;  /* z*_max(x*) of the sheet there                                   */
+    double *umeas; /* measured U*                                                    */
+    double *ufit;  /* the model's prediction of them with the reconstructed profile  */
     size_t ncoef;
-    double *coef;            /* B-spline coefficients                                          */
-    double sigma;            /* measurement sigma used for the band                            */
-    double chi2;             /* sum of squared data residuals                                  */
+    double *coef; /* B-spline coefficients                                          */
+    double sigma; /* measurement sigma used for the band                            */
+    double chi2;  /* sum of squared data residuals                                  */
     size_t iterations;
 } rpiv_ccm_invert_result;
 
 /* Reconstruct U*(z*) from R-PIV measurements umeas[j] at sections xstar[j] (U* units, i.e.
  * measured displacement / scale_px), with standard deviations usigma[j] (NULL: all equal):
  * minimise sum_j w_j (U_pred(x_j) - umeas_j)^2 + lambda |D2 c|^2 over the B-spline
- * coefficients c, w_j = (mean sigma / sigma_j)^2, where U_pred(x_j) is the peak of Eq. "statform"
- * with the sheet at x_j (gsl_multifit_nlinear, trust region Levenberg-Marquardt, analytic
- * Jacobian by implicit differentiation of the peak condition). base gives the camera (object
- * plane), h, d_p, scale_px, P; its u, v and illum are ignored. The band is the Bayesian
- * covariance sigma^2 (J^T J + lambda D^T D)^-1 mapped to U(z). *out: rpiv_ccm_invert_free. */
+ * coefficients c, w_j = (sbar / sigma_j)^2 with sbar = (mean 1/sigma_j^2)^-1/2, where U_pred(x_j)
+ * is the peak of Eq. "statform" with the sheet at x_j (gsl_multifit_nlinear, trust region
+ * Levenberg-Marquardt, analytic Jacobian by implicit differentiation of the peak condition). base
+ * gives the camera (object plane), h, d_p, scale_px, P; its u, v and illum are ignored. The band is
+ * the Bayesian covariance sigma^2 (J^T J + lambda D^T D)^-1 mapped to U(z). *out:
+ * rpiv_ccm_invert_free. */
 RPIV_NODISCARD rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
                                            const double *xstar, const double *umeas,
                                            const double *usigma, size_t n,
                                            const rpiv_ccm_invert_params *ip,
-                                           const rpiv_ccm_params *p,
-                                           const rpiv_progress *progress,
+                                           const rpiv_ccm_params *p, const rpiv_progress *progress,
                                            rpiv_ccm_invert_result **out);
 void rpiv_ccm_invert_free(rpiv_ccm_invert_result *r);
 
@@ -375,7 +389,7 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_invert_e1(const rpiv_ccm_invert_result *r, r
 /* Write an inversion as text: "# rpiv-ccm-invert 1", header lines hdr (may be NULL), sigma,
  * chi2, then the profile rows "z* U* std" and, as '#m' lines, the measurements
  * "x* z*_max U_meas U_fit". Atomic; RPIV_EIO. */
-RPIV_NODISCARD rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r,
-                                                const char *hdr, const char *path);
+RPIV_NODISCARD rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hdr,
+                                                const char *path);
 
 #endif /* RPIV_CCM_H */
