@@ -531,7 +531,8 @@ static void model_dof_brute(const rpiv_camera *cam, double h, double dot_d, doub
     double z[N], g[N], gmax = 0;
     for (int i = 0; i < N; i++) {
         z[i] = cam->zop_star - 0.45 + 0.01 * i;
-        double zd = h * fabs(z[i] - cam->zop_star), da = cam->focal_m / cam->fnumber;
+        double zd = h * fabs(z[i] - cam->zop_star) / cam->n_medium; /* apparent depth */
+        double da = cam->focal_m / cam->fnumber;
         double dif = (m + 1) * cam->lambda_p_m * cam->fnumber, foc = m * zd * da / (cam->s0_m + zd);
         double s = sqrt(5.95 * dif * dif + foc * foc) / sqrt(8 * cam->beta2) * scale / m;
         int kx = (int)ceil((ax + 7 * s + 2) / ppx), ky = (int)ceil((ay + 7 * s + 2) / ppy);
@@ -746,7 +747,7 @@ static void dof_errors_have_clear_statuses(void)
     rp.reflectance = 0.1;
     /* a lens whose depth of focus is wider than the target */
     rpiv_camera wide = cam;
-    wide.fnumber = 22;
+    wide.fnumber = 16;
     im = render_target(&wide, &rp, 560, 24);
     shot.image = im;
     CHECK_FAILS(rpiv_calib_dof_run(&p, &wide, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
