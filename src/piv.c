@@ -416,6 +416,13 @@ void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src,
 {
     int ax, ay, bx, by;
     window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
+    if (ax >= 0 && ay >= 0 && bx >= 0 && by >= 0 && ax + ps->ww <= pv->w && bx + ps->ww <= pv->w &&
+        ay + ps->wh <= pv->h && by + ps->wh <= pv->h) {
+        const size_t sw = (size_t)pv->w;
+        rpiv_xcorr_run_from(ps->xc, ws, src->fa + (size_t)ay * sw + (size_t)ax, sw,
+                            src->fb + (size_t)by * sw + (size_t)bx, sw, RPIV_XCORR_RAW, ea, eb);
+        return;
+    }
     copy_window(src->fa, pv->w, pv->h, ax, ay, ps->ww, ps->wh, pv->fill_a, ws->a);
     copy_window(src->fb, pv->w, pv->h, bx, by, ps->ww, ps->wh, pv->fill_b, ws->b);
     rpiv_xcorr_run(ps->xc, ws, RPIV_XCORR_RAW, ea, eb);
