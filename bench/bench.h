@@ -26,6 +26,15 @@ static int bench_cmp(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* CPU time of the whole process (all threads), s: on a shared machine a steadier measure of
+ * work than the wall clock, which counts the time other processes hold the cores. */
+static inline double bench_cpu(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 /* Median of v[0..n-1] (reordered). */
 static inline double bench_median(double *v, int n)
 {

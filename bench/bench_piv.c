@@ -104,12 +104,12 @@ static uint64_t field_sum(const rpiv_field *f)
 
 /* The bare FFTs of a run of plan pv: per pass, nwin x (2 r2c + 1 c2r) of the pass's window
  * with FFTW_ESTIMATE plans (those of rpiv_xcorr), windows split among `threads`. ms. */
-static double fft_bound(const rpiv_piv *pv, int threads, int repeats)
+static double fft_bound(const rpiv_piv *pv, int threads, int repeats, double *cpu_ms)
 {
     const rpiv_piv_params *p = rpiv_piv_params_of(pv);
-    double t[16];
+    double t[16], tc[16];
     for (int r = 0; r < repeats; r++) {
-        double total = 0;
+        double total = 0, ctotal = 0;
         for (int k = 0; k < p->npass; k++) {
             rpiv_field *g = NULL;
             if (rpiv_piv_grid(pv, k, &g))
@@ -129,7 +129,7 @@ static double fft_bound(const rpiv_piv *pv, int threads, int repeats)
             }
             fftwf_plan fwd = fftwf_plan_dft_r2c_2d(wh, ww, in[0], ca[0], FFTW_ESTIMATE);
             fftwf_plan inv = fftwf_plan_dft_c2r_2d(wh, ww, cb[0], in[0], FFTW_ESTIMATE);
-            double t0 = bench_now();
+            double t0 = bench_now(), c0 = bench_cpu();
 #pragma omp parallel for schedule(dynamic, 8) num_threads(threads)
             for (long win = 0; win < nwin; win++) {
                 int th = omp_get_thread_num();
@@ -138,6 +138,7 @@ static double fft_bound(const rpiv_piv *pv, int threads, int repeats)
                 fftwf_execute_dft_c2r(inv, cb[th], in[th]);
             }
             total += bench_now() - t0;
+            ctotal += bench_cpu() - c0;
             fftwf_destroy_plan(fwd);
             fftwf_destroy_plan(inv);
             for (int th = 0; th < threads; th++) {
@@ -147,7 +148,10 @@ static double fft_bound(const rpiv_piv *pv, int threads, int repeats)
             }
         }
         t[r] = 1e3 * total;
+        tc[r] = 1e3 * ctotal;
     }
+    if (cpu_ms)
+        *cpu_ms = bench_median(tc, repeats);
     return bench_median(t, repeats);
 }
 
@@ -176,10 +180,10 @@ static int case_run(int threads)
     double err = rms_error(f);
     uint64_t sum = field_sum(f);
     rpiv_field_free(f);
-    double t[16], ph[4][16];
+    double t[16], tc[16], ph[4][16];
     for (int r = 0; r < repeats; r++) {
         rpiv_field *fk[3] = {NULL, NULL, NULL};
-        double t0 = bench_now();
+        double t0 = bench_now(), c0 = bench_cpu();
         if (rpiv_piv_load(pv, a, b))
             return 1;
         double t1 = bench_now();
@@ -191,6 +195,7 @@ static int case_run(int threads)
             ph[k + 1][r] = 1e3 * (bench_now() - s0);
         }
         t[r] = 1e3 * (bench_now() - t0);
+        tc[r] = 1e3 * (bench_cpu() - c0);
         if (field_sum(fk[2]) != sum) {
             printf("# FAILED: repeated runs give different results\n");
             return 1;
@@ -198,8 +203,11 @@ static int case_run(int threads)
         for (int k = 0; k < 3; k++)
             rpiv_field_free(fk[k]);
     }
-    double run = bench_median(t, repeats), fft = fft_bound(pv, threads, 3);
+    double fft_cpu = 0, run = bench_median(t, repeats), fft = fft_bound(pv, threads, 3, &fft_cpu);
+    double run_cpu = bench_median(tc, repeats);
     bench_line("piv_3pass", W, H, threads, run, fft, sum);
+    printf("#   CPU time (all threads): run %.1f ms, bare FFTs %.1f ms, ratio %.2f\n", run_cpu,
+           fft_cpu, run_cpu / fft_cpu);
     printf("#   phases (median ms): load %.1f, pass 1 (64 px) %.1f, pass 2 (32 px, deform) %.1f, "
            "pass 3 %.1f; RMS error %.4f px (limit 0.012)%s\n", bench_median(ph[0], repeats),
            bench_median(ph[1], repeats), bench_median(ph[2], repeats),
@@ -259,7 +267,7 @@ static int case_ensemble(int threads, int n)
     double ms = 1e3 * (bench_now() - t0), err = rms_error(f);
     char name[32];
     snprintf(name, sizeof name, "ensemble_%d", n);
-    bench_line(name, W, H, threads, ms, n * fft_bound(pv, threads, 1), field_sum(f));
+    bench_line(name, W, H, threads, ms, n * fft_bound(pv, threads, 1, NULL), field_sum(f));
     printf("#   %.2f pairs/s (each pair read and correlated once per pass, 3 passes); RMS "
            "error %.4f px; peak RSS %.0f MB (target < 300 MB)%s\n", 1e3 * n / ms, err,
            bench_maxrss_mb(), err <= 0.012 && bench_maxrss_mb() < 300 ? "" : " FAILED");

@@ -2,6 +2,8 @@
 /* src/deform.c - cubic B-spline prefilter and sampling; field predictor; symmetric deformation. */
 #include "rpiv/deform.h"
 
+#include "deform_impl.h"
+
 #include <math.h>
 #include <omp.h>
 #include <stdint.h>
@@ -250,6 +252,7 @@ struct rpiv_deform_pred {
     float *cu, *cv;     /* spline coefficients, ny x nx */
     int w, h;           /* image size */
     double shift;       /* rows and columns evaluated at pixel + shift */
+    float maxabs;       /* largest |coefficient|: the interpolant's bound (convex weights) */
     int *ix, *iy;       /* first tap per pixel column / row */
     float *wx, *wy;     /* 4 weights per pixel column / row */
 };
@@ -353,6 +356,10 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift
         for (int i = 0; i < p->nx; i++)
             ghosts(g + (size_t)G * snx + (size_t)i, f->ny, snx);
         rpiv_deform_prefilter(g, p->nx, p->ny, 1);
+        for (size_t k = 0; k < n; k++) {
+            float a = fabsf(g[k]);
+            p->maxabs = a > p->maxabs ? a : p->maxabs;
+        }
     }
     for (int x = 0; x < w; x++)
         tap((x + shift - f->x0) / f->dx, f->nx, &p->ix[x], p->wx + 4 * (size_t)x);
@@ -408,6 +415,59 @@ void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, floa
     }
 }
 
+size_t deform_row_scratch(const rpiv_deform_pred *p, int x0, int x1)
+{
+    return 2 * (size_t)(x1 - x0) + rpiv_deform_pred_scratch(p);
+}
+
+/* The 4 x 4 taps at a located point whose taps all lie inside the image. */
+static inline float sample_inner(const float *c, size_t sw, const spos *p)
+{
+    v4f wx = vweights(p->tx), wy = vweights(p->ty);
+    const float *r = c + (size_t)(p->iy - 1) * sw + (size_t)(p->ix - 1);
+    v4f acc = wy[0] * load4(r) + wy[1] * load4(r + sw) + wy[2] * load4(r + 2 * sw) +
+              wy[3] * load4(r + 3 * sw);
+    acc *= wx;
+    return (acc[0] + acc[1]) + (acc[2] + acc[3]);
+}
+
+void deform_row(const float *coef_a, const float *coef_b, int w, int h,
+                const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
+                float *ra, float *rb, float *scratch)
+{
+    const size_t nw = (size_t)(x1 - x0);
+    const float c = (float)p->shift;
+    float *pu = scratch, *pv = pu + nw, *tmp = pv + nw;
+    rpiv_deform_pred_row(p, y, x0, x1, pu, pv, tmp);
+    /* The columns whose samples in both frames have all their taps inside the image take
+     * the short path (no bounds test, no mirroring). The predictor is a convex combination
+     * of its spline coefficients, so |p| <= maxabs (with a margin for rounding). */
+    float m = 0.5f * p->maxabs * 1.001f + c + 1.0f;
+    int xa = x1, xb = x1; /* the short path covers [xa, xb) */
+    if (m < 1e6f && (float)y - m >= 1.0f && (float)y + m <= (float)(h - 3)) {
+        float lo = 1.0f + m, hi = (float)(w - 3) - m;
+        xa = lo > (float)x0 ? (int)ceilf(lo) : x0;
+        xb = hi < (float)(x1 - 1) ? (int)floorf(hi) + 1 : x1;
+        if (xa > xb)
+            xa = xb = x1;
+    }
+    const size_t sw = (size_t)w;
+    for (int x = x0; x < x1; x++) {
+        float hx = 0.5f * pu[x - x0], hy = 0.5f * pv[x - x0];
+        spos pa = locate(x, y, c - hx, c - hy), pb = locate(x, y, c + hx, c + hy);
+        if (x >= xa && x < xb) {
+            ra[x] = sample_inner(coef_a, sw, &pa);
+            rb[x] = sample_inner(coef_b, sw, &pb);
+        } else if (inside(&pa, w, h) && inside(&pb, w, h)) {
+            ra[x] = sample_at(coef_a, w, h, &pa);
+            rb[x] = sample_at(coef_b, w, h, &pb);
+        } else { /* a particle here has no partner in the other frame */
+            ra[x] = fill_a;
+            rb[x] = fill_b;
+        }
+    }
+}
+
 rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int h,
                             const rpiv_deform_pred *p, const int rect[4], float fill_a,
                             float fill_b, float *out_a, float *out_b, int nthreads)
@@ -417,30 +477,17 @@ rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int
         return rpiv_fail(RPIV_EINVAL, "deform: rectangle %d,%d,%d,%d outside the %dx%d image",
                          x0, y0, x1, y1, w, h);
     int nt = nthr(nthreads);
-    const float c = (float)p->shift;
-    size_t nw = (size_t)(x1 - x0), per = 2 * nw + rpiv_deform_pred_scratch(p);
+    size_t per = deform_row_scratch(p, x0, x1);
     float *scr = malloc((size_t)nt * per * sizeof *scr);
     if (!scr)
         return rpiv_fail(RPIV_ENOMEM, "deform: out of memory");
 #pragma omp parallel num_threads(nt)
     {
-        float *pu = scr + (size_t)omp_get_thread_num() * per, *pv = pu + nw, *tmp = pv + nw;
+        float *mine = scr + (size_t)omp_get_thread_num() * per;
 #pragma omp for schedule(static)
-        for (int y = y0; y < y1; y++) {
-            rpiv_deform_pred_row(p, y, x0, x1, pu, pv, tmp);
-            float *ra = out_a + (size_t)y * (size_t)w, *rb = out_b + (size_t)y * (size_t)w;
-            for (int x = x0; x < x1; x++) {
-                float hx = 0.5f * pu[x - x0], hy = 0.5f * pv[x - x0];
-                spos pa = locate(x, y, c - hx, c - hy), pb = locate(x, y, c + hx, c + hy);
-                if (inside(&pa, w, h) && inside(&pb, w, h)) {
-                    ra[x] = sample_at(coef_a, w, h, &pa);
-                    rb[x] = sample_at(coef_b, w, h, &pb);
-                } else { /* a particle here has no partner in the other frame */
-                    ra[x] = fill_a;
-                    rb[x] = fill_b;
-                }
-            }
-        }
+        for (int y = y0; y < y1; y++)
+            deform_row(coef_a, coef_b, w, h, p, x0, x1, y, fill_a, fill_b,
+                       out_a + (size_t)y * (size_t)w, out_b + (size_t)y * (size_t)w, mine);
     }
     free(scr);
     return RPIV_OK;
