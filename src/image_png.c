@@ -10,12 +10,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 typedef struct pctx {
     const char *path;
     char msg[512];
     FILE *f;
+    uint64_t fsize; /* bytes in the file */
     png_structp png;
     png_infop info;
     unsigned char *data;  /* raw rows */
@@ -64,7 +66,20 @@ static int png_decode(pctx *c)
     int depth, ctype, interlace;
     png_get_IHDR(c->png, c->info, &w, &h, &depth, &ctype, &interlace, NULL, NULL);
     int bits = ctype == PNG_COLOR_TYPE_PALETTE ? 8 : depth;
-    rpiv_status st = img_alloc(c->path, w, h, bits, &c->im);
+    rpiv_status st = img_check_size(c->path, w, h);
+    if (st)
+        return (int)st;
+    /* deflate expands at most 1032:1, so a file too small for the rows it announces is cut
+     * or corrupt: refuse it before reserving memory for them */
+    uint64_t raw = (uint64_t)h * (1 + ((uint64_t)w * png_get_channels(c->png, c->info) *
+                                           (uint64_t)depth + 7) / 8);
+    if (raw / 1032 > c->fsize)
+        return (int)rpiv_fail(RPIV_EFORMAT,
+                              "%s: truncated or corrupt PNG: %ux%u pixels need at least %llu "
+                              "bytes of compressed data, the file has %llu",
+                              c->path, (unsigned)w, (unsigned)h,
+                              (unsigned long long)(raw / 1032), (unsigned long long)c->fsize);
+    st = img_alloc(c->path, w, h, bits, &c->im);
     if (st)
         return (int)st;
     if (depth < 8)
@@ -130,6 +145,8 @@ rpiv_status img_png_load(const char *path, rpiv_image **out, int *warned)
     if (!c.f)
         return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
     rpiv_status st = RPIV_OK;
+    struct stat sb;
+    c.fsize = fstat(fileno(c.f), &sb) == 0 ? (uint64_t)sb.st_size : 0;
     c.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &c, on_error, on_warning);
     if (c.png)
         c.info = png_create_info_struct(c.png);
