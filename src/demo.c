@@ -292,8 +292,11 @@ rpiv_status rpiv_demo_run(const rpiv_experiment *e, const rpiv_demo_params *p, c
         t = now_s();
         if ((st = steps[k](c)))
             goto out_free;
-        res->step_seconds[step_of[k]] += now_s() - t;
+        double dt = now_s() - t;
+        res->step_seconds[step_of[k]] += dt;
         res->seconds = now_s() - t0;
+        if (k != 0) /* the band set-up is part of step 2 */
+            demo_note(c, "  (step %d: %.1f s)", step_of[k] + 1, res->step_seconds[step_of[k]]);
     }
     res->seconds = now_s() - t0;
     c->total = c->done;

@@ -217,16 +217,73 @@ static rpiv_status section(demo_ctx *c, const char *name, const char *title, int
     return demo_tick(c, 1);
 }
 
+/* A plot size for the band's aspect ratio, with room for the axes and a colour bar. */
+static void band_size(const demo_ctx *c, rpiv_plot_opts *o)
+{
+    double w = 500.0 * c->w / c->h + 300;
+    o->width_px = w < 700 ? 700 : w > 1600 ? 1600 : (int)w;
+    o->height_px = 560;
+}
+
+/* Arrows of a field (every few vectors, no colour background: the map is a plot of its own). */
 static rpiv_status quiver(demo_ctx *c, const char *name, const char *title, const rpiv_field *f)
 {
     rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.width_px = 1200;
-    o.height_px = 480;
-    o.stride = c->nx > 80 ? 4 : c->nx > 40 ? 2 : 1;
-    o.zlabel = "|u| (px)";
+    band_size(c, &o);
+    o.background = 0;
+    o.stride = c->nx >= 48 ? c->nx / 24 : 2;
+    /* the longest arrow 0.9 drawn grid steps long */
+    double umax = 0;
+    for (size_t k = 0; k < (size_t)c->nx * (size_t)c->ny; k++)
+        if (f->flag[k] != RPIV_FLAG_MASKED)
+            umax = fmax(umax, hypot(f->u[k], f->v[k]));
+    if (umax > 0)
+        o.arrow_scale = 0.9 * o.stride * c->gdx / umax;
     char path[RPIV_PATH_MAX];
     rpiv_status st;
     if ((st = demo_path(c, name, path, sizeof path)) || (st = rpiv_plot_quiver(f, path, title, &o)))
+        return st;
+    demo_add_plot(c, name);
+    return demo_tick(c, 1);
+}
+
+/* U* of a field over the compared rows (a contiguous band of rows, no blank cell), in x*, y*. */
+static rpiv_status field_map(demo_ctx *c, const char *name, const char *title, const rpiv_field *f)
+{
+    int j0 = c->ny, j1 = -1;
+    for (int j = 0; j < c->ny; j++)
+        for (int i = 0; i < c->nx; i++)
+            if (c->fluid[(size_t)j * (size_t)c->nx + (size_t)i]) {
+                j0 = j < j0 ? j : j0;
+                j1 = j > j1 ? j : j1;
+            }
+    if (j1 - j0 < 1) {
+        demo_note(c, "  %s: no compared rows, not plotted", name);
+        return RPIV_OK;
+    }
+    int ny = j1 - j0 + 1, nx = c->nx;
+    double *z = malloc((size_t)nx * (size_t)ny * sizeof *z);
+    if (!z)
+        return rpiv_fail(RPIV_ENOMEM, "demo: out of memory");
+    for (int j = j0; j <= j1; j++)
+        for (int i = 0; i < nx; i++)
+            z[(size_t)(j - j0) * (size_t)nx + (size_t)i] =
+                (double)f->u[(size_t)j * (size_t)nx + (size_t)i] / c->bulk_px;
+    double hx = 0.5 * c->gdx * c->spp, hy = 0.5 * c->gdy * c->spp;
+    double ext[4] = {c->xs[0] - hx, c->xs[nx - 1] + hx, c->ys[j0] - hy, c->ys[j1] + hy};
+    rpiv_plot_opts o = rpiv_plot_opts_default();
+    band_size(c, &o);
+    o.xlabel = "x*";
+    o.ylabel = "y*";
+    o.zlabel = "U*";
+    o.zmin = 0;
+    o.zmax = 2.2;
+    char path[RPIV_PATH_MAX];
+    rpiv_status st = demo_path(c, name, path, sizeof path);
+    if (!st)
+        st = rpiv_plot_map(path, title, z, nx, ny, ext, &o);
+    free(z);
+    if (st)
         return st;
     demo_add_plot(c, name);
     return demo_tick(c, 1);
@@ -670,7 +727,9 @@ static void write_body(rep *r, const demo_ctx *c)
         "convergence. %s of the fluid vectors were replaced by the validation.",
         s->rpiv_pairs, e->camera.zop_star, c->snap[0], pct(a, 32, s->rpiv_replaced));
     r_img(r, c, "rpiv_image.png", "A synthetic R-PIV frame");
-    r_img(r, c, "rpiv_field.png", "The R-PIV ensemble field");
+    r_img(r, c, "rpiv_field.png", "The R-PIV ensemble field (every few vectors)");
+    r_img(r, c, "rpiv_map.png",
+          "U* of the R-PIV field: it grows along x* as the sheet rises from the floor");
 
     r_h(r, 2, "5. Comparisons");
     r_p(r,
@@ -749,7 +808,8 @@ rpiv_status demo_report(demo_ctx *c)
         (st = section(c, "ppiv_section.png", "P-PIV volume: U*(y*, z*) (fig 23)", 0, imid)) ||
         (st = section(c, "duct_section.png", "Analytic U*(y*, z*)", 1, imid)) ||
         (st = plot_image(c)) ||
-        (st = quiver(c, "rpiv_field.png", "R-PIV (sum of correlation)", c->rfield)) ||
+        (st = quiver(c, "rpiv_field.png", "R-PIV vectors (sum of correlation)", c->rfield)) ||
+        (st = field_map(c, "rpiv_map.png", "R-PIV: U* over the compared vectors", c->rfield)) ||
         (st = plot_compare(c)))
         return st;
     return write_report(c);

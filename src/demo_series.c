@@ -78,9 +78,9 @@ rpiv_status demo_geometry(demo_ctx *c)
     r->y1_star = c->y0s + c->h * c->spp;
     r->bulk_px = c->bulk_px;
     /* the work ahead, for the progress: 2 traces, the series, the model and the inversion,
-     * about 16 plots */
+     * about 17 plots */
     c->total = 2 + (size_t)c->p.ppiv_planes * series_units(c, (size_t)c->p.ppiv_pairs) +
-               series_units(c, (size_t)c->p.rpiv_pairs) + 2 + 16;
+               series_units(c, (size_t)c->p.rpiv_pairs) + 2 + 17;
     return demo_tick(c, 0);
 }
 

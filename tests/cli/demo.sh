@@ -3,7 +3,8 @@
 # rpiv demo: --help, bad options (exit 2, one stderr line naming the option), an output folder
 # that cannot be made (exit 1, names it), and a tiny run (--quick shrunk further: a 256 px band,
 # 1 pair per P-PIV plane, 4 R-PIV pairs; seconds, also under the sanitizers) that writes the
-# report, valid PNG plots, the data files and the summary on stdout. The figures themselves are
+# report, valid PNG plots, the data files and the summary on stdout, and whose R-PIV field
+# rpiv synth + rpiv piv reproduce exactly from the files it wrote. The figures themselves are
 # checked by tests/test_demo.c on a larger run.
 set -u
 bin=${RPIV_BIN:?}
@@ -67,6 +68,15 @@ for png in "$out"/*.png; do
     grep -q "src=\"$name\"" "$out/report.html" && ok || ko "$name not in report.html"
 done
 [ "$n" -ge 14 ] && ok || ko "only $n plots"
+# the demo composes the commands: the same R-PIV pairs and field through rpiv synth and
+# rpiv piv with the parameter file and the mask the demo wrote
+"$bin" synth --quiet --config "$out/data/rpiv.ini" --out "$tmp/pairs" && ok || ko "rpiv synth --config data/rpiv.ini"
+cmp -s "$tmp/pairs/pair_00001_a.tif" "$out/images/rpiv_a.tif" && ok || ko "rpiv synth made another frame A"
+"$bin" piv --quiet --config "$out/data/rpiv.ini" --mask "$out/data/mask.png" "$tmp/pairs/pair_*" \
+    -o "$tmp/rpiv.txt" && ok || ko "rpiv piv --config data/rpiv.ini"
+"$bin" compare --component u "$out/data/rpiv.txt" "$tmp/rpiv.txt" >"$tmp/cmp" && ok || ko "rpiv compare"
+[ "$(awk '$1 == "E1" { print $2 }' "$tmp/cmp")" = 0 ] && ok || ko "rpiv piv field differs: $(cat "$tmp/cmp")"
+
 # --quiet: nothing on stderr
 "$bin" demo --quick --width 256 --ppiv-pairs 1 --pairs 2 --quiet --out "$tmp/q" >"$tmp/out" \
     2>"$tmp/err" && ok || ko "quiet run"
