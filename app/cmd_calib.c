@@ -108,8 +108,8 @@ static rpiv_status parse_ints(const char *opt, const char *arg, int n, int *out)
 }
 
 /* Options: which modes accept each (bit 1 << mode). */
-#define M_AN ((1 << SHEET) | (1 << DOF))
-#define M_RE ((1 << RENDER_SHEET) | (1 << RENDER_DOTS))
+#define M_AN  ((1 << SHEET) | (1 << DOF))
+#define M_RE  ((1 << RENDER_SHEET) | (1 << RENDER_DOTS))
 #define M_ALL (M_AN | M_RE)
 
 static const struct {
@@ -194,11 +194,9 @@ static rpiv_status parse(job *j, int argc, char **argv, int *done, const char *s
             return RPIV_OK;
         }
         if (o == '?' || o == ':')
-            return cli_usage_error(name, "unknown option or missing value '%s'",
-                                   argv[optind - 1]);
+            return cli_usage_error(name, "unknown option or missing value '%s'", argv[optind - 1]);
         if (!accepted(o, j->mode))
-            return cli_usage_error(name, "option '%s' does not apply to %s", argv[optind - 1],
-                                   sub);
+            return cli_usage_error(name, "option '%s' does not apply to %s", argv[optind - 1], sub);
         switch (o) {
         case 'a':
             st = cli_parse_double("--plate-angle", optarg, -90, 90, &v);
@@ -380,8 +378,9 @@ static rpiv_status load_images(job *j, int nargs, char **args, const char *name,
             return st;
         if (warned && !j->c.quiet)
             fprintf(stderr, "rpiv: warning: %s: colour image converted to grey\n", args[i]);
-        s->shot[i] = (rpiv_calib_shot){s->im[i], j->nfeet ? j->feet[j->nfeet > 1 ? i : 0] : (double)NAN,
-                                       j->nx ? j->xs[i] : (double)NAN};
+        s->shot[i] =
+            (rpiv_calib_shot){s->im[i], j->nfeet ? j->feet[j->nfeet > 1 ? i : 0] : (double)NAN,
+                              j->nx ? j->xs[i] : (double)NAN};
     }
     if (j->dark_image && (st = rpiv_image_load(j->dark_image, 0, &s->dark, NULL)))
         return st;
@@ -468,12 +467,10 @@ static rpiv_status plot_sheet(const rpiv_calib_sheet_result *r, const char *dir)
         fm[k] = r->zm0 + r->zm1 * lx[k];
         fs[k] = r->sup0 + r->sup1 * lx[k];
     }
-    rpiv_plot_series e[6] = {{xs, zs, n, "z*#dsup#u", RPIV_PLOT_POINTS},
-                             {xm, zm, n, "z*#dmax#u", RPIV_PLOT_POINTS},
-                             {xi, zi, n, "z*#dinf#u", RPIV_PLOT_POINTS},
-                             {lx, fs, 2, "fitted lines", RPIV_PLOT_LINE},
-                             {lx, fm, 2, NULL, RPIV_PLOT_LINE},
-                             {lx, fi, 2, NULL, RPIV_PLOT_LINE}};
+    rpiv_plot_series e[6] = {
+        {xs, zs, n, "z*#dsup#u", RPIV_PLOT_POINTS}, {xm, zm, n, "z*#dmax#u", RPIV_PLOT_POINTS},
+        {xi, zi, n, "z*#dinf#u", RPIV_PLOT_POINTS}, {lx, fs, 2, "fitted lines", RPIV_PLOT_LINE},
+        {lx, fm, 2, NULL, RPIV_PLOT_LINE},          {lx, fi, 2, NULL, RPIV_PLOT_LINE}};
     rpiv_plot_opts oe = rpiv_plot_opts_default();
     oe.ymin = 0;
     oe.ymax = 1.25; /* room for the legend */
@@ -512,8 +509,7 @@ static rpiv_status run_sheet(job *j, int nargs, char **args)
                "z*_max %.4f z*_sup %.4f e* %.4f; sheet at x* = %.4f: z*_inf %.4f z*_max %.4f "
                "z*_sup %.4f e* %.4f\n",
                args[i], pl->foot_px, pl->angle_deg, pl->x_foot, pl->raw.zinf, pl->raw.zmax,
-               pl->raw.zsup, pl->raw.e, pl->x_max, pl->at.zinf, pl->at.zmax, pl->at.zsup,
-               pl->at.e);
+               pl->raw.zsup, pl->raw.e, pl->x_max, pl->at.zinf, pl->at.zmax, pl->at.zsup, pl->at.e);
     }
     printf("self-similar sheet: z*_max = %.4f + %.5f x* (inclination %.3f deg), e* = %.4f + "
            "%.5f x*%s\n",
@@ -595,8 +591,7 @@ static rpiv_status run_dof(job *j, int nargs, char **args)
     rpiv_status st = rpiv_calib_dof_params_check(&p);
     if (st || (st = load_images(j, nargs, args, "calib dof", &s)))
         goto out;
-    if ((st = rpiv_calib_dof_run(&p, &j->c.exp.camera, &j->c.exp.channel, s.shot, s.n, s.dark,
-                                 &r)))
+    if ((st = rpiv_calib_dof_run(&p, &j->c.exp.camera, &j->c.exp.channel, s.shot, s.n, s.dark, &r)))
         goto out;
     if ((st = cli_mkdirs(j->dir)))
         goto out;
@@ -677,8 +672,8 @@ static rpiv_status run_render(job *j, const char *name)
     if (!st)
         st = rpiv_image_save(im, j->output);
     if (!st && !j->c.quiet)
-        printf("wrote %s (%dx%d): %s on a %g deg plate, foot at column %g, z*_OP %g\n",
-               j->output, w, h, j->mode == RENDER_SHEET ? "fluorescent plate" : "dotted target",
+        printf("wrote %s (%dx%d): %s on a %g deg plate, foot at column %g, z*_OP %g\n", j->output,
+               w, h, j->mode == RENDER_SHEET ? "fluorescent plate" : "dotted target",
                j->rp.angle_deg, j->rp.foot_px, e->camera.zop_star);
     rpiv_sheet_free(sheet);
     rpiv_image_free(im);

@@ -228,6 +228,7 @@ static rpiv_status run_setup(run *r)
         if ((st = rpiv_ccm_curve_load(r->o.profile, &r->profile)))
             return st;
         r->m.u = (rpiv_ccm_func){rpiv_ccm_curve_fn, r->profile};
+        r->p.utab = 0; /* a table is cheap to evaluate, and a spline would round its kinks */
     } else {
         r->m.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &r->o.ystar};
     }

@@ -24,7 +24,7 @@ rpiv_status cmd_config(int argc, char **argv)
     rpiv_status st;
     cli_ctx_init(&c);
     optind = 1;
-    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
         if (cli_common_opt(&c, o, optarg, &st)) {
             if (st)
                 return st;
@@ -38,7 +38,9 @@ rpiv_status cmd_config(int argc, char **argv)
             doc = 1;
             continue;
         }
-        return cli_usage_error("config", "unknown option");
+        if (o == ':')
+            return cli_usage_error("config", "option '%s' needs a value", argv[optind - 1]);
+        return cli_usage_error("config", "unknown option '%s'", argv[optind - 1]);
     }
     if (optind < argc)
         return cli_usage_error("config", "unexpected argument '%s'", argv[optind]);

@@ -184,13 +184,11 @@ rpiv_status rpiv_calib_geom_check(const rpiv_calib_geom *g)
                          "calib: plate angle %g deg out of range (|angle| in 5..85, 0 = detect)",
                          g->angle_deg);
     if (!(g->plate_height_m >= 0 && g->plate_height_m < 10))
-        return rpiv_fail(RPIV_EINVAL, "calib: plate height %g m outside 0..10",
-                         g->plate_height_m);
+        return rpiv_fail(RPIV_EINVAL, "calib: plate height %g m outside 0..10", g->plate_height_m);
     if (!(g->scale_px_m >= 0 && g->scale_px_m < 1e9))
         return rpiv_fail(RPIV_EINVAL, "calib: image scale %g px/m outside 0..1e9", g->scale_px_m);
     if (g->row0 < 0 || g->row1 < 0 || (g->row1 != 0 && g->row1 <= g->row0))
-        return rpiv_fail(RPIV_EINVAL, "calib: span rows %d..%d are not a range", g->row0,
-                         g->row1);
+        return rpiv_fail(RPIV_EINVAL, "calib: span rows %d..%d are not a range", g->row0, g->row1);
     if (!isfinite(g->dark))
         return rpiv_fail(RPIV_EINVAL, "calib: dark level must be finite");
     if (g->dark_w < 0 || g->dark_h < 0 || g->dark_x < 0 || g->dark_y < 0 ||
@@ -204,8 +202,8 @@ rpiv_status rpiv_calib_geom_check(const rpiv_calib_geom *g)
 
 /* ---- frames --------------------------------------------------------------------------------- */
 
-rpiv_status calib_frame_init(const rpiv_calib_geom *g, const rpiv_image *im,
-                             const rpiv_image *dark, const char *what, calib_frame *f)
+rpiv_status calib_frame_init(const rpiv_calib_geom *g, const rpiv_image *im, const rpiv_image *dark,
+                             const char *what, calib_frame *f)
 {
     f->im = im;
     f->dark = dark;
@@ -217,8 +215,8 @@ rpiv_status calib_frame_init(const rpiv_calib_geom *g, const rpiv_image *im,
                          f->row0, f->row1, im->h);
     if (dark) {
         if (dark->w != im->w || dark->h != im->h)
-            return rpiv_fail(RPIV_ESIZE, "%s: dark image is %dx%d, the image %dx%d", what,
-                             dark->w, dark->h, im->w, im->h);
+            return rpiv_fail(RPIV_ESIZE, "%s: dark image is %dx%d, the image %dx%d", what, dark->w,
+                             dark->h, im->w, im->h);
         return RPIV_OK;
     }
     if (g->dark_w > 0) {
@@ -332,8 +330,7 @@ static rpiv_status detect_edge(const double *p, int w, int side, int win, const 
     for (int iter = 0; iter < 2; iter++) {
         int start = (int)floor(pos) + win / 2;
         if (start + win > w) {
-            st = rpiv_fail(RPIV_ENUMERIC, "%s: plate %s too close to the image edge", what,
-                           name);
+            st = rpiv_fail(RPIV_ENUMERIC, "%s: plate %s too close to the image edge", what, name);
             goto out_free;
         }
         double level = scan_median(p, w, side, start, start + win, tmp);
@@ -410,15 +407,16 @@ rpiv_status rpiv_calib_sheet_params_check(const rpiv_calib_sheet_params *p)
     if (!(p->smooth_px >= 0 && p->smooth_px <= 100))
         return rpiv_fail(RPIV_EINVAL, "calib sheet: smoothing %g px outside 0..100", p->smooth_px);
     if (!(p->min_signal >= 0 && p->min_signal < 1e6))
-        return rpiv_fail(RPIV_EINVAL, "calib sheet: minimum signal %g must be >= 0",
-                         p->min_signal);
+        return rpiv_fail(RPIV_EINVAL, "calib sheet: minimum signal %g must be >= 0", p->min_signal);
     if (!(p->margin >= 0 && p->margin < 0.4))
         return rpiv_fail(RPIV_EINVAL, "calib sheet: margin %g outside 0..0.4", p->margin);
     if (!(p->zplus_step >= 1e-4 && p->zplus_step <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "calib sheet: z+ step %g outside 1e-4..0.5", p->zplus_step);
     if (!(p->zplus_max >= 0.5 && p->zplus_max <= 100 && p->zplus_max / p->zplus_step < 1e6))
-        return rpiv_fail(RPIV_EINVAL, "calib sheet: z+ range %g outside 0.5..100 (or too many "
-                         "rows for the step)", p->zplus_max);
+        return rpiv_fail(RPIV_EINVAL,
+                         "calib sheet: z+ range %g outside 0.5..100 (or too many "
+                         "rows for the step)",
+                         p->zplus_max);
     return RPIV_OK;
 }
 
@@ -482,8 +480,7 @@ static int image_blank(const rpiv_image *im)
 /* One plate: profile, mapping to z*, normalisation, raw metrics. */
 static rpiv_status sheet_plate(const rpiv_calib_sheet_params *p, const rpiv_camera *cam,
                                const rpiv_channel *ch, const rpiv_calib_shot *shot,
-                               const rpiv_image *dark, const char *what,
-                               rpiv_calib_sheet_plate *pl)
+                               const rpiv_image *dark, const char *what, rpiv_calib_sheet_plate *pl)
 {
     const rpiv_image *im = shot->image;
     calib_frame fr;
@@ -550,8 +547,7 @@ static rpiv_status sheet_plate(const rpiv_calib_sheet_params *p, const rpiv_came
         peak = fmax(peak, pl->inten[i]);
     }
     pl->peak = peak;
-    if (!(peak > p->min_signal * fabs(pl->floor) && peak > 10 * noise &&
-          peak > 1e-9)) {
+    if (!(peak > p->min_signal * fabs(pl->floor) && peak > 10 * noise && peak > 1e-9)) {
         st = rpiv_fail(RPIV_ENUMERIC,
                        "%s: no sheet on the plate (peak %.3g above the floor %.3g, noise %.3g of "
                        "the span average)",
@@ -779,10 +775,10 @@ rpiv_status rpiv_calib_sheet_write_plates(const rpiv_calib_sheet_result *r, FILE
             r->zm0, r->zm1, r->e0, r->e1, r->inf0, r->inf1, r->sup0, r->sup1);
     for (size_t i = 0; i < r->nplates; i++) {
         const rpiv_calib_sheet_plate *pl = &r->plate[i];
-        fprintf(fp, "%zu %.3f %.4f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f\n",
-                i + 1, pl->foot_px, pl->angle_deg, pl->x_foot, pl->x_max, pl->raw.zinf,
-                pl->raw.zmax, pl->raw.zsup, pl->raw.e, pl->at.zinf, pl->at.zmax, pl->at.zsup,
-                pl->at.e, pl->shape_rms);
+        fprintf(fp, "%zu %.3f %.4f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f %.5f\n", i + 1,
+                pl->foot_px, pl->angle_deg, pl->x_foot, pl->x_max, pl->raw.zinf, pl->raw.zmax,
+                pl->raw.zsup, pl->raw.e, pl->at.zinf, pl->at.zmax, pl->at.zsup, pl->at.e,
+                pl->shape_rms);
     }
     if (ferror(fp))
         return rpiv_fail(RPIV_EIO, "calib sheet: write error");

@@ -39,8 +39,7 @@ rpiv_status rpiv_calib_dof_params_check(const rpiv_calib_dof_params *p)
     if (st)
         return st;
     if (!(p->dot_d_m > 0 && p->dot_d_m < 0.1))
-        return rpiv_fail(RPIV_EINVAL, "calib dof: dot diameter %g m outside (0, 0.1)",
-                         p->dot_d_m);
+        return rpiv_fail(RPIV_EINVAL, "calib dof: dot diameter %g m outside (0, 0.1)", p->dot_d_m);
     if (!(p->pitch_m > p->dot_d_m && p->pitch_m < 0.1))
         return rpiv_fail(RPIV_EINVAL,
                          "calib dof: dot pitch %g m must exceed the dot diameter %g m (and be "
@@ -53,14 +52,12 @@ rpiv_status rpiv_calib_dof_params_check(const rpiv_calib_dof_params *p)
         return rpiv_fail(RPIV_EINVAL, "calib dof: minimum significance %g outside 0..100",
                          p->min_snr);
     if (!(p->smooth_px >= 0 && p->smooth_px <= 10))
-        return rpiv_fail(RPIV_EINVAL, "calib dof: smoothing %g px outside 0..10",
-                         p->smooth_px);
+        return rpiv_fail(RPIV_EINVAL, "calib dof: smoothing %g px outside 0..10", p->smooth_px);
     if (!(p->lattice_tol > 0 && p->lattice_tol <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "calib dof: lattice tolerance %g outside (0, 0.5]",
                          p->lattice_tol);
     if (p->ref_cells < 1 || p->ref_cells > 20)
-        return rpiv_fail(RPIV_EINVAL, "calib dof: reference cells %d outside 1..20",
-                         p->ref_cells);
+        return rpiv_fail(RPIV_EINVAL, "calib dof: reference cells %d outside 1..20", p->ref_cells);
     if (p->fit_columns < 0 || p->fit_columns > 50)
         return rpiv_fail(RPIV_EINVAL, "calib dof: fit half-window %d columns outside 0..50",
                          p->fit_columns);
@@ -159,7 +156,8 @@ static rpiv_status local_quad(const double *z, const double *v, size_t n, int m,
         goto out_free;
     }
     for (size_t i = 0; i < n; i++) {
-        size_t a = i >= (size_t)m ? i - (size_t)m : 0, b = i + (size_t)m < n ? i + (size_t)m : n - 1;
+        size_t a = i >= (size_t)m ? i - (size_t)m : 0,
+               b = i + (size_t)m < n ? i + (size_t)m : n - 1;
         size_t len = b - a + 1;
         if (len < 3) {
             out[i] = v[i];
@@ -330,9 +328,8 @@ static rpiv_status phase_nodes(double *node, double *wt)
     return RPIV_OK;
 }
 
-rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
-                                 double h_m, double reflectance, double zstep,
-                                 rpiv_calib_focus *c)
+rpiv_status rpiv_calib_dof_model(const rpiv_calib_dof_params *p, const rpiv_camera *cam, double h_m,
+                                 double reflectance, double zstep, rpiv_calib_focus *c)
 {
     memset(c, 0, sizeof *c);
     rpiv_status st = rpiv_calib_dof_params_check(p);
@@ -546,6 +543,7 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
     calib_place pl;
     dof_img di = {im->w, im->h, NULL, NULL};
     cand *cs = NULL;
+    long *head = NULL, *next = NULL;
     double *prof = NULL;
     rpiv_status st = calib_frame_init(&p->geom, im, dark, what, &fr);
     if (st)
@@ -633,29 +631,55 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
             }
             cs[nc++] = (cand){x, y, v};
         }
-    /* one dot per lattice cell: darkest first, nothing else within half a pitch */
+    /* one dot per lattice cell: darkest first, nothing else within half a pitch; the accepted
+     * ones are indexed in a grid of cells one pitch wide, so each test looks at a few cells */
     qsort(cs, nc, sizeof *cs, cand_cmp);
+    int gx = (int)(w / ppx) + 1, gy = (int)(im->h / ppy) + 1;
+    head = malloc((size_t)gx * gy * sizeof *head);
+    next = malloc((nc ? nc : 1) * sizeof *next);
+    if (!head || !next) {
+        st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", what);
+        goto out_free;
+    }
+    for (long c = 0; c < (long)gx * gy; c++)
+        head[c] = -1;
     size_t na = 0;
     for (size_t i = 0; i < nc; i++) {
-        int keep = 1;
-        for (size_t j = 0; j < na && keep; j++) {
-            double dx = (cs[i].x - cs[j].x) / (0.5 * ppx), dy = (cs[i].y - cs[j].y) / (0.5 * ppy);
-            if (dx * dx + dy * dy < 1)
-                keep = 0;
-        }
-        if (keep)
-            cs[na++] = cs[i];
+        int cx = (int)(cs[i].x / ppx), cy = (int)(cs[i].y / ppy), keep = 1;
+        for (int by = cy - 1; by <= cy + 1 && keep; by++)
+            for (int bx = cx - 1; bx <= cx + 1 && keep; bx++) {
+                if (bx < 0 || by < 0 || bx >= gx || by >= gy)
+                    continue;
+                for (long j = head[(long)by * gx + bx]; j >= 0 && keep; j = next[j]) {
+                    double dx = (cs[i].x - cs[j].x) / (0.5 * ppx),
+                           dy = (cs[i].y - cs[j].y) / (0.5 * ppy);
+                    if (dx * dx + dy * dy < 1)
+                        keep = 0;
+                }
+            }
+        if (!keep)
+            continue;
+        cs[na] = cs[i];
+        next[na] = head[(long)cy * gx + cx];
+        head[(long)cy * gx + cx] = (long)na;
+        na++;
     }
     /* lattice check: a real dot has a neighbour one pitch away along x or y */
     size_t first = r->ndots;
     for (size_t i = 0; i < na; i++) {
-        int nb = 0;
-        for (size_t j = 0; j < na && !nb; j++) {
-            double dx = fabs((double)(cs[j].x - cs[i].x)), dy = fabs((double)(cs[j].y - cs[i].y));
-            if ((fabs(dx - ppx) < p->lattice_tol * ppx && dy < p->lattice_tol * ppy) ||
-                (fabs(dy - ppy) < p->lattice_tol * ppy && dx < p->lattice_tol * ppx))
-                nb = 1;
-        }
+        int nb = 0, bcx = (int)(cs[i].x / ppx), bcy = (int)(cs[i].y / ppy);
+        for (int by = bcy - 2; by <= bcy + 2 && !nb; by++)
+            for (int bx = bcx - 2; bx <= bcx + 2 && !nb; bx++) {
+                if (bx < 0 || by < 0 || bx >= gx || by >= gy)
+                    continue;
+                for (long j = head[(long)by * gx + bx]; j >= 0 && !nb; j = next[j]) {
+                    double dx = fabs((double)(cs[j].x - cs[i].x)),
+                           dy = fabs((double)(cs[j].y - cs[i].y));
+                    if ((fabs(dx - ppx) < p->lattice_tol * ppx && dy < p->lattice_tol * ppy) ||
+                        (fabs(dy - ppy) < p->lattice_tol * ppy && dx < p->lattice_tol * ppx))
+                        nb = 1;
+                }
+            }
         if (!nb)
             continue;
         /* the centre grey: the unsmoothed pixel at the minimum of the smoothed image, i.e.
@@ -696,6 +720,8 @@ static rpiv_status dof_shot(const rpiv_calib_dof_params *p, const rpiv_camera *c
                        ppy, p->min_contrast);
 out_free:
     free(cs);
+    free(head);
+    free(next);
     free(prof);
     free(di.d);
     free(di.s);
@@ -768,9 +794,8 @@ out_free:
 }
 
 rpiv_status rpiv_calib_dof_run(const rpiv_calib_dof_params *p, const rpiv_camera *cam,
-                               const rpiv_channel *ch, const rpiv_calib_shot *shots,
-                               size_t nshots, const rpiv_image *dark,
-                               rpiv_calib_dof_result **out)
+                               const rpiv_channel *ch, const rpiv_calib_shot *shots, size_t nshots,
+                               const rpiv_image *dark, rpiv_calib_dof_result **out)
 {
     *out = NULL;
     rpiv_status st = rpiv_calib_dof_params_check(p);

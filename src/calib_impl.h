@@ -70,7 +70,8 @@ RPIV_NODISCARD rpiv_status calib_frame_noise(const calib_frame *f, double *noise
 /* Span-averaged, dark-subtracted profile along x (w values). */
 void calib_frame_profile(const calib_frame *f, double *p);
 
-/* Plate geometry of one shot: foot column, angle, x* of the foot, z* per px (k: z* = (X - foot) k). */
+/* Plate geometry of one shot: foot column, angle, x* of the foot, z* per px (k: z* = (X - foot) k).
+ */
 typedef struct calib_place {
     double foot, angle_deg, x_foot, scale, k, h_m;
 } calib_place;

@@ -42,8 +42,10 @@ rpiv_status rpiv_calib_render_params_check(const rpiv_calib_render_params *rp)
 {
     double a = fabs(rp->angle_deg);
     if (!(a >= 5 && a <= 85))
-        return rpiv_fail(RPIV_EINVAL, "calib render: plate angle %g deg out of range (|angle| "
-                         "in 5..85)", rp->angle_deg);
+        return rpiv_fail(RPIV_EINVAL,
+                         "calib render: plate angle %g deg out of range (|angle| "
+                         "in 5..85)",
+                         rp->angle_deg);
     if (!isfinite(rp->foot_px) || fabs(rp->foot_px) > 1e6)
         return rpiv_fail(RPIV_EINVAL, "calib render: foot column %g px must be finite",
                          rp->foot_px);
@@ -75,14 +77,13 @@ typedef struct scene {
     const rpiv_calib_render_params *rp;
     const rpiv_camera *cam;
     const rpiv_channel *ch;
-    const rpiv_sheet *sheet; /* NULL: dots (white plate) */
+    const rpiv_sheet *sheet;               /* NULL: dots (white plate) */
     double scale, k, x_foot, zcap, lo, hi; /* plate spans columns [lo, hi] */
     int w, h;
 } scene;
 
-static rpiv_status scene_init(scene *sc, const rpiv_calib_render_params *rp,
-                              const rpiv_camera *cam, const rpiv_channel *ch,
-                              const rpiv_sheet *sheet, const rpiv_image *im)
+static rpiv_status scene_init(scene *sc, const rpiv_calib_render_params *rp, const rpiv_camera *cam,
+                              const rpiv_channel *ch, const rpiv_sheet *sheet, const rpiv_image *im)
 {
     rpiv_status st = rpiv_calib_render_params_check(rp);
     if (st || (st = rpiv_camera_check(cam)) || (st = rpiv_channel_check(ch)))
@@ -185,8 +186,7 @@ static rpiv_status finish(const scene *sc, const double *q, const double *dk, rp
 }
 
 rpiv_status rpiv_calib_render_sheet(const rpiv_calib_render_params *rp, const rpiv_camera *cam,
-                                    const rpiv_channel *ch, const rpiv_sheet *sheet,
-                                    rpiv_image *im)
+                                    const rpiv_channel *ch, const rpiv_sheet *sheet, rpiv_image *im)
 {
     scene sc;
     rpiv_status st = scene_init(&sc, rp, cam, ch, sheet, im);

@@ -271,6 +271,18 @@ static rpiv_status fill_rule(rpiv_ccm_work *w, const integ *q, int coarse, rpiv_
             }
         }
     }
+    /* drop the terms below the rounding of the sum (the far tails of a sheet): they cannot
+     * move the peak and would cost an exponential at every evaluation */
+    double amax = 0;
+    for (size_t k = 0; k < out->n; k++)
+        amax = fmax(amax, out->g[k].amp);
+    size_t k = 0;
+    for (size_t i = 0; i < out->n; i++)
+        if (out->g[i].amp >= 1e-17 * amax) {
+            out->g[k] = out->g[i];
+            w->zn[k++] = w->zn[i];
+        }
+    out->n = k;
     return RPIV_OK;
 }
 

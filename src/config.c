@@ -63,6 +63,8 @@ static const key_spec keys[] = {
      "wavelength of the light recorded (fluorescence)", 0},
     {"camera", "beta2", KEY_DOUBLE, OFF(camera.beta2), 0.1, 100, 1, "-",
      "beta^2 of the Gaussian approximation of the Airy disc (Olsen & Adrian)", 0},
+    {"camera", "n_medium", KEY_DOUBLE, OFF(camera.n_medium), 1, 4, 1, "-",
+     "index of the fluid seen through a flat wall: defocus at the apparent depth (1 = paper)", 0},
     /* [particles] */
     {"particles", "diameter_um", KEY_DOUBLE, OFF(particles.dp_m), 0.01, 10000, 1e-6, "um",
      "mean particle diameter d_p", 0},

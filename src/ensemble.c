@@ -100,28 +100,24 @@ out_free:
     return st;
 }
 
+static void add_plane(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea, double eb,
+                      double pu, double pv_)
+{
+    rpiv_ensemble *e = ctx;
+    float *sum = e->data + win * e->plane, *energy = e->data + e->nwin * e->plane;
+    (void)pu;
+    (void)pv_;
+    for (size_t i = 0; i < e->plane; i++)
+        sum[i] += ws->plane[i];
+    energy[2 * win] += (float)ea;
+    energy[2 * win + 1] += (float)eb;
+}
+
 rpiv_status rpiv_ensemble_add(rpiv_ensemble *e, const rpiv_image *a, const rpiv_image *b)
 {
-    rpiv_piv *pv = e->pv;
-    const piv_pass *ps = &pv->pass[e->pass];
-    piv_source src;
     rpiv_status st;
-    if ((st = rpiv_piv_load(pv, a, b)) || (st = piv_prepare(pv, e->pass, e->pred, &src)))
+    if ((st = rpiv_piv_load(e->pv, a, b)) || (st = piv_pass_run(e->pv, e->pass, e->pred, add_plane, e)))
         return st;
-    float *energy = e->data + e->nwin * e->plane;
-#pragma omp parallel for schedule(dynamic, 8) num_threads(pv->nthreads)
-    for (size_t win = 0; win < ps->nwin; win++) {
-        if (ps->masked && ps->masked[win])
-            continue;
-        rpiv_xcorr_work *ws = ps->ws[omp_get_thread_num()];
-        double ea, eb, pu, pv_;
-        piv_window(pv, ps, &src, ws, win, &ea, &eb, &pu, &pv_);
-        float *sum = e->data + win * e->plane;
-        for (size_t i = 0; i < e->plane; i++)
-            sum[i] += ws->plane[i];
-        energy[2 * win] += (float)ea;
-        energy[2 * win + 1] += (float)eb;
-    }
     e->npairs++;
     return RPIV_OK;
 }

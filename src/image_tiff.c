@@ -321,7 +321,11 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     TIFF *t = topen(path, "rc", -1, &c);
     if (!t)
         return tfail(path, &c, "cannot open as TIFF");
-    if (page > 0 && !TIFFSetDirectory(t, (tdir_t)page)) {
+    /* the page must be one rpiv_image_count_pages counts (libtiff can open the directory of
+     * a page whose "next directory" link is cut, which TIFFNumberOfDirectories does not
+     * count) */
+    if (page > 0 && ((tdir_t)page >= TIFFNumberOfDirectories(t) ||
+                     !TIFFSetDirectory(t, (tdir_t)page))) {
         tdir_t n = TIFFNumberOfDirectories(t);
         st = rpiv_fail(RPIV_EINVAL, "%s: page %d requested but the file has %u page%s", path,
                        page, (unsigned)n, n == 1 ? "" : "s");
@@ -355,6 +359,18 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     st = read_blocks(t, &c, path, &ti, im->px, rgb);
     if (st)
         goto out_free;
+    if (ti.sf == SAMPLEFORMAT_IEEEFP) { /* NaN or infinite levels would poison every sum */
+        const float *v = ti.nch == 3 ? rgb : im->px;
+        for (size_t i = 0; i < (size_t)ti.nch * npx; i++) {
+            if (!isfinite(v[i])) {
+                st = rpiv_fail(RPIV_EFORMAT,
+                               "%s: pixel (%zu, %zu) is %s: float TIFF samples must be finite",
+                               path, i % npx % ti.w, i % npx / ti.w,
+                               isnan(v[i]) ? "NaN" : "infinite");
+                goto out_free;
+            }
+        }
+    }
     if (ti.nch == 3) {
         for (size_t i = 0; i < npx; i++)
             im->px[i] = img_luma(rgb[i], rgb[npx + i], rgb[2 * npx + i]);

@@ -4,6 +4,8 @@
 
 #include "rpiv/validate.h"
 
+#include "deform_impl.h"
+
 #include <math.h>
 #include <omp.h>
 #include <stdlib.h>
@@ -33,8 +35,6 @@ void rpiv_piv_free(rpiv_piv *pv)
     free(pv->bgb);
     free(pv->ia);
     free(pv->ib);
-    free(pv->da);
-    free(pv->db);
     free(pv);
 }
 
@@ -116,8 +116,7 @@ rpiv_status rpiv_piv_new(const rpiv_piv_params *p, int w, int h, const rpiv_imag
                          "(x0,y0,x1,y1 with 0 <= x0 < x1 <= width, 0 <= y0 < y1 <= height)",
                          r[0], r[1], r[2], r[3], w, h);
     /* memory first, so that a refused run allocates nothing large */
-    int deforms = p->deform && p->npass > 1;
-    double frames = (2.0 + (deforms ? 2 : 0) + (mask ? 0.25 : 0)) * (double)w * (double)h * 4;
+    double frames = (2.0 + (mask ? 0.25 : 0)) * (double)w * (double)h * 4;
     if (frames / 1048576.0 > p->max_mem_mb)
         return rpiv_fail(RPIV_ELIMIT, "piv: %dx%d frames need %.0f MB, above piv.max_mem_mb = %g",
                          w, h, frames / 1048576.0, p->max_mem_mb);
@@ -155,12 +154,7 @@ rpiv_status rpiv_piv_new(const rpiv_piv_params *p, int w, int h, const rpiv_imag
     pv->ib = frame_alloc(pv);
     if (!pv->ia || !pv->ib)
         goto out_nomem;
-    if (deforms) {
-        pv->da = frame_alloc(pv);
-        pv->db = frame_alloc(pv);
-        if (!pv->da || !pv->db)
-            goto out_nomem;
-    }
+    pv->deforms = p->deform && p->npass > 1;
     for (int k = 0; k < pv->npass; k++) {
         piv_pass *ps = &pv->pass[k];
         /* passes with the same window size could share plans; they are cheap to make */
@@ -310,7 +304,7 @@ rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b
 
 double piv_shift(const rpiv_piv *pv, int k)
 {
-    return k > 0 && pv->p.deform && pv->da ? RPIV_DEFORM_SHIFT : 0.0;
+    return k > 0 && pv->deforms ? RPIV_DEFORM_SHIFT : 0.0;
 }
 
 rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double shift,
@@ -328,9 +322,10 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
 
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src)
 {
-    *src = (piv_source){pv->ia, pv->ib, pred, 0, piv_shift(pv, k)};
+    *src = (piv_source){pv->ia, pv->ib, 0, pred, 0, 0, piv_shift(pv, k)};
     if (pred && src->shift == 0) /* window offsets: pass 0, or deformation off */
         src->offsets = 1;
+    src->deform = pred && !src->offsets;
 }
 
 rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src)
@@ -338,7 +333,7 @@ rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_s
     if (pv->state == PIV_EMPTY)
         return rpiv_fail(RPIV_EINVAL, "piv: no pair loaded");
     piv_source_of(pv, k, pred, src);
-    if (!pred || src->offsets) {
+    if (!src->deform) {
         /* windows straight from the loaded frames */
         if (pv->state != PIV_RAW)
             return rpiv_fail(RPIV_EINVAL, "piv: pass %d reads the loaded frames, which a "
@@ -350,12 +345,6 @@ rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_s
         rpiv_deform_prefilter(pv->ib, pv->w, pv->h, pv->nthreads);
         pv->state = PIV_COEF;
     }
-    rpiv_status st = rpiv_deform_run(pv->ia, pv->ib, pv->w, pv->h, pred, pv->pass[k].rect,
-                                     pv->fill_a, pv->fill_b, pv->da, pv->db, pv->nthreads);
-    if (st)
-        return st;
-    src->fa = pv->da;
-    src->fb = pv->db;
     return RPIV_OK;
 }
 
@@ -416,9 +405,92 @@ void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src,
 {
     int ax, ay, bx, by;
     window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
+    if (ax >= 0 && ay >= 0 && bx >= 0 && by >= 0 && ax + ps->ww <= pv->w && bx + ps->ww <= pv->w &&
+        ay + ps->wh <= pv->h && by + ps->wh <= pv->h) {
+        const size_t sw = (size_t)pv->w;
+        rpiv_xcorr_run_from(ps->xc, ws, src->fa + (size_t)(ay - src->row0) * sw + (size_t)ax, sw,
+                            src->fb + (size_t)(by - src->row0) * sw + (size_t)bx, sw,
+                            RPIV_XCORR_RAW, ea, eb);
+        return;
+    }
+    /* only window offsets reach past the frames; they read whole frames (row0 = 0) */
     copy_window(src->fa, pv->w, pv->h, ax, ay, ps->ww, ps->wh, pv->fill_a, ws->a);
     copy_window(src->fb, pv->w, pv->h, bx, by, ps->ww, ps->wh, pv->fill_b, ws->b);
     rpiv_xcorr_run(ps->xc, ws, RPIV_XCORR_RAW, ea, eb);
+}
+
+rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_win_fn fn,
+                         void *ctx)
+{
+    const piv_pass *ps = &pv->pass[k];
+    piv_source src;
+    rpiv_status st = piv_prepare(pv, k, pred, &src);
+    if (st)
+        return st;
+    if (!src.deform) {
+#pragma omp parallel for schedule(dynamic, 8) num_threads(pv->nthreads)
+        for (size_t win = 0; win < ps->nwin; win++) {
+            if (ps->masked && ps->masked[win])
+                continue;
+            rpiv_xcorr_work *ws = ps->ws[omp_get_thread_num()];
+            double ea, eb, pu, pv_;
+            piv_window(pv, ps, &src, ws, win, &ea, &eb, &pu, &pv_);
+            fn(ctx, ws, win, ea, eb, pu, pv_);
+        }
+        return RPIV_OK;
+    }
+    /* Strips, without any synchronisation: the rows of windows are cut into chunks handed
+     * out dynamically; a thread deforms the rows under its chunk into its own buffer of one
+     * window height, rolling it down one row of windows at a time (the overlap kept, only the
+     * new rows computed; the first strip of a chunk is computed whole, so a chunk
+     * recomputes the overlap rows of the previous one). A pixel's deformed value does not
+     * depend on who computes it, so results are the same for any chunking and threads. */
+    const int x0 = ps->rect[0], x1 = ps->rect[2], wh = ps->wh, nt = pv->nthreads;
+    const int chunk = ps->ny / (4 * nt) > 4 ? ps->ny / (4 * nt) : 4;
+    const int nchunks = (ps->ny + chunk - 1) / chunk;
+    const size_t sw = (size_t)pv->w, per = deform_row_scratch(pred, x0, x1);
+    const size_t mine_n = 2 * (size_t)wh * sw + per;
+    float *buf = malloc((size_t)nt * mine_n * sizeof *buf);
+    if (!buf)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the deformation strips");
+#pragma omp parallel num_threads(nt)
+    {
+        float *sa = buf + (size_t)omp_get_thread_num() * mine_n, *sb = sa + (size_t)wh * sw;
+        float *scr = sb + (size_t)wh * sw;
+        rpiv_xcorr_work *ws = ps->ws[omp_get_thread_num()];
+        piv_source my = src;
+        my.fa = sa;
+        my.fb = sb;
+#pragma omp for schedule(dynamic, 1)
+        for (int c = 0; c < nchunks; c++) {
+            int prev_s = 0, prev_e = 0; /* rows held: [prev_s, prev_e) */
+            int j1 = (c + 1) * chunk < ps->ny ? (c + 1) * chunk : ps->ny;
+            for (int j = c * chunk; j < j1; j++) {
+                const int s = ps->oy + j * ps->sy, e = s + wh, keep = prev_e > s ? prev_e - s : 0;
+                if (keep) { /* the overlap with the previous strip moves to the top */
+                    memmove(sa, sa + (size_t)(s - prev_s) * sw, (size_t)keep * sw * sizeof *sa);
+                    memmove(sb, sb + (size_t)(s - prev_s) * sw, (size_t)keep * sw * sizeof *sb);
+                }
+                for (int y = s + keep; y < e; y++)
+                    deform_row(pv->ia, pv->ib, pv->w, pv->h, pred, x0, x1, y, pv->fill_a,
+                               pv->fill_b, sa + (size_t)(y - s) * sw, sb + (size_t)(y - s) * sw,
+                               scr);
+                my.row0 = s;
+                for (int i = 0; i < ps->nx; i++) {
+                    size_t win = (size_t)j * (size_t)ps->nx + (size_t)i;
+                    if (ps->masked && ps->masked[win])
+                        continue;
+                    double ea, eb, pu, pv_;
+                    piv_window(pv, ps, &my, ws, win, &ea, &eb, &pu, &pv_);
+                    fn(ctx, ws, win, ea, eb, pu, pv_);
+                }
+                prev_s = s;
+                prev_e = e;
+            }
+        }
+    }
+    free(buf);
+    return RPIV_OK;
 }
 
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, double ea, double eb,
@@ -451,32 +523,39 @@ rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f)
     return rpiv_validate_replace(f, 0, NULL);
 }
 
+typedef struct step_ctx {
+    const rpiv_piv *pv;
+    const piv_pass *ps;
+    rpiv_field *f;
+} step_ctx;
+
+static void step_vector(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea, double eb,
+                        double pu, double pv_)
+{
+    step_ctx *c = ctx;
+    piv_vector(c->pv, c->ps, ws->plane, ea, eb, pu, pv_, c->f, win);
+}
+
 rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, rpiv_field **out)
 {
     *out = NULL;
     if (pass < 0 || pass >= pv->npass)
         return rpiv_fail(RPIV_EINVAL, "piv: pass %d outside 0..%d", pass, pv->npass - 1);
+    if (pv->state == PIV_EMPTY)
+        return rpiv_fail(RPIV_EINVAL, "piv: no pair loaded");
     const piv_pass *ps = &pv->pass[pass];
     rpiv_deform_pred *pred = NULL;
     rpiv_field *f = NULL;
-    piv_source src;
     rpiv_status st;
     if (predictor && (st = piv_pred_new(pv, predictor, piv_shift(pv, pass), &pred)))
         return st;
-    if ((st = piv_prepare(pv, pass, pred, &src)) || (st = rpiv_piv_grid(pv, pass, &f)))
+    if ((st = rpiv_piv_grid(pv, pass, &f)))
         goto out_free;
-#pragma omp parallel for schedule(dynamic, 8) num_threads(pv->nthreads)
-    for (size_t win = 0; win < ps->nwin; win++) {
-        if (ps->masked && ps->masked[win]) {
+    for (size_t win = 0; ps->masked && win < ps->nwin; win++)
+        if (ps->masked[win])
             f->flag[win] = RPIV_FLAG_MASKED;
-            continue;
-        }
-        rpiv_xcorr_work *ws = ps->ws[omp_get_thread_num()];
-        double ea, eb, pu, pv_;
-        piv_window(pv, ps, &src, ws, win, &ea, &eb, &pu, &pv_);
-        piv_vector(pv, ps, ws->plane, ea, eb, pu, pv_, f, win);
-    }
-    if ((st = piv_validate(pv, f)))
+    step_ctx c = {pv, ps, f};
+    if ((st = piv_pass_run(pv, pass, pred, step_vector, &c)) || (st = piv_validate(pv, f)))
         goto out_free;
     *out = f;
     f = NULL;

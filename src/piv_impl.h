@@ -31,20 +31,35 @@ struct rpiv_piv {
     unsigned char *mask;     /* w*h, 1 = masked pixel; NULL = no mask                */
     float *bga, *bgb;        /* backgrounds, NULL = none                             */
     float *ia, *ib;          /* loaded frames, then their B-spline coefficients      */
-    float *da, *db;          /* deformed frames (NULL if no pass deforms)            */
+    int deforms;             /* passes after the first deform the frames             */
     float fill_a, fill_b;    /* mean grey level of the loaded frames                 */
     int state;               /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
     size_t bytes;            /* memory held                                          */
 };
 
-/* What a pass correlates: frames (stride w) and, in window-offset mode, the integer offsets
- * of every window (A at -off_a, B at +off_b... see piv.c). */
+/* What a pass correlates: frames (stride w) whose first row is image row row0, and the
+ * predictor that shifts the windows (by deformation, or by integer offsets). */
 typedef struct piv_source {
     const float *fa, *fb;
+    int row0;                     /* image row of fa[0], fb[0]                         */
     const rpiv_deform_pred *pred; /* NULL: no predictor                               */
     int offsets;                  /* 1: integer window offsets from pred (deform off)  */
+    int deform;                   /* 1: the frames are deformed by pred, strip by strip */
     double shift;                 /* pixel x of the frames stands for x + shift        */
 } piv_source;
+
+/* Called from the worker threads with each correlated window (distinct windows at once):
+ * the raw plane in ws->plane, the energies, and the shift of the window pair. */
+typedef void (*piv_win_fn)(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea,
+                           double eb, double pu, double pv_);
+
+/* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
+ * NULL), calling fn for each. A deforming pass works strip by strip: the rows under one row
+ * of windows are deformed into a thread's buffer of a window's height (the overlap with the
+ * previous strip moved up, only the new rows computed), then that row of windows is
+ * correlated; no deformed frame is ever held whole, and threads never wait for each other. */
+RPIV_NODISCARD rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
+                                        piv_win_fn fn, void *ctx);
 
 /* The sampling shift of pass k: RPIV_DEFORM_SHIFT for a deforming pass (k > 0, deformation
  * on), 0 otherwise. Vectors of the pass sit at their window's centre plus this shift. */
@@ -58,8 +73,8 @@ RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *pr
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);
 
-/* Prepare the loaded pair for pass k with predictor pred (may be NULL): prefilter and deform
- * when the pass deforms. */
+/* Check the loaded pair can serve pass k with predictor pred and describe the source;
+ * prefilters the frames (once per pair) when the pass deforms. */
 RPIV_NODISCARD rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
                                        piv_source *src);
 

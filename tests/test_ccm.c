@@ -795,6 +795,164 @@ static void profile_of_field_and_model_of(void)
 
 /* ---- errors ----------------------------------------------------------------------------- */
 
+/* Every parameter out of its range is refused, naming it. */
+static void parameter_checks(void)
+{
+    for (int k = 0; k < 9; k++) {
+        rpiv_ccm_params p = P;
+        switch (k) {
+        case 0:
+            p.limit = 5;
+            break;
+        case 1:
+            p.max_width = 0;
+            break;
+        case 2:
+            p.scan = 2;
+            break;
+        case 3:
+            p.xtol_px = 1;
+            break;
+        case 4:
+            p.max_iter = 0;
+            break;
+        case 5:
+            p.max_range_px = 2;
+            break;
+        case 6:
+            p.utab = 3;
+            break;
+        case 7:
+            p.epsrel = NAN;
+            break;
+        default:
+            p.gl_points = 101;
+            break;
+        }
+        CHECK_FAILS(rpiv_ccm_params_check(&p), RPIV_EINVAL);
+        CHECK(strstr(rpiv_errmsg(), "ccm.") != NULL);
+    }
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    rpiv_ccm_peak pk;
+    for (int k = 0; k < 5; k++) {
+        rpiv_ccm_model m = rpiv_ccm_model_default();
+        switch (k) {
+        case 0:
+            m.h_m = 0;
+            break;
+        case 1:
+            m.dp_m = -1e-6;
+            break;
+        case 2:
+            m.scale_px = INFINITY;
+            break;
+        case 3:
+            m.nbreaks = RPIV_CCM_MAX_BREAKS + 1;
+            break;
+        default:
+            m.u.fn = NULL;
+            break;
+        }
+        CHECK_FAILS(rpiv_ccm_predict(&m, w, &pk), RPIV_EINVAL);
+    }
+    rpiv_ccm_work_free(w);
+    for (int k = 0; k < 4; k++) {
+        rpiv_ccm_mc_params mc = rpiv_ccm_mc_params_default();
+        switch (k) {
+        case 0:
+            mc.nparticles = 0;
+            break;
+        case 1:
+            mc.nnim = 0;
+            break;
+        case 2:
+            mc.nim[0] = 0;
+            break;
+        default:
+            mc.threads = -1;
+            break;
+        }
+        CHECK_FAILS(rpiv_ccm_mc_params_check(&mc), RPIV_EINVAL);
+    }
+    for (int k = 0; k < 4; k++) {
+        rpiv_ccm_scenario sc = rpiv_ccm_scenario_default(RPIV_CCM_RPIV);
+        switch (k) {
+        case 0:
+            sc.kind = (rpiv_ccm_kind)9;
+            break;
+        case 1:
+            sc.zop_star = NAN;
+            break;
+        case 2:
+            sc.xlo = sc.xhi;
+            break;
+        default:
+            sc.z0 = 0;
+            break;
+        }
+        CHECK_FAILS(rpiv_ccm_scenario_check(&sc), RPIV_EINVAL);
+    }
+    rpiv_ccm_scenario sc = rpiv_ccm_scenario_default(RPIV_CCM_PPIV_SCAN);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    rpiv_ccm_table *t = NULL;
+    CHECK_FAILS(rpiv_ccm_scenario_run(&sc, &m, NULL, &P, -2, NULL, &t), RPIV_EINVAL);
+    for (int k = 0; k < 6; k++) {
+        rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
+        switch (k) {
+        case 0:
+            ip.ncoef = 201;
+            break;
+        case 1:
+            ip.sigma = -1;
+            break;
+        case 2:
+            ip.max_iter = 0;
+            break;
+        case 3:
+            ip.xtol = 0;
+            break;
+        case 4:
+            ip.ftol = 2;
+            break;
+        default:
+            ip.nout = 1;
+            break;
+        }
+        CHECK_FAILS(rpiv_ccm_invert_params_check(&ip), RPIV_EINVAL);
+    }
+    /* the sheet is zero at x* = 0 (e*(0) = 0 for the default) */
+    rpiv_sheet *s = make_selfsim();
+    double z;
+    CHECK_FAILS(rpiv_ccm_sheet_zmax(s, 0, &P, &z), RPIV_ENUMERIC);
+    CHECK_OK(rpiv_ccm_sheet_zmax(s, 3.3, &P, &z));
+    CHECK_NEAR(z, 3.3 * 0.5 / 6.3, 1e-8);
+    /* a velocity profile that is not finite cannot be tabulated */
+    static const double nan_u = NAN;
+    m.u = (rpiv_ccm_func){rpiv_ccm_const_fn, &nan_u};
+    CHECK_FAILS(rpiv_ccm_scenario_run(&sc, &m, NULL, &P, 1, NULL, &t), RPIV_EINVAL);
+    /* a negative presence law */
+    static const double neg = -1;
+    m = rpiv_ccm_model_default();
+    m.presence = (rpiv_ccm_func){rpiv_ccm_const_fn, &neg};
+    rpiv_ccm_mc_params mc = rpiv_ccm_mc_params_default();
+    rpiv_ccm_mc_result *r = NULL;
+    CHECK_FAILS(rpiv_ccm_mc_run(&m, &P, &mc, NULL, &r), RPIV_EINVAL);
+    /* curves of fewer than 2 points or with NaN */
+    const double x1[2] = {0, 1}, nanv[2] = {0, NAN};
+    rpiv_ccm_curve *c = NULL;
+    CHECK_FAILS(rpiv_ccm_curve_new(x1, x1, 1, &c), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_ccm_curve_new(x1, nanv, 2, &c), RPIV_EINVAL);
+    /* the inversion needs a displacement scale */
+    m = rpiv_ccm_model_default();
+    m.scale_px = 0;
+    double xs[3] = {1, 2, 3}, us[3] = {1, 1.5, 1.8};
+    rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
+    rpiv_ccm_invert_result *ir = NULL;
+    CHECK_FAILS(rpiv_ccm_invert(&m, s, xs, us, NULL, 3, &ip, &P, NULL, &ir), RPIV_EINVAL);
+    rpiv_sheet_free(s);
+}
+
 static int stop_now(void *user, size_t done, size_t total)
 {
     (void)user;
@@ -959,6 +1117,7 @@ int main(void)
     RUN_TEST(invert_halves_the_association_error);
     RUN_TEST(invert_weights_and_files);
     RUN_TEST(profile_of_field_and_model_of);
+    RUN_TEST(parameter_checks);
     RUN_TEST(error_paths);
     return check_summary();
 }

@@ -84,7 +84,7 @@ static void moments(const rpiv_image *im, int x0, int x1, int y0, int y1, double
 static double de_by_hand_m(double z)
 {
     double m = 0.39, dp = 10e-6, lam = 570e-9, fn = 5.6, f = 0.135, s0 = 0.5, h = 8e-3;
-    double da = f / fn, zp = h * fabs(z - 0.45);
+    double da = f / fn, zp = h * fabs(z - 0.45) / 1.33; /* apparent depth in water */
     return sqrt(m * m * dp * dp + 5.95 * (m + 1) * (m + 1) * lam * lam * fn * fn +
                 m * m * zp * zp * da * da / ((s0 + zp) * (s0 + zp)));
 }
@@ -154,7 +154,7 @@ static void single_particle_centroid_is_its_position(void)
         return;
     rpiv_image *im = image(96, 64);
     /* defocused (sigma ~ 1 px) so that the pixel-integrated centroid has no sampling bias */
-    rpiv_synth_particle p = {40.3187, 25.7421, 0.2318, 10e-6};
+    rpiv_synth_particle p = {40.3187, 25.7421, 0.0318, 10e-6};
     double amp, de, sig;
     rpiv_synth_image_model(s, &p, &amp, &de, &sig);
     CHECK_OK(rpiv_synth_render(s, &p, 1, im));
@@ -238,7 +238,7 @@ static void total_intensity_follows_amplitude_law(void)
         CHECK_NEAR(sum, amp * M_PI * de * de / (4 * beta2), 1e-6 * sum);
         /* Eq. "int": A d_e^2 (s0 + z')^2 / (I0 d_p^2) is the same for every z* (I0 = 1), and
          * equals peak_counts * d_e0^2 s0^2 for the reference particle in focus */
-        double zp = h * fabs(zs[k] - 0.45);
+        double zp = h * fabs(zs[k] - 0.45) / 1.33; /* apparent depth in water */
         double law = sum * (s0 + zp) * (s0 + zp) / (s0 * s0);
         double expect = 1318.7 * M_PI * de0 * de0 / (4 * beta2);
         printf("  z* %.4f: d_e %.3f px, peak %.2f, total %.2f counts, total (s0+z')^2/s0^2 "
@@ -261,7 +261,7 @@ static void total_intensity_follows_amplitude_law(void)
     rpiv_synth_image_model(s, &p0, &a0, &d0, NULL);
     rpiv_synth_image_model(s, &p1, &a1, &d1, NULL);
     double dz = (0.4737 - 0.45) / 0.1, i0 = exp(-4 * log(4.0) * dz * dz);
-    double zp = h * (0.4737 - 0.45);
+    double zp = h * (0.4737 - 0.45) / 1.33;
     double ratio =
         i0 * (7.3 * 7.3 / 100) * (d0 * d0) / (d1 * d1) * (s0 * s0) / ((s0 + zp) * (s0 + zp));
     CHECK_NEAR(a0, 1318.7, 1e-9);
@@ -326,8 +326,9 @@ static void frame_b_moves_by_the_uniform_displacement(void)
     rpiv_experiment e = quiet_experiment(256, 192);
     e.particles.density_ppp = 0.0008;
     e.synth.peak_counts = 1e6; /* fine grey levels after rounding; defocused peaks < 65535 */
-    /* all particles near z* = 0.1: defocused, sigma ~ 1.7 px */
-    strcpy(e.synth.pz_profile, write_file("pz_band.txt", "# P(z*)\n0.095 1\n0.105 1\n"));
+    /* all particles near z* = 0.007: defocused (apparent distance 0.443 h / 1.33 from the
+     * object plane), sigma ~ 1.7 px */
+    strcpy(e.synth.pz_profile, write_file("pz_band.txt", "# P(z*)\n0.002 1\n0.012 1\n"));
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
     if (!s)

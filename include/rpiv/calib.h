@@ -42,8 +42,8 @@ typedef struct rpiv_calib_geom {
     double dark;           /* dark level subtracted from every pixel, grey (0); ignored when a
                               dark image or a dark region is given */
     int dark_x, dark_y, dark_w, dark_h; /* region whose mean grey is the dark level (w = 0: none) */
-    int edge_window;       /* plate-edge detection: columns used for the background and the
-                              plate levels on each side of the edge, px (8) */
+    int edge_window; /* plate-edge detection: columns used for the background and the
+                        plate levels on each side of the edge, px (8) */
 } rpiv_calib_geom;
 
 rpiv_calib_geom rpiv_calib_geom_default(void);
@@ -78,17 +78,17 @@ RPIV_NODISCARD rpiv_status rpiv_calib_sheet_params_check(const rpiv_calib_sheet_
 
 /* What one plate image gives. */
 typedef struct rpiv_calib_sheet_plate {
-    double foot_px, angle_deg; /* used (given or detected)                                   */
-    double x_foot;             /* x* of the foot                                              */
-    double dark, floor;        /* grey levels subtracted (dark level, then the profile floor) */
-    double peak;               /* grey level of the profile maximum after subtraction         */
-    size_t n;                  /* samples along the plate, z* increasing                      */
-    double *z, *x, *inten;     /* z*, x* of each sample, and I0* = I / max                     */
-    rpiv_sheet_metrics raw;    /* metrics of I0*(z*) as read along the plate                  */
+    double foot_px, angle_deg;  /* used (given or detected)                                   */
+    double x_foot;              /* x* of the foot                                              */
+    double dark, floor;         /* grey levels subtracted: dark (NAN: dark image), floor   */
+    double peak;                /* grey level of the profile maximum after subtraction         */
+    size_t n;                   /* samples along the plate, z* increasing                      */
+    double *z, *x, *inten;      /* z*, x* of each sample, and I0* = I / max                     */
+    rpiv_sheet_metrics raw;     /* metrics of I0*(z*) as read along the plate                  */
     double x_max, x_inf, x_sup; /* x* where the plate meets z*_max, z*_inf, z*_sup            */
-    rpiv_sheet_metrics at;     /* metrics of the sheet at x* = x_max, from the fitted lines
-                                  (corrects the plate's oblique cut through the inclined sheet) */
-    double shape_rms;          /* rms of this plate's I0*(z+) minus the mean shape             */
+    rpiv_sheet_metrics at;      /* metrics of the sheet at x* = x_max, from the fitted lines
+                                   (corrects the plate's oblique cut through the inclined sheet) */
+    double shape_rms;           /* rms of this plate's I0*(z+) minus the mean shape             */
 } rpiv_calib_sheet_plate;
 
 typedef struct rpiv_calib_sheet_result {
@@ -131,23 +131,23 @@ RPIV_NODISCARD rpiv_status rpiv_calib_sheet_write_profiles(const rpiv_calib_shee
 
 typedef struct rpiv_calib_dof_params {
     rpiv_calib_geom geom;
-    double dot_d_m;         /* dot diameter on the target, m (62.5e-6)                       */
-    double pitch_m;         /* dot pitch on the target, both directions, m (125e-6)          */
-    double min_contrast;    /* a dot centre must be this fraction below the local mean (0.03) */
-    double min_snr;         /* ... and below it by min_snr x the standard deviation of the
-                               pixels around it (whole cells): a lattice of dots gives >= 1.4
-                               (a blurred lattice is a sinusoid), noise minima less (1)      */
-    double smooth_px;       /* Gaussian smoothing (sigma) of the image used to detect the dots
-                               and locate their centres, px (0.7); the grey level is read on
-                               the unsmoothed image                                          */
-    double lattice_tol;     /* a dot needs a neighbour one pitch away within this fraction of
-                               the pitch, else it is rejected as spurious (0.25)             */
-    int ref_cells;          /* the reference grey is the mean over ref_cells x ref_cells
-                               lattice cells around the dot (2)                              */
-    int fit_columns;        /* the curve 1/I*(z*) is smoothed by a local least-squares parabola
-                               through 2 fit_columns + 1 columns before its maximum and
-                               half-maximum crossings are read; this averages the pixel phase
-                               of the columns (4; 0 = none)                                  */
+    double dot_d_m;      /* dot diameter on the target, m (62.5e-6)                       */
+    double pitch_m;      /* dot pitch on the target, both directions, m (125e-6)          */
+    double min_contrast; /* a dot centre must be this fraction below the local mean (0.03) */
+    double min_snr;      /* ... and below it by min_snr x the standard deviation of the
+                            pixels around it (whole cells): a lattice of dots gives >= 1.4
+                            (a blurred lattice is a sinusoid), noise minima less (1)      */
+    double smooth_px;    /* Gaussian smoothing (sigma) of the image used to detect the dots
+                            and locate their centres, px (0.7); the grey level is read on
+                            the unsmoothed image                                          */
+    double lattice_tol;  /* a dot needs a neighbour one pitch away within this fraction of
+                            the pitch, else it is rejected as spurious (0.25)             */
+    int ref_cells;       /* the reference grey is the mean over ref_cells x ref_cells
+                            lattice cells around the dot (2)                              */
+    int fit_columns;     /* the curve 1/I*(z*) is smoothed by a local least-squares parabola
+                            through 2 fit_columns + 1 columns before its maximum and
+                            half-maximum crossings are read; this averages the pixel phase
+                            of the columns (4; 0 = none)                                  */
 } rpiv_calib_dof_params;
 
 rpiv_calib_dof_params rpiv_calib_dof_params_default(void);
@@ -160,30 +160,30 @@ RPIV_NODISCARD rpiv_status rpiv_calib_dof_params_check(const rpiv_calib_dof_para
  * over that "no dot" baseline; DOF* is its full width at half maximum and z*_OP its maximum. */
 typedef struct rpiv_calib_focus {
     size_t n;
-    double *z;        /* z* of each column of dots, increasing                             */
-    double *istar;    /* span-averaged I*                                                  */
-    double *inv;      /* 1 / I*                                                            */
-    double *g;        /* normalised inverse grey level (1/I* - 1) / (inv_max - 1)           */
-    double *gfit;     /* the same after the local fit (fit_columns): the curve DOF* is read on */
-    size_t *count;    /* dots averaged in each column (NULL for a model curve)             */
-    double inv_max;   /* maximum of the fitted 1/I*, used to normalise                     */
-    double zop;       /* z*_OP: vertex of the least-squares parabola through g in [zlo, zhi] */
-    double zmid;      /* midpoint of the half-maximum crossings                            */
-    double zlo, zhi;  /* half-maximum crossings of gfit (linear interpolation)             */
-    double dof;       /* DOF* = zhi - zlo                                                  */
-    double dof_raw;   /* FWHM of 1/I* / max(1/I*) without the baseline (NAN if it never
-                         falls to half its maximum: max(1/I*) < 2)                         */
+    double *z;           /* z* of each column of dots, increasing                             */
+    double *istar;       /* span-averaged I*                                                  */
+    double *inv;         /* 1 / I*                                                            */
+    double *g;           /* normalised inverse grey level (1/I* - 1) / (inv_max - 1)           */
+    double *gfit;        /* the same after the local fit (fit_columns): the curve DOF* is read on */
+    size_t *count;       /* dots averaged in each column (NULL for a model curve)             */
+    double inv_max;      /* maximum of the fitted 1/I*, used to normalise                     */
+    double zop;          /* z*_OP: vertex of the least-squares parabola through g in [zlo, zhi] */
+    double zmid;         /* midpoint of the half-maximum crossings                            */
+    double zlo, zhi;     /* half-maximum crossings of gfit (linear interpolation)             */
+    double dof;          /* DOF* = zhi - zlo                                                  */
+    double dof_raw;      /* FWHM of 1/I* / max(1/I*) without the baseline (NAN if it never
+                            falls to half its maximum: max(1/I*) < 2)                         */
     double dof_contrast; /* FWHM of the darkness 1 - I* (NAN if not reached)               */
 } rpiv_calib_focus;
 
 /* One detected dot. */
 typedef struct rpiv_calib_dot {
-    size_t shot;     /* index of its image                                   */
-    double x, y;     /* sub-pixel centre, px                                 */
-    double zstar;    /* height of the dot                                    */
-    double grey;     /* grey of the pixel nearest the centre, above dark     */
-    double ref;      /* local mean grey above dark                           */
-    double istar;    /* grey / ref                                           */
+    size_t shot;  /* index of its image                                   */
+    double x, y;  /* sub-pixel centre, px                                 */
+    double zstar; /* height of the dot                                    */
+    double grey;  /* grey of the pixel nearest the centre, above dark     */
+    double ref;   /* local mean grey above dark                           */
+    double istar; /* grey / ref                                           */
 } rpiv_calib_dot;
 
 typedef struct rpiv_calib_dof_result {
@@ -195,16 +195,15 @@ typedef struct rpiv_calib_dof_result {
 } rpiv_calib_dof_result;
 
 /* Detect the dots (local minima of the lightly smoothed image darker than the local mean by
- * min_contrast and min_snr, one per lattice cell, with a lattice neighbour), measure each dot's centre grey
- * level relative to the local mean, average the columns of dots along the span (pooling all
- * shots by z*), and find DOF* and z*_OP. Errors: as rpiv_calib_sheet_run; RPIV_ENUMERIC when no
+ * min_contrast and min_snr, one per lattice cell, with a lattice neighbour), measure each dot's
+ * centre grey level relative to the local mean, average the columns of dots along the span (pooling
+ * all shots by z*), and find DOF* and z*_OP. Errors: as rpiv_calib_sheet_run; RPIV_ENUMERIC when no
  * dot is found, fewer than 5 columns of dots remain, or the curve does not fall to half its
  * maximum on both sides (DOF wider than the target). */
 RPIV_NODISCARD rpiv_status rpiv_calib_dof_run(const rpiv_calib_dof_params *p,
                                               const rpiv_camera *cam, const rpiv_channel *ch,
                                               const rpiv_calib_shot *shots, size_t nshots,
-                                              const rpiv_image *dark,
-                                              rpiv_calib_dof_result **out);
+                                              const rpiv_image *dark, rpiv_calib_dof_result **out);
 void rpiv_calib_dof_result_free(rpiv_calib_dof_result *r); /* NULL is a no-op */
 /* Text table of the focus curve (z*, dots, I*, 1/I*, g). */
 RPIV_NODISCARD rpiv_status rpiv_calib_focus_write(const rpiv_calib_focus *c, FILE *fp);
@@ -248,9 +247,10 @@ typedef struct rpiv_calib_render_params {
     double dot_d_m;        /* dots: diameter, m (62.5e-6)                                     */
     double pitch_m;        /* dots: pitch, m (125e-6)                                         */
     double reflectance;    /* dots: reflectance of a dot relative to the white (0.1)          */
-    double phase_x, phase_y; /* dots: lattice offset from the foot / row 0, in pitches (0.3187, 0.2219) */
-    double noise;          /* standard deviation of added Gaussian noise, grey (0)           */
-    unsigned long seed;    /* noise seed (1)                                                 */
+    double phase_x,
+        phase_y;  /* dots: lattice offset from the foot / row 0, in pitches (0.3187, 0.2219) */
+    double noise; /* standard deviation of added Gaussian noise, grey (0)           */
+    unsigned long seed; /* noise seed (1)                                                 */
 } rpiv_calib_render_params;
 
 rpiv_calib_render_params rpiv_calib_render_params_default(void);
@@ -261,8 +261,7 @@ RPIV_NODISCARD rpiv_status rpiv_calib_render_params_check(const rpiv_calib_rende
  * (Eq. "int"), imaged with the Gaussian blur of Eq. "diam" (d_p = 0) at its own defocus
  * z' = h |z* - z*_OP| and integrated over the pixel; uniform along the span. */
 RPIV_NODISCARD rpiv_status rpiv_calib_render_sheet(const rpiv_calib_render_params *rp,
-                                                   const rpiv_camera *cam,
-                                                   const rpiv_channel *ch,
+                                                   const rpiv_camera *cam, const rpiv_channel *ch,
                                                    const rpiv_sheet *sheet, rpiv_image *im);
 /* Fill im with a dotted target (black dots of reflectance `reflectance` on white) on the plate:
  * each dot is an ellipse (its diameter foreshortened by cos(angle) along x) blurred like the

@@ -36,7 +36,7 @@ typedef struct rpiv_ccm_params {
     size_t gl_points;       /* Gauss-Legendre points per subinterval of a cached rule (20)      */
     double max_width;       /* longest subinterval of a cached rule, z* (1/64)                  */
     size_t scan;            /* samples of I0 and P over [zlo, zhi] to find their features (4001) */
-    double xtol_px;         /* location tolerance of the continuous peak, px (1e-10)            */
+    double xtol_px;         /* Brent's bracket tolerance, px (1e-7); a Newton polish follows    */
     int max_iter;           /* iterations of the peak minimiser (500)                           */
     int max_range_px;       /* widest integer-sampled correlation plane per axis, px (4096)     */
     rpiv_subpixel subpixel; /* sub-pixel estimator on the sampled plane (gauss)               */

@@ -45,7 +45,8 @@ awk '!/^#/ && $8 == 0 { print $1, $4 }' "$tmp/ccm_rpiv.txt" >"$tmp/meas.txt"
 "$bin" ccm invert -q -o "$tmp" --input "$tmp/meas.txt" --zop 0.5 --symmetric --compare $np >"$tmp/inv.out" && ok || ko "invert"
 e1c=$(sed -n 's/.*corrected \([0-9.]*\) %.*/\1/p' "$tmp/inv.out")
 e1a=$(sed -n 's/.*association (U at z\*_max) \([0-9.]*\) %.*/\1/p' "$tmp/inv.out")
-within "$e1a" 2 2.3 && ok || ko "association E1 '$e1a'"
+# (2.14 % with the geometric defocus of the paper, 1.96 % with the apparent depth, n_medium 1.33)
+within "$e1a" 1.8 2.3 && ok || ko "association E1 '$e1a'"
 within "$e1c" 0 0.1 && ok || ko "corrected E1 '$e1c': $(cat "$tmp/inv.out")"
 [ "$(grep -vc '^#' "$tmp/ccm_invert.txt")" -eq 129 ] && ok || ko "invert rows"
 

@@ -1,0 +1,259 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* Regression tests for the inputs the fuzzers found (docs/fuzzing.md): every file of
+ * tests/data/fuzz-regressions/ is listed below with the call that once misbehaved on it and
+ * the clean outcome expected now (status and a word of the message, which must also name the
+ * file). A file in the folder without an entry fails the test, so each new crash gets its
+ * expectation written down. The loaded results are also checked as the fuzzers check them:
+ * sane sizes, finite values, nothing returned on failure. */
+#include "check.h"
+
+#include "rpiv/config.h"
+#include "rpiv/field.h"
+#include "rpiv/image.h"
+#include "rpiv/sheet.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+typedef enum kind {
+    IMAGE,   /* rpiv_image_load(file, page) */
+    PAGES,   /* rpiv_image_count_pages(file) == page (status RPIV_OK) */
+    VECTORS, /* rpiv_field_load_txt */
+    PROFILE, /* rpiv_profile_load */
+    SHEET,   /* rpiv_sheet_new with the file as a self-similar sheet's profile */
+    CONFIG   /* rpiv_config_load */
+} kind;
+
+typedef struct expect {
+    const char *file;
+    kind k;
+    int page;
+    rpiv_status status;
+    const char *word; /* in the message on failure */
+} expect;
+
+static const expect table[] = {
+    /* libtiff opens the directory of a page whose link to the next directory is cut, while
+     * TIFFNumberOfDirectories does not count it: page 1 loaded although the file "has" 1 */
+    {"tiff_page_past_cut_ifd_link.tif", PAGES, 1, RPIV_OK, NULL},
+    {"tiff_page_past_cut_ifd_link.tif", IMAGE, 0, RPIV_OK, NULL},
+    {"tiff_page_past_cut_ifd_link.tif", IMAGE, 1, RPIV_EINVAL, "has 1 page"},
+    /* a 32-bit float TIFF with a NaN sample loaded as is */
+    {"tiff_float_nan.tif", IMAGE, 0, RPIV_EFORMAT, "NaN"},
+    /* 52 bytes announcing 327689 x 2057 pixels: 2.7 GB reserved before reading any row */
+    {"png_rows_beyond_file.png", IMAGE, 0, RPIV_EFORMAT, "compressed data"},
+    /* 56-byte 24-bit BMP with compression code 0x9b9b9b6d: decoded by stb_image as
+     * uncompressed 33 x 4194564 pixels, zeros past the end (2.5 s, 1 GB) */
+    {"bmp_unknown_compression.bmp", IMAGE, 0, RPIV_EFORMAT, "compression"},
+    /* 365-byte JPEG whose frame header announces 30000 x 30000: stb_image decoded the short
+     * scan and 900 Mpx of zeros (63 s, 4.4 GB) and the load succeeded */
+    {"jpeg_scan_shorter_than_image.jpg", IMAGE, 0, RPIV_EFORMAT, "coded data"},
+    /* the size check must keep real files that compress well: a uniform 800 x 600 grey
+     * JPEG (cjpeg -optimize, 2 bits per block, 1 byte per 256 pixels) loads */
+    {"jpeg_uniform_800x600_loads.jpg", IMAGE, 0, RPIV_OK, NULL},
+};
+#define NTABLE (sizeof table / sizeof *table)
+
+static char dir[1024];
+
+static void path_of(const char *file, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s/%s", dir, file);
+}
+
+static int image_ok(const rpiv_image *im)
+{
+    if (!im || !im->px || im->w < 1 || im->h < 1)
+        return 0;
+    double top = im->bits <= 16 ? ldexp(1.0, im->bits) - 1.0 : 3.4e38;
+    for (size_t i = 0; i < (size_t)im->w * (size_t)im->h; i++) {
+        double v = im->px[i];
+        if (!isfinite(v) || (im->bits <= 16 && (v < 0 || v > top * (1 + 1e-6))))
+            return 0;
+    }
+    return 1;
+}
+
+static int field_ok(const rpiv_field *f)
+{
+    if (f->nx < 1 || f->ny < 1 || !(f->dx > 0) || !(f->dy > 0) || !isfinite(f->dx) ||
+        !isfinite(f->dy) || !isfinite(f->x0) || !isfinite(f->y0))
+        return 0;
+    for (size_t k = 0; k < (size_t)f->nx * (size_t)f->ny; k++)
+        if (!isfinite(f->u[k]) || !isfinite(f->v[k]))
+            return 0;
+    return 1;
+}
+
+/* Run the call of e; returns its status; *sane = 0 if a success gave a broken result or a
+ * failure left a result behind. */
+static rpiv_status run(const expect *e, const char *path, int *sane)
+{
+    rpiv_status st;
+    *sane = 1;
+    switch (e->k) {
+    case IMAGE: {
+        rpiv_image *im = NULL;
+        st = rpiv_image_load(path, e->page, &im, NULL);
+        *sane = st == RPIV_OK ? image_ok(im) : im == NULL;
+        rpiv_image_free(im);
+        return st;
+    }
+    case PAGES: {
+        int n = -1;
+        st = rpiv_image_count_pages(path, &n);
+        if (st == RPIV_OK && n != e->page) {
+            fprintf(stderr, "%s: %d pages, expected %d\n", path, n, e->page);
+            *sane = 0;
+        }
+        return st;
+    }
+    case VECTORS: {
+        rpiv_field *f = NULL;
+        st = rpiv_field_load_txt(path, &f);
+        *sane = st == RPIV_OK ? field_ok(f) : f == NULL;
+        rpiv_field_free(f);
+        return st;
+    }
+    case PROFILE: {
+        rpiv_profile *p = NULL;
+        st = rpiv_profile_load(path, &p);
+        if (st == RPIV_OK) {
+            *sane = p->n >= 2;
+            for (size_t i = 0; i < p->n; i++)
+                if (!isfinite(p->alpha[i]) || !isfinite(p->value[i]) ||
+                    (i && !(p->alpha[i] > p->alpha[i - 1])))
+                    *sane = 0;
+        } else {
+            *sane = p == NULL;
+        }
+        rpiv_profile_free(p);
+        return st;
+    }
+    case SHEET: {
+        rpiv_sheet_params sp = rpiv_sheet_params_default();
+        rpiv_sheet *s = NULL;
+        sp.kind = RPIV_SHEET_SELFSIM;
+        size_t n = strlen(path);
+        if (n >= sizeof sp.profile)
+            return RPIV_EINVAL;
+        memcpy(sp.profile, path, n + 1);
+        st = rpiv_sheet_new(&sp, &s);
+        if (st == RPIV_OK) {
+            for (int i = 0; i <= 10; i++)
+                for (int k = 0; k <= 64; k++) {
+                    double v = rpiv_sheet_eval(s, i, k / 64.0);
+                    if (!isfinite(v) || v < 0 || v > 1.0001)
+                        *sane = 0;
+                }
+        } else {
+            *sane = s == NULL;
+        }
+        rpiv_sheet_free(s);
+        return st;
+    }
+    case CONFIG: {
+        rpiv_experiment ex = rpiv_experiment_default();
+        st = rpiv_config_load(path, &ex);
+        if (st == RPIV_OK)
+            *sane = rpiv_experiment_check(&ex) == RPIV_OK;
+        return st;
+    }
+    }
+    return RPIV_EINVAL;
+}
+
+static void every_file_has_an_expectation(void)
+{
+    DIR *d = opendir(dir);
+    CHECK(d != NULL);
+    if (!d)
+        return;
+    struct dirent *de;
+    int nfiles = 0;
+    while ((de = readdir(d)) != NULL) {
+        if (de->d_name[0] == '.')
+            continue;
+        nfiles++;
+        int listed = 0;
+        for (size_t i = 0; i < NTABLE; i++)
+            listed |= strcmp(table[i].file, de->d_name) == 0;
+        if (!listed)
+            fprintf(stderr, "%s/%s: no expectation in test_fuzz_regressions.c\n", dir,
+                    de->d_name);
+        CHECK(listed);
+    }
+    closedir(d);
+    CHECK(nfiles > 0);
+}
+
+static void each_regression_ends_cleanly(void)
+{
+    for (size_t i = 0; i < NTABLE; i++) {
+        const expect *e = &table[i];
+        char path[1300];
+        int sane;
+        path_of(e->file, path, sizeof path);
+        rpiv_status st = run(e, path, &sane);
+        const char *m = rpiv_errmsg();
+        if (st != e->status || !sane)
+            fprintf(stderr, "%s (call %d, page %d): status %d (expected %d), sane %d: %s\n",
+                    e->file, (int)e->k, e->page, (int)st, (int)e->status, sane,
+                    st ? m : "");
+        CHECK(st == e->status);
+        CHECK(sane);
+        if (st != RPIV_OK) {
+            int named = strstr(m, path) != NULL, worded = e->word && strstr(m, e->word);
+            if (!named || !worded)
+                fprintf(stderr, "%s: message lacks the path or '%s': %s\n", e->file,
+                        e->word ? e->word : "(none)", m);
+            CHECK(named);
+            CHECK(worded);
+        }
+    }
+}
+
+/* The PNG size check (deflate expands at most 1032:1) must not refuse a real file that
+ * compresses well: a uniform 1500 x 1100 16-bit image (about 1000:1) still loads. */
+static void png_size_check_keeps_highly_compressed_images(void)
+{
+    char path[1100];
+    snprintf(path, sizeof path, "%s", "fuzz_regressions_uniform.png");
+    rpiv_image *im = NULL, *back = NULL;
+    CHECK_OK(rpiv_image_new(1500, 1100, &im));
+    if (!im)
+        return;
+    for (size_t k = 0; k < (size_t)1500 * 1100; k++)
+        im->px[k] = 2917.0f;
+    CHECK_OK(rpiv_image_save_png16(im, path));
+    FILE *f = fopen(path, "rb");
+    long size = -1;
+    if (f && fseek(f, 0, SEEK_END) == 0)
+        size = ftell(f);
+    if (f)
+        fclose(f);
+    printf("uniform 1500x1100 16-bit PNG: %ld bytes, ratio %.0f:1\n", size,
+           1100.0 * (1 + 3000) / (double)size);
+    CHECK(size > 0 && 1100.0 * 3001 / (double)size > 500); /* a real test of the bound */
+    CHECK_OK(rpiv_image_load(path, 0, &back, NULL));
+    if (back) {
+        CHECK(back->w == 1500 && back->h == 1100);
+        CHECK(back->px[0] == 2917.0f && back->px[(size_t)1500 * 1100 - 1] == 2917.0f);
+    }
+    rpiv_image_free(im);
+    rpiv_image_free(back);
+    remove(path);
+}
+
+int main(void)
+{
+    rpiv_init();
+    const char *data = getenv("RPIV_TEST_DATA");
+    snprintf(dir, sizeof dir, "%s/fuzz-regressions", data ? data : "tests/data");
+    RUN_TEST(every_file_has_an_expectation);
+    RUN_TEST(each_regression_ends_cleanly);
+    RUN_TEST(png_size_check_keeps_highly_compressed_images);
+    return check_summary();
+}
