@@ -321,7 +321,7 @@ static void note(void *user, const char *line)
 
 static void demo_log_reports_each_step(void)
 {
-    /* the first step only: a dark sheet makes the comparison step fail, after the log */
+    /* a line per step as it starts, and what it found: at least two before the third unit */
     rpiv_experiment e = rpiv_experiment_default();
     rpiv_demo_params p = small_params();
     char dir[300];
@@ -332,6 +332,51 @@ static void demo_log_reports_each_step(void)
     rpiv_progress prog = {stop_after, &calls};
     CHECK_FAILS(rpiv_demo_run(&e, &p, dir, &prog, &log, NULL), RPIV_EINTR);
     CHECK(lines >= 2);
+}
+
+static void demo_falls_back_to_the_configured_sheet(void)
+{
+    /* beta1 = -3 deg: the axis meets the floor beyond the critical angle, nothing reaches the
+     * water in a usable sheet; the synthesis takes the [sheet] section (selfsim, e0 = 0) */
+    rpiv_experiment e = rpiv_experiment_default();
+    e.laser.beta1_deg = -3;
+    rpiv_demo_params p = rpiv_demo_params_quick();
+    p.width_px = 128;
+    p.ppiv_pairs = 1;
+    p.rpiv_pairs = 2;
+    p.save_images = 0;
+    char dir[300];
+    snprintf(dir, sizeof dir, "%s/fallback", tmpdir);
+    rpiv_demo_result r;
+    CHECK_OK(rpiv_demo_run(&e, &p, dir, NULL, NULL, &r));
+    printf("  %s\n", r.sheet_note);
+    CHECK(r.sheet_traced == 0);
+    CHECK(strstr(r.sheet_note, "kind = selfsim") && strstr(r.sheet_note, "no self-similar fit"));
+    /* the configuration's sheet: e* = 0.42 x* / 6.5, z*_max = 0.5 at x* = 6.3 */
+    CHECK_NEAR(r.sheet_de_dx, 0.42 / 6.5, 1e-12);
+    CHECK_NEAR(r.sheet_incl_deg, atan(0.5 / 6.3) * 180 / M_PI, 1e-9);
+    CHECK_NEAR(r.sheet_x_zop, 0.45 * 6.3 / 0.5, 1e-9);
+    char path[400];
+    snprintf(path, sizeof path, "%s/data/sheet_fit.txt", dir);
+    CHECK(access(path, F_OK) != 0);
+}
+
+static void demo_fails_when_the_sheet_is_dark_everywhere(void)
+{
+    /* no usable trace (beta1 = -3 deg) and a configured sheet with no thickness over the band:
+     * nothing is lit, nothing can be compared */
+    rpiv_experiment e = rpiv_experiment_default();
+    e.laser.beta1_deg = -3;
+    e.sheet.e1 = -0.1; /* e* = -0.1 x* < 0 over the band */
+    rpiv_demo_params p = rpiv_demo_params_quick();
+    p.width_px = 128;
+    p.ppiv_pairs = 1;
+    p.rpiv_pairs = 1;
+    p.save_images = 0;
+    char dir[300];
+    snprintf(dir, sizeof dir, "%s/dark", tmpdir);
+    CHECK_FAILS(rpiv_demo_run(&e, &p, dir, NULL, NULL, NULL), RPIV_ENUMERIC);
+    CHECK(strstr(rpiv_errmsg(), "dark") != NULL);
 }
 
 static void cleanup(void)
@@ -355,6 +400,8 @@ int main(void)
     RUN_TEST(demo_run_rejects_bad_input);
     RUN_TEST(demo_stops_when_progress_asks);
     RUN_TEST(demo_log_reports_each_step);
+    RUN_TEST(demo_falls_back_to_the_configured_sheet);
+    RUN_TEST(demo_fails_when_the_sheet_is_dark_everywhere);
     RUN_TEST(run_small);
     RUN_TEST(demo_uses_the_traced_sheet_with_the_papers_shape);
     RUN_TEST(demo_ppiv_reference_is_close_to_the_duct);
