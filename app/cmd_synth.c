@@ -1,11 +1,262 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* rpiv synth - not implemented yet (placeholder until its issue lands). */
+/* rpiv synth - synthetic PIV image pairs from the paper's particle-image model, with their
+ * ground truth on the PIV grid and the complete parameters. */
 #include "cli.h"
+
+#include "rpiv/field.h"
+#include "rpiv/image.h"
+#include "rpiv/piv.h"
+#include "rpiv/synth.h"
+
+#include <stdio.h>
+#include <string.h>
 
 rpiv_status cmd_synth(int argc, char **argv);
 
+static void help(void)
+{
+    printf(
+        "usage: rpiv synth [--config F] [--pairs N] [--out DIR] [--flow SPEC]\n"
+        "                  [--sheet ppiv|rpiv|volume] [--seed S] [--size WxH] [--double-frame]\n\n"
+        "Make N synthetic image pairs of the experiment (the paper's particle-image model,\n"
+        "docs/model.md): DIR/pair_00001_a.tif and _b.tif (16-bit TIFF; one file\n"
+        "pair_00001.tif, A above B, with --double-frame), DIR/truth.txt (the displacement of\n"
+        "the flow on the grid of the [piv] section, in the format of 'rpiv piv') and\n"
+        "DIR/synth.ini (every parameter and the seed: 'rpiv synth --config DIR/synth.ini'\n"
+        "makes the same files again). The options below override --config and --set.\n\n"
+        "  --pairs N          number of pairs (synth.pairs)\n"
+        "  --out DIR          output folder (output.dir)\n"
+        "  --flow SPEC        uniform:U,V | duct[:A] | poiseuille[:A] | poiseuille-y:A |\n"
+        "                     oseen:A,RC[,CX,CY] | sine:A,L, in px over dt (synth.flow);\n"
+        "                     duct and poiseuille default to the bulk U_b dt M / pixel\n"
+        "  --sheet KIND       ppiv (Gaussian sheet), rpiv (refracted self-similar sheet) or\n"
+        "                     volume (uniform illumination) (sheet.kind)\n"
+        "  --seed S           random seed, 0..4294967295 (synth.seed)\n"
+        "  --size WxH         image size, a window of the sensor centred on the field of\n"
+        "                     view (synth.width_px, synth.height_px)\n"
+        "  --double-frame     write A above B in one file (synth.double_frame)\n"
+        "  --config F         read the experiment from an INI file\n"
+        "  --set S.K=V        set one key, e.g. --set particles.density_ppp=0.02\n"
+        "  --threads N        OpenMP threads (0 = all cores); results do not depend on it\n"
+        "  --quiet            no progress and no summary\n"
+        "  --help             this text\n");
+}
+
+/* Command-line values that override the configuration, applied after it is read. */
+typedef struct synth_opts {
+    const char *pairs, *out, *flow, *sheet, *seed, *size;
+    int double_frame;
+} synth_opts;
+
+static rpiv_status apply(const synth_opts *o, rpiv_experiment *e)
+{
+    rpiv_status st;
+    long v;
+    if (o->pairs) {
+        if ((st = cli_parse_int("--pairs", o->pairs, 1, 10000000, &v)))
+            return st;
+        e->synth.pairs = (int)v;
+    }
+    if (o->seed) {
+        if ((st = cli_parse_int("--seed", o->seed, 0, 4294967295L, &v)))
+            return st;
+        e->synth.seed = (unsigned long)v;
+    }
+    if (o->size) {
+        int w, h;
+        char tail;
+        if (sscanf(o->size, "%dx%d%c", &w, &h, &tail) != 2 || w < 8 || h < 8 || w > 65536 ||
+            h > 65536)
+            return cli_usage_error("synth", "--size: '%s' is not WxH with 8..65536 px", o->size);
+        e->synth.width_px = w;
+        e->synth.height_px = h;
+    }
+    if (o->flow) {
+        rpiv_flow f;
+        int has_amp, has_centre;
+        if (strlen(o->flow) >= sizeof e->synth.flow)
+            return cli_usage_error("synth", "--flow: spec too long");
+        if ((st = rpiv_synth_flow_parse(o->flow, &f, &has_amp, &has_centre)))
+            return cli_usage_error("synth", "--flow: %s", rpiv_errmsg());
+        strcpy(e->synth.flow, o->flow);
+    }
+    if (o->sheet) {
+        if (!strcmp(o->sheet, "ppiv"))
+            e->sheet.kind = RPIV_SHEET_GAUSS;
+        else if (!strcmp(o->sheet, "rpiv"))
+            e->sheet.kind = RPIV_SHEET_SELFSIM;
+        else if (!strcmp(o->sheet, "volume"))
+            e->sheet.kind = RPIV_SHEET_UNIFORM;
+        else
+            return cli_usage_error("synth", "--sheet: '%s' is not ppiv, rpiv or volume", o->sheet);
+    }
+    if (o->out) {
+        if (strlen(o->out) >= sizeof e->output.dir)
+            return cli_usage_error("synth", "--out: path too long");
+        strcpy(e->output.dir, o->out);
+    }
+    if (o->double_frame)
+        e->synth.double_frame = 1;
+    return RPIV_OK;
+}
+
+/* The grid of the final pass of `rpiv piv` for this image size and the [piv] section. */
+static rpiv_status piv_grid(const rpiv_synth *s, const rpiv_experiment *e, rpiv_field **out)
+{
+    rpiv_synth_info in;
+    rpiv_piv *pv = NULL;
+    rpiv_synth_get_info(s, &in);
+    rpiv_status st = rpiv_piv_new(&e->piv, in.width_px, in.height_px, NULL, &pv);
+    if (!st)
+        st = rpiv_piv_grid(pv, rpiv_piv_npass(pv) - 1, out);
+    rpiv_piv_free(pv);
+    return st;
+}
+
+/* Write truth.txt on the grid f. */
+static rpiv_status write_truth(const rpiv_synth *s, const rpiv_experiment *e, rpiv_field *f,
+                               const char *path)
+{
+    rpiv_meta m = {0};
+    rpiv_status st;
+    rpiv_synth_truth(s, f);
+    if ((st = rpiv_meta_add(&m, "source", "rpiv synth ground truth")) ||
+        (st = rpiv_meta_add(&m, "flow", "%s", e->synth.flow)) ||
+        (st = rpiv_meta_add(&m, "seed", "%lu", e->synth.seed)))
+        goto out;
+    if (e->synth.truth_z >= 0)
+        st = rpiv_meta_add(&m, "truth_z", "%.17g", e->synth.truth_z);
+    else
+        st = rpiv_meta_add(&m, "truth_z", "sheet peak z*_max(x*)");
+    if (!st)
+        st = rpiv_field_save(f, &m, path);
+out:
+    rpiv_meta_clear(&m);
+    return st;
+}
+
+/* Generate and write the pairs, reporting progress. */
+static rpiv_status write_pairs(const rpiv_synth *s, const rpiv_experiment *e, const char *dir,
+                               int quiet)
+{
+    rpiv_synth_info in;
+    rpiv_synth_get_info(s, &in);
+    int dbl = e->synth.double_frame;
+    rpiv_image *a = NULL, *b = NULL;
+    rpiv_status st = rpiv_image_new(in.width_px, dbl ? 2 * in.height_px : in.height_px, &a);
+    if (!st && !dbl)
+        st = rpiv_image_new(in.width_px, in.height_px, &b);
+    cli_progress pr;
+    cli_progress_init(&pr, "synth", quiet);
+    rpiv_progress prog = cli_progress_of(&pr);
+    char path[RPIV_PATH_MAX + 64];
+    size_t n = (size_t)e->synth.pairs;
+    for (size_t i = 0; i < n && !st; i++) {
+        if (dbl) {
+            if (!(st = rpiv_synth_pair_double(s, (unsigned long)i, a))) {
+                snprintf(path, sizeof path, "%s/pair_%05zu.tif", dir, i + 1);
+                st = rpiv_image_save_tiff16(a, path);
+            }
+        } else if (!(st = rpiv_synth_pair(s, (unsigned long)i, a, b))) {
+            snprintf(path, sizeof path, "%s/pair_%05zu_a.tif", dir, i + 1);
+            if (!(st = rpiv_image_save_tiff16(a, path))) {
+                snprintf(path, sizeof path, "%s/pair_%05zu_b.tif", dir, i + 1);
+                st = rpiv_image_save_tiff16(b, path);
+            }
+        }
+        if (!st && rpiv_progress_report(&prog, i + 1, n))
+            st = rpiv_fail(RPIV_EINTR, "synth: interrupted after %zu of %zu pairs", i + 1, n);
+    }
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+    return st;
+}
+
 rpiv_status cmd_synth(int argc, char **argv)
 {
-    (void)argc;
-    return rpiv_fail(RPIV_EINVAL, "%s: not implemented yet", argv[0]);
+    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
+                                         {"pairs", required_argument, 0, 'n'},
+                                         {"out", required_argument, 0, 'o'},
+                                         {"flow", required_argument, 0, 'f'},
+                                         {"sheet", required_argument, 0, 's'},
+                                         {"seed", required_argument, 0, 'r'},
+                                         {"size", required_argument, 0, 'z'},
+                                         {"double-frame", no_argument, 0, 'd'},
+                                         {0, 0, 0, 0}};
+    cli_ctx c;
+    synth_opts o = {0};
+    rpiv_status st;
+    int opt;
+    cli_ctx_init(&c);
+    optind = 1;
+    while ((opt = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+        if (opt == 'h') {
+            help();
+            return RPIV_OK;
+        }
+        if (cli_common_opt(&c, opt, optarg, &st)) {
+            if (st)
+                return st;
+            continue;
+        }
+        switch (opt) {
+        case 'n':
+            o.pairs = optarg;
+            break;
+        case 'o':
+            o.out = optarg;
+            break;
+        case 'f':
+            o.flow = optarg;
+            break;
+        case 's':
+            o.sheet = optarg;
+            break;
+        case 'r':
+            o.seed = optarg;
+            break;
+        case 'z':
+            o.size = optarg;
+            break;
+        case 'd':
+            o.double_frame = 1;
+            break;
+        default:
+            if (optopt) /* glibc: a known option without its value */
+                return cli_usage_error("synth", "option '%s' needs a value", argv[optind - 1]);
+            return cli_usage_error("synth", "unknown option '%s'", argv[optind - 1]);
+        }
+    }
+    if (optind < argc)
+        return cli_usage_error("synth", "unexpected argument '%s'", argv[optind]);
+    rpiv_experiment *e = &c.exp;
+    if ((st = apply(&o, e)) || (st = rpiv_experiment_check(e)))
+        return st;
+    const char *dir = e->output.dir;
+    rpiv_synth *s = NULL;
+    rpiv_field *grid = NULL;
+    char path[RPIV_PATH_MAX + 64];
+    if ((st = rpiv_synth_new(e, NULL, &s)))
+        return st;
+    if ((st = piv_grid(s, e, &grid)) || (st = cli_mkdirs(dir)))
+        goto out;
+    snprintf(path, sizeof path, "%s/synth.ini", dir);
+    if ((st = rpiv_synth_save_params(s, path)))
+        goto out;
+    snprintf(path, sizeof path, "%s/truth.txt", dir);
+    if ((st = write_truth(s, e, grid, path)))
+        goto out;
+    if ((st = write_pairs(s, e, dir, c.quiet)))
+        goto out;
+    if (!c.quiet) {
+        rpiv_synth_info in;
+        rpiv_synth_get_info(s, &in);
+        printf("rpiv synth: %d pair%s of %dx%d px, %zu particles each, flow %s, seed %lu -> %s\n",
+               e->synth.pairs, e->synth.pairs == 1 ? "" : "s", in.width_px, in.height_px,
+               in.nparticles, e->synth.flow, e->synth.seed, dir);
+    }
+out:
+    rpiv_field_free(grid);
+    rpiv_synth_free(s);
+    return st;
 }

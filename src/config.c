@@ -63,6 +63,8 @@ static const key_spec keys[] = {
      "wavelength of the light recorded (fluorescence)", 0},
     {"camera", "beta2", KEY_DOUBLE, OFF(camera.beta2), 0.1, 100, 1, "-",
      "beta^2 of the Gaussian approximation of the Airy disc (Olsen & Adrian)", 0},
+    {"camera", "n_medium", KEY_DOUBLE, OFF(camera.n_medium), 1, 4, 1, "-",
+     "index of the fluid seen through a flat wall: defocus at the apparent depth (1 = paper)", 0},
     /* [particles] */
     {"particles", "diameter_um", KEY_DOUBLE, OFF(particles.dp_m), 0.01, 10000, 1e-6, "um",
      "mean particle diameter d_p", 0},
@@ -170,7 +172,7 @@ static const key_spec keys[] = {
     {"synth", "dt_s", KEY_DOUBLE, OFF(synth.dt_s), 1e-9, 100, 1, "s", "pulse separation", 0},
     {"synth", "bits", KEY_INT, OFF(synth.bits), 8, 16, 1, "bit", "bit depth: 8, 12 or 16", 0},
     {"synth", "peak_counts", KEY_DOUBLE, OFF(synth.peak_counts), 1e-6, 1e9, 1, "counts",
-     "grey level of an in-focus particle at I0 = 1", 0},
+     "peak of the Gaussian image of an in-focus particle of mean d_p at I0 = 1", 0},
     {"synth", "background", KEY_DOUBLE, OFF(synth.background), 0, 1e9, 1, "counts",
      "constant background", 0},
     {"synth", "read_noise", KEY_DOUBLE, OFF(synth.read_noise), 0, 1e9, 1, "counts",
@@ -184,8 +186,8 @@ static const key_spec keys[] = {
     {"synth", "double_frame", KEY_BOOL, OFF(synth.double_frame), 0, 1, 1, "-",
      "write frame A above frame B in one file", 0},
     {"synth", "flow", KEY_STRING, OFF(synth.flow), 0, 0, 1, "spec",
-     "uniform:U,V | duct[:A] | poiseuille[:A] | poiseuille-y:A | oseen:A,RC[,CX,CY] | sine:A,L "
-     "(px)", 0},
+     "flow in px: uniform:U,V; duct[:A]; poiseuille[:A]; poiseuille-y:A; oseen:A,RC[,CX,CY]; "
+     "sine:A,L (rpiv synth --help)", 0},
     {"synth", "truth_z", KEY_DOUBLE, OFF(synth.truth_z), -1, 1, 1, "h",
      "z* of the ground truth of z-dependent flows (< 0: the sheet's peak)", 0},
     {"synth", "pz_profile", KEY_STRING, OFF(synth.pz_profile), 0, 0, 1, "path",

@@ -17,7 +17,7 @@ typedef struct pctx {
     const char *path;
     char msg[512];
     FILE *f;
-    uint64_t fsize; /* bytes in the file */
+    uint64_t fsize;
     png_structp png;
     png_infop info;
     unsigned char *data;  /* raw rows */
@@ -69,16 +69,16 @@ static int png_decode(pctx *c)
     rpiv_status st = img_check_size(c->path, w, h);
     if (st)
         return (int)st;
-    /* deflate expands at most 1032:1, so a file too small for the rows it announces is cut
-     * or corrupt: refuse it before reserving memory for them */
-    uint64_t raw = (uint64_t)h * (1 + ((uint64_t)w * png_get_channels(c->png, c->info) *
-                                           (uint64_t)depth + 7) / 8);
-    if (raw / 1032 > c->fsize)
+    /* Deflate expands at most 1032:1, so a header whose filtered rows cannot come out of the
+     * file is refused before the image is allocated. */
+    uint64_t raw = ((uint64_t)w * png_get_channels(c->png, c->info) * (uint64_t)depth + 7) / 8;
+    raw = (raw + 1) * h;
+    if (raw > 1032 * c->fsize + 65536)
         return (int)rpiv_fail(RPIV_EFORMAT,
-                              "%s: truncated or corrupt PNG: %ux%u pixels need at least %llu "
-                              "bytes of compressed data, the file has %llu",
-                              c->path, (unsigned)w, (unsigned)h,
-                              (unsigned long long)(raw / 1032), (unsigned long long)c->fsize);
+                              "%s: truncated or corrupt PNG: %ux%u pixels (%llu bytes of rows) "
+                              "cannot be inflated from a %llu-byte file",
+                              c->path, (unsigned)w, (unsigned)h, (unsigned long long)raw,
+                              (unsigned long long)c->fsize);
     st = img_alloc(c->path, w, h, bits, &c->im);
     if (st)
         return (int)st;
@@ -144,9 +144,9 @@ rpiv_status img_png_load(const char *path, rpiv_image **out, int *warned)
     c.f = fopen(path, "rb");
     if (!c.f)
         return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
-    rpiv_status st = RPIV_OK;
     struct stat sb;
     c.fsize = fstat(fileno(c.f), &sb) == 0 ? (uint64_t)sb.st_size : 0;
+    rpiv_status st = RPIV_OK;
     c.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &c, on_error, on_warning);
     if (c.png)
         c.info = png_create_info_struct(c.png);
@@ -200,6 +200,10 @@ static int png_encode(wctx *c)
     png_set_IHDR(c->png, c->info, (png_uint_32)im->w, (png_uint_32)im->h, 16,
                  PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
                  PNG_FILTER_TYPE_DEFAULT);
+    /* Fast settings: zlib level 1 with the Sub filter wrote a 1720x2304 camera image in
+     * 0.19-0.21 s against 1.7-1.9 s with libpng's defaults, 9% larger (docs/images.md). */
+    png_set_compression_level(c->png, 1);
+    png_set_filter(c->png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
     png_write_info(c->png, c->info);
     for (int y = 0; y < im->h; y++) {
         const float *s = im->px + (size_t)y * im->w;

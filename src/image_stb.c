@@ -50,19 +50,17 @@ static rpiv_status bmp_check(const char *path, const unsigned char *b, size_t n,
     if (bpp != 1 && bpp != 4 && bpp != 8 && bpp != 16 && bpp != 24 && bpp != 32)
         return rpiv_fail(RPIV_EFORMAT, "%s: %u bits per pixel BMP not supported", path, bpp);
     *palette = bpp <= 8;
-    /* stb_image decodes other compression codes as uncompressed data, zeros past the end */
+    /* stb_image reads uncompressed (BI_RGB) and bit-field (BI_BITFIELDS) pixel data only;
+     * both have a fixed size, which must be in the file. */
     if (comp != 0 && comp != 3)
-        return rpiv_fail(RPIV_EFORMAT,
-                         "%s: BMP compression %u not supported (0: none, 3: bit fields)", path,
+        return rpiv_fail(RPIV_EFORMAT, "%s: BMP compression type %u not supported", path,
                          (unsigned)comp);
-    if (comp == 0 || comp == 3) { /* BI_RGB, BI_BITFIELDS: fixed size pixel data */
-        uint64_t rowbytes = ((uint64_t)w * bpp + 31) / 32 * 4;
-        uint64_t need = (uint64_t)off + rowbytes * (uint64_t)h;
-        if (need > n)
-            return rpiv_fail(RPIV_EFORMAT,
-                             "%s: truncated BMP: pixel data end at byte %llu, file has %zu",
-                             path, (unsigned long long)need, n);
-    }
+    uint64_t rowbytes = ((uint64_t)w * bpp + 31) / 32 * 4;
+    uint64_t need = (uint64_t)off + rowbytes * (uint64_t)h;
+    if (need > n)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: truncated BMP: pixel data end at byte %llu, file has %zu", path,
+                         (unsigned long long)need, n);
     return RPIV_OK;
 }
 
@@ -108,15 +106,14 @@ rpiv_status img_stb_load(const char *path, rpiv_image_format fmt, const unsigned
                         (uint64_t)(h < 0 ? -(int64_t)h : h));
     if (st)
         return st;
-    /* stb_image decodes a short scan as zeros. Each 8x8 block of a full-resolution component
-     * takes at least one bit of Huffman code (its DC), and that component has at least one
-     * block per 256 pixels whatever the sampling factors (<= 4): a file below one byte per
-     * 2048 pixels cannot hold the image it announces. */
-    if (fmt == RPIV_IMAGE_JPEG && (uint64_t)w * (uint64_t)h / 2048 > n)
+    /* A Huffman-coded 8x8 block takes at least one bit (a DC code; baseline also an EOB), so
+     * a JPEG holds at most 512 pixels per byte: refuse a header the file cannot fill before
+     * stb_image allocates for it. */
+    if (fmt == RPIV_IMAGE_JPEG && (uint64_t)w * (uint64_t)h > 1024 * (uint64_t)n + 65536)
         return rpiv_fail(RPIV_EFORMAT,
-                         "%s: truncated or corrupt JPEG: %dx%d pixels need at least %llu bytes "
-                         "of coded data, the file has %zu",
-                         path, w, h, (unsigned long long)((uint64_t)w * (uint64_t)h / 2048), n);
+                         "%s: truncated or corrupt JPEG: %dx%d pixels cannot be coded in %zu "
+                         "bytes",
+                         path, w, h, n);
     unsigned char *p = stbi_load_from_memory(buf, (int)n, &w, &h, &comp, 0);
     if (!p)
         return rpiv_fail(RPIV_EFORMAT, "%s: cannot decode %s: %s", path,

@@ -188,6 +188,26 @@ static rpiv_status check_layout(const char *path, tinfo *ti)
     return RPIV_OK;
 }
 
+/* Refuse, before allocating the image, a header whose pixel data cannot be in the file:
+ * uncompressed data take their full size; no codec rpiv meets (LZW, Deflate, PackBits, ...)
+ * packs more than 4096:1. Fax and JBIG codes for 1-bit images can, so they are not checked. */
+static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
+{
+    uint16_t comp = COMPRESSION_NONE;
+    TIFFGetFieldDefaulted(t, TIFFTAG_COMPRESSION, &comp);
+    if (ti->bps == 1 && comp != COMPRESSION_NONE)
+        return RPIV_OK;
+    uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
+    uint64_t raw = ((uint64_t)ti->w * ti->spp * ti->bps + 7) / 8 * ti->h;
+    uint64_t cap = comp == COMPRESSION_NONE ? fsize : 4096 * fsize + (1u << 20);
+    if (raw > cap)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: truncated or corrupt TIFF: %ux%u pixels (%llu bytes of samples) "
+                         "cannot be stored in a %llu-byte file",
+                         path, ti->w, ti->h, (unsigned long long)raw, (unsigned long long)fsize);
+    return RPIV_OK;
+}
+
 /* Decode every strip or tile into im->px (nch == 1) or rgb (3 planes of w*h). */
 static rpiv_status read_blocks(TIFF *t, tctx *c, const char *path, const tinfo *ti, float *px,
                                float *rgb)
@@ -315,6 +335,11 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     if (st)
         goto out_close;
     st = check_layout(path, &ti);
+    if (st)
+        goto out_close;
+    st = img_check_size(path, ti.w, ti.h);
+    if (!st)
+        st = check_plausible(t, path, &ti);
     if (st)
         goto out_close;
     int bits = ti.sf == SAMPLEFORMAT_IEEEFP ? 32 : ti.bps;

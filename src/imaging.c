@@ -15,7 +15,8 @@ rpiv_camera rpiv_camera_default(void)
                          .s0_m = 0.5,
                          .zop_star = 0.45,
                          .lambda_p_m = 570e-9,
-                         .beta2 = 3.67};
+                         .beta2 = 3.67,
+                         .n_medium = 1.33};
 }
 
 rpiv_particles rpiv_particles_default(void)
@@ -50,6 +51,8 @@ rpiv_status rpiv_camera_check(const rpiv_camera *c)
     if (bad(c->lambda_p_m, 1e-7, 2e-6))
         return rpiv_fail(RPIV_EINVAL, "camera: wavelength %g m outside 1e-7..2e-6",
                          c->lambda_p_m);
+    if (bad(c->n_medium, 1, 4))
+        return rpiv_fail(RPIV_EINVAL, "camera: medium index %g outside 1..4", c->n_medium);
     if (bad(c->beta2, 0.1, 100))
         return rpiv_fail(RPIV_EINVAL, "camera: beta2 %g outside 0.1..100", c->beta2);
     return RPIV_OK;
@@ -80,7 +83,7 @@ double rpiv_camera_aperture_m(const rpiv_camera *c)
 
 double rpiv_imaging_defocus_m(const rpiv_camera *c, double h_m, double zstar)
 {
-    return h_m * fabs(zstar - c->zop_star);
+    return h_m * fabs(zstar - c->zop_star) / c->n_medium;
 }
 
 double rpiv_imaging_de_m(const rpiv_camera *c, double dp_m, double zdef_m)

@@ -4,7 +4,6 @@
 #include "rpiv/optics.h"
 
 #include <math.h>
-#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -53,6 +52,13 @@ int rpiv_optics_refract(double n1, double n2, double theta_i, rpiv_polar pol, do
 
 /* ---- geometry ------------------------------------------------------------------------------ */
 
+/* The divergence: ray i's angle is the quantile q(i) = (i * DIV_STEP) mod DIV_LEVELS of a
+ * Gaussian. DIV_STEP / DIV_LEVELS is close to the golden ratio's fraction 0.618 and DIV_STEP is
+ * odd, so q visits every level once per DIV_LEVELS consecutive rays and the (height, angle)
+ * pairs form a rank-1 (Fibonacci-like) lattice: even coverage, no random numbers. */
+#define DIV_LEVELS 4096
+#define DIV_STEP   2531
+
 typedef struct vec2 {
     double x, z;
 } vec2;
@@ -70,18 +76,19 @@ static double cross(vec2 a, vec2 b)
 
 /* Everything a ray needs, fixed for a trace. */
 typedef struct setup {
-    vec2 n, np;     /* face inward normal (into the PMMA) and its +90 deg rotation     */
-    vec2 P;         /* axis entry point on the face                                   */
-    vec2 d0, u;     /* axis direction in air, and the lens plane direction (+90 deg)   */
-    vec2 L;         /* lens centre                                                    */
-    double eta1;    /* n_air / n_pmma                                                 */
-    double eta2;    /* n_pmma / n_water                                               */
+    vec2 n, np;  /* face inward normal (into the PMMA) and its +90 deg rotation     */
+    vec2 P;      /* axis entry point on the face                                   */
+    vec2 d0, u;  /* axis direction in air, and the lens plane direction (+90 deg)   */
+    vec2 L;      /* lens centre                                                    */
+    double eta1; /* n_air / n_pmma                                                 */
+    double eta2; /* n_pmma / n_water                                               */
     double n_air, n_pmma, n_water;
-    double W;       /* 1/e^2 radius of the beam at the lens                           */
-    double div_sd;  /* standard deviation of the ray angles from the beam's divergence    */
-    double inv_f;   /* 1 / focal length                                               */
-    double bundle;  /* full width of the ray bundle                                   */
-    double wnorm;   /* Gaussian weight normalisation                                  */
+    double W;      /* 1/e^2 radius of the beam at the lens                           */
+    double div_sd; /* standard deviation of the ray angles from the beam's divergence    */
+    double div_tab[DIV_LEVELS]; /* its quantiles at (q + 1/2) / DIV_LEVELS               */
+    double inv_f;               /* 1 / focal length                                               */
+    double bundle;              /* full width of the ray bundle                                   */
+    double wnorm;               /* Gaussian weight normalisation                                  */
     rpiv_polar pol;
 } setup;
 
@@ -122,6 +129,8 @@ static rpiv_status make_setup(const rpiv_laser *l, const rpiv_prism *p, setup *s
     s->W = 0.5 * l->beam_d_m * l->expander;
     /* intensity exp(-2 a^2 / a_w^2) with a_w the 1/e^2 half-angle after the expander */
     s->div_sd = 0.25 * l->divergence_rad / l->expander;
+    for (int q = 0; q < DIV_LEVELS; q++)
+        s->div_tab[q] = s->div_sd * gsl_cdf_ugaussian_Pinv((q + 0.5) / DIV_LEVELS);
     s->inv_f = 1.0 / l->lens_f_m;
     s->bundle = l->bundle_m;
     s->pol = l->polar;
@@ -168,26 +177,15 @@ typedef struct ray_out {
     vec2 dw;       /* unit direction in the water              */
 } ray_out;
 
-/* The divergence angle of ray i: a Gaussian of standard deviation sd sampled through the
- * golden-ratio (Weyl) sequence u_i = frac(1/2 + i / phi), exact in 64-bit integers. With the
- * equally spaced heights this spreads the rays evenly over the (height, angle) plane, like a
- * Fibonacci lattice, without random numbers. */
-static double div_angle(long i, double sd)
-{
-    if (sd == 0)
-        return 0;
-    uint64_t k = (uint64_t)i * UINT64_C(0x9E3779B97F4A7C15) + (UINT64_C(1) << 63);
-    double u = ((double)(k >> 11) + 0.5) * 0x1p-53;
-    return sd * gsl_cdf_ugaussian_Pinv(u);
-}
-
 /* Trace ray i, launched at height h (m) across the lens. */
 static enum fate trace_ray(const setup *s, long i, double h, ray_out *r)
 {
     r->w = s->wnorm * exp(-2.0 * h * h / (s->W * s->W));
     r->T1 = r->T2 = 0;
-    /* thin lens on slopes: tan(alpha') = tan(alpha) - h / f */
-    double slope = tan(div_angle(i, s->div_sd)) - h * s->inv_f, k = 1.0 / sqrt(1.0 + slope * slope);
+    /* thin lens on slopes: tan(alpha') = tan(alpha) - h / f; the divergence angles (about
+     * 1 mrad) are taken as slopes */
+    double slope = s->div_tab[(unsigned long)i * DIV_STEP % DIV_LEVELS] - h * s->inv_f,
+           k = 1.0 / sqrt(1.0 + slope * slope);
     vec2 d = {(s->d0.x + slope * s->u.x) * k, (s->d0.z + slope * s->u.z) * k};
     vec2 S = {s->L.x + h * s->u.x, s->L.z + h * s->u.z};
     /* free flight to the inclined face */
@@ -260,8 +258,12 @@ enum { S_INC, S_RFACE, S_RFLOOR, S_TIR, S_MISS, S_TRANS, S_N };
 
 /* Trace rays [i0, i1) into one chunk's histogram and sums, in ray order. */
 static void trace_chunk(const setup *s, long nrays, long i0, long i1, const double *X, size_t nx,
-                        double h, size_t nz, double dz, double *hist, double *sum, long *cnt)
+                        double h, size_t nz, double dz, double *hist, double *sum_out,
+                        long *cnt_out)
 {
+    /* local sums: the chunks' output slots share cache lines */
+    double sum[S_N] = {0}, inv_dz = 1.0 / dz;
+    long cnt[3] = {0};
     for (long i = i0; i < i1; i++) {
         double hh = s->bundle * (((double)i + 0.5) / (double)nrays - 0.5);
         ray_out r;
@@ -283,19 +285,18 @@ static void trace_chunk(const setup *s, long nrays, long i0, long i1, const doub
         sum[S_TRANS] += b;
         cnt[0]++;
         /* fluence rate: a tube crossing a vertical line at angle phi spans dz = width / cos phi */
-        double wz = b / fabs(r.dw.x);
+        double wz = b / fabs(r.dw.x), slope = r.dw.z / (r.dw.x * h), fwd = r.dw.x;
         for (size_t k = 0; k < nx; k++) {
-            double sx = (X[k] - r.xf) / r.dw.x;
-            if (!(sx >= 0))
-                continue;
-            double zs = sx * r.dw.z / h; /* z* of the crossing */
-            if (!(zs < 1.0))
-                continue; /* absorbed by the ceiling before this station */
-            size_t j = (size_t)(zs / dz);
+            double dx = X[k] - r.xf, zs = dx * slope; /* z* of the crossing */
+            if (!(dx * fwd >= 0) || !(zs < 1.0))
+                continue; /* behind the ray's start, or absorbed by the ceiling before */
+            size_t j = (size_t)(zs * inv_dz);
             if (j < nz)
                 hist[k * nz + j] += wz;
         }
     }
+    memcpy(sum_out, sum, sizeof sum);
+    memcpy(cnt_out, cnt, sizeof cnt);
 }
 
 /* Gaussian smoothing with the kernel renormalised over the bins inside the channel. */
@@ -335,9 +336,9 @@ static rpiv_status smooth_profiles(rpiv_optics_result *r, double sigma)
 
 /* Chunks are fixed by the ray count (not the thread count), each summed in ray order, and the
  * chunks summed in chunk order: the result is the same for any number of threads. */
-#define CHUNK_MIN 4096L
+#define CHUNK_MIN       4096L
 #define CHUNK_MAX_COUNT 256L
-#define CHUNK_MEM_MAX (256.0 * 1024 * 1024)
+#define CHUNK_MEM_MAX   (256.0 * 1024 * 1024)
 
 rpiv_status rpiv_optics_trace(const rpiv_laser *l, const rpiv_prism *p, double h_m,
                               const double *xstar, size_t nx, const rpiv_optics_opts *o,
@@ -391,8 +392,7 @@ rpiv_status rpiv_optics_trace(const rpiv_laser *l, const rpiv_prism *p, double h
     cnts = calloc((size_t)nchunk * 3, sizeof *cnts);
     double *X = malloc(nx * sizeof *X);
     if (!r->xstar || !r->zstar || !r->inten || !hist || !sums || !cnts || !X) {
-        st = rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (%ld chunks of %zu bins)", nchunk,
-                       nb);
+        st = rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (%ld chunks of %zu bins)", nchunk, nb);
         goto out_free;
     }
     memcpy(r->xstar, xstar, nx * sizeof *xstar);

@@ -172,8 +172,8 @@ rpiv_status rpiv_optics_save_sweep(const rpiv_laser *l, const rpiv_prism *p, dou
 }
 
 rpiv_status rpiv_optics_save_sensitivity(const rpiv_laser *l, const rpiv_prism *p,
-                                         const rpiv_optics_sens_row *rows, size_t n,
-                                         double cutoff, const char *path)
+                                         const rpiv_optics_sens_row *rows, size_t n, double cutoff,
+                                         const char *path)
 {
     table t;
     rpiv_optics_axis ax;

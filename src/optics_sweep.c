@@ -47,6 +47,10 @@ rpiv_status rpiv_optics_sweep_beta1(const rpiv_laser *l, const rpiv_prism *p, do
         return rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory");
     double ref = (double)NAN;
     int have_ref = 0;
+    size_t total = n + 1; /* one more trace for the reference unless 2 deg is in the list */
+    for (size_t i = 0; i < n; i++)
+        if (fabs(beta1[i] - 2.0) < 1e-12)
+            total = n;
     for (size_t i = 0; i <= n; i++) {
         rpiv_laser li = *l;
         if (i == n) { /* the reference, if the sweep did not pass through 2 deg */
@@ -71,7 +75,7 @@ rpiv_status rpiv_optics_sweep_beta1(const rpiv_laser *l, const rpiv_prism *p, do
             if (profiles)
                 memcpy(profiles + i * nz, prof, nz * sizeof *prof);
         }
-        if (rpiv_progress_report(prog, i + 1, n + 1)) {
+        if (rpiv_progress_report(prog, i + 1, total)) {
             st = rpiv_fail(RPIV_EINTR, "raytrace: sweep interrupted at beta1 = %g deg",
                            li.beta1_deg);
             goto out_free;
@@ -111,7 +115,7 @@ rpiv_status rpiv_optics_sensitivity(const rpiv_laser *l, const rpiv_prism *p, do
         q->deta = deta0 + (deta1 - deta0) * (double)i / (double)(n - 1);
         q->transmitted =
             rpiv_optics_refract(eta0 + q->deta, 1.0, ax.theta_i, l->polar, &q->theta_t, &q->T);
-        q->dtheta_rel = q->theta_t / tt0 - 1;
+        q->dtheta_rel = q->transmitted ? q->theta_t / tt0 - 1 : (double)NAN;
         q->dT_rel = q->T / T0 - 1;
     }
     if (cutoff)
@@ -157,9 +161,8 @@ static double rms_resid(const double *x, const double *y, size_t n, double c0, d
     return sqrt(s / (double)n);
 }
 
-rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double *zstar,
-                                    size_t nz, const double *inten, double dzplus,
-                                    rpiv_optics_selfsim **out)
+rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double *zstar, size_t nz,
+                                    const double *inten, double dzplus, rpiv_optics_selfsim **out)
 {
     rpiv_status st = RPIV_OK;
     *out = NULL;
@@ -175,7 +178,7 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
     double *xs = malloc(nx * sizeof *xs), *es = malloc(nx * sizeof *es),
            *zm = malloc(nx * sizeof *zm), *im = malloc(nx * sizeof *im);
     size_t *idx = malloc(nx * sizeof *idx);
-    double *acc = NULL, *cnt = NULL, *norm = malloc(nz * sizeof *norm);
+    double *res = NULL, *norm = malloc(nz * sizeof *norm);
     if (!f || !xs || !es || !zm || !im || !idx || !norm) {
         st = rpiv_fail(RPIV_ENOMEM, "selfsim fit: out of memory");
         goto out_free;
@@ -215,38 +218,53 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
     f->rms_zm = rms_resid(xs, zm, nu, f->zm0, f->zm1);
     f->nused = nu;
 
-    /* mean shape over the stations covering each z+ (all cover z+ = 0) */
+    /* each station resampled on z+ (NaN where it does not cover z+; all cover z+ = 0) */
     long g0 = (long)floor(zpmin / dzplus), g1 = (long)ceil(zpmax / dzplus);
-    f->n = (size_t)(g1 - g0 + 1);
-    f->zplus = malloc(f->n * sizeof *f->zplus);
-    f->shape = calloc(f->n, sizeof *f->shape);
-    acc = f->shape;
-    cnt = calloc(f->n, sizeof *cnt);
-    if (!f->zplus || !f->shape || !cnt) {
-        st = rpiv_fail(RPIV_ENOMEM, "selfsim fit: out of memory (%zu rows)", f->n);
+    size_t ng = (size_t)(g1 - g0 + 1);
+    f->n = ng;
+    f->zplus = malloc(ng * sizeof *f->zplus);
+    f->shape = calloc(ng, sizeof *f->shape);
+    res = malloc(nu * ng * sizeof *res);
+    if (!f->zplus || !f->shape || !res) {
+        st = rpiv_fail(RPIV_ENOMEM, "selfsim fit: out of memory (%zu rows)", ng);
         goto out_free;
     }
-    for (size_t g = 0; g < f->n; g++)
+    for (size_t g = 0; g < ng; g++)
         f->zplus[g] = (double)(g0 + (long)g) * dzplus;
     for (size_t q = 0; q < nu; q++) {
         const double *p = inten + idx[q] * nz;
         for (size_t j = 0; j < nz; j++)
             norm[j] = p[j] / im[q];
-        for (size_t g = 0; g < f->n; g++) {
+        for (size_t g = 0; g < ng; g++) {
             double z = zm[q] + f->zplus[g] * es[q];
-            if (z >= zstar[0] && z <= zstar[nz - 1]) {
-                acc[g] += interp(zstar, norm, nz, z);
-                cnt[g] += 1;
-            }
+            res[q * ng + g] =
+                z >= zstar[0] && z <= zstar[nz - 1] ? interp(zstar, norm, nz, z) : (double)NAN;
         }
     }
+    /* the mean over the stations covering each z+, renormalised to a maximum of 1 */
     double mx = 0;
-    for (size_t g = 0; g < f->n; g++) {
-        acc[g] = cnt[g] > 0 ? acc[g] / cnt[g] : 0;
-        mx = fmax(mx, acc[g]);
+    for (size_t g = 0; g < ng; g++) {
+        double acc = 0, cnt = 0;
+        for (size_t q = 0; q < nu; q++)
+            if (!isnan(res[q * ng + g])) {
+                acc += res[q * ng + g];
+                cnt += 1;
+            }
+        f->shape[g] = cnt > 0 ? acc / cnt : 0;
+        mx = fmax(mx, f->shape[g]);
     }
-    for (size_t g = 0; g < f->n; g++)
-        acc[g] = fmin(1.0, fmax(0.0, acc[g] / mx));
+    for (size_t g = 0; g < ng; g++)
+        f->shape[g] = fmin(1.0, fmax(0.0, f->shape[g] / mx));
+    /* how self-similar: the stations' departure from the mean shape where they cover it */
+    double ss2 = 0, ns2 = 0;
+    for (size_t q = 0; q < nu; q++)
+        for (size_t g = 0; g < ng; g++)
+            if (!isnan(res[q * ng + g])) {
+                double d = res[q * ng + g] - f->shape[g];
+                ss2 += d * d;
+                ns2 += 1;
+            }
+    f->rms_shape = sqrt(ss2 / ns2);
     *out = f;
     f = NULL;
 out_free:
@@ -256,7 +274,7 @@ out_free:
     free(zm);
     free(im);
     free(idx);
-    free(cnt);
+    free(res);
     free(norm);
     return st;
 }

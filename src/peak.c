@@ -42,22 +42,27 @@ static int wrap(int i, int n)
     return i < 0 ? i + n : (i >= n ? i - n : i);
 }
 
-static int allowed(int i, int n, int r)
+/* 1 if the circular distance between indices i and c on an axis of n is <= r. */
+static int near(int i, int c, int n, int r)
 {
-    if (r <= 0)
-        return 1;
-    int s = shift_of(i, n);
-    return s >= -r && s <= r;
+    int d = shift_of(wrap(i - c + n, n), n);
+    return d >= -r && d <= r;
 }
 
 /* 1 if plane(i, j) is >= its 8 circular neighbours. */
 static int local_max(const float *p, int w, int h, int i, int j)
 {
-    float v = p[(size_t)j * (size_t)w + (size_t)i];
+    const float *row = p + (size_t)j * (size_t)w;
+    float v = row[i];
+    if (i > 0 && i < w - 1 && j > 0 && j < h - 1) {
+        const float *up = row - w, *dn = row + w;
+        return v >= row[i - 1] && v >= row[i + 1] && v >= up[i - 1] && v >= up[i] &&
+               v >= up[i + 1] && v >= dn[i - 1] && v >= dn[i] && v >= dn[i + 1];
+    }
     for (int dj = -1; dj <= 1; dj++) {
-        const float *row = p + (size_t)wrap(j + dj, h) * (size_t)w;
+        const float *r = p + (size_t)wrap(j + dj, h) * (size_t)w;
         for (int di = -1; di <= 1; di++)
-            if ((di || dj) && row[wrap(i + di, w)] > v)
+            if ((di || dj) && r[wrap(i + di, w)] > v)
                 return 0;
     }
     return 1;
@@ -85,25 +90,84 @@ static void centroid3x3(const float *p, int w, int h, int i, int j, double *dx, 
     *dy = *ok ? sy / s : 0;
 }
 
+/* Column maxima: cm[i] = max over the rows j of [j0, j1) (taken modulo h) of plane(i, j),
+ * for the columns of the segments [a0, a1) and [b0, b1); element-wise over whole rows, so
+ * the compiler vectorises it, instead of one serial chain of compares. */
+static void colmax_rows(const float *plane, int w, int h, int j0, int j1, int a0, int a1, int b0,
+                        int b1, float *cm)
+{
+    for (int jj = j0; jj < j1; jj++) {
+        const float *row = plane + (size_t)wrap(jj % h, h) * (size_t)w;
+        for (int i = a0; i < a1; i++)
+            cm[i] = row[i] > cm[i] ? row[i] : cm[i];
+        for (int i = b0; i < b1; i++)
+            cm[i] = row[i] > cm[i] ? row[i] : cm[i];
+    }
+}
+
+/* The largest of v[0..n-1] and its first index (-1 if none). */
+static float max_index(const float *v, int n, int *at)
+{
+    float m = -INFINITY;
+    *at = -1;
+    for (int i = 0; i < n; i++)
+        if (v[i] > m) {
+            m = v[i];
+            *at = i;
+        }
+    return m;
+}
+
+/* The indices of an axis of n whose shift is within -r..r (all if r <= 0), in index order. */
+static int axis_indices(int n, int r, int *idx)
+{
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+        int s = shift_of(i, n);
+        if (r <= 0 || (s >= -r && s <= r))
+            idx[m++] = i;
+    }
+    return m;
+}
+
 void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpixel method,
                     rpiv_peak *out)
 {
+    int full = max_shift <= 0 || (max_shift >= w / 2 && max_shift >= h / 2);
+    int rows[4096], cols[4096], nr = h, nc = w;
+    if (!full) {
+        nr = axis_indices(h, max_shift, rows);
+        nc = axis_indices(w, max_shift, cols);
+    }
+    /* highest value; on ties the lowest column, then the lowest row */
     int bi = -1, bj = -1;
-    float best = 0;
-    for (int j = 0; j < h; j++) {
-        if (!allowed(j, h, max_shift))
-            continue;
-        const float *row = plane + (size_t)j * (size_t)w;
+    float best = -INFINITY;
+    float cm[4096];
+    if (full) {
+        /* column maxima, then the best column, then its first row holding the maximum */
         for (int i = 0; i < w; i++)
-            if (allowed(i, w, max_shift) && (bi < 0 ? isfinite(row[i]) : row[i] > best)) {
-                best = row[i];
-                bi = i;
+            cm[i] = -INFINITY;
+        colmax_rows(plane, w, h, 0, h, 0, w, 0, 0, cm);
+        best = max_index(cm, w, &bi);
+        for (int j = 0; j < h && bi >= 0; j++)
+            if (plane[(size_t)j * (size_t)w + (size_t)bi] == best) {
                 bj = j;
+                break;
             }
+    } else {
+        for (int jj = 0; jj < nr; jj++) {
+            const float *row = plane + (size_t)rows[jj] * (size_t)w;
+            for (int ii = 0; ii < nc; ii++)
+                if (row[cols[ii]] > best) {
+                    best = row[cols[ii]];
+                    bi = cols[ii];
+                    bj = rows[jj];
+                }
+        }
     }
     *out = (rpiv_peak){0};
     out->ratio = RPIV_PEAK_RATIO_MAX;
-    if (bi < 0)
+    if (bi < 0 || !isfinite(best))
         return;
     out->ix = shift_of(bi, w);
     out->iy = shift_of(bj, h);
@@ -125,30 +189,54 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
     out->dx = out->ix + (out->fit_ok ? fx : 0);
     out->dy = out->iy + (out->fit_ok ? fy : 0);
 
-    /* second peak: the highest local maximum outside the first peak's neighbourhood */
-    int found = 0;
-    float second = 0;
-    for (int j = 0; j < h; j++) {
-        if (!allowed(j, h, max_shift))
-            continue;
-        int ddy = shift_of(wrap(j - bj + h, h), h);
-        int near_y = ddy >= -RPIV_PEAK_EXCLUDE && ddy <= RPIV_PEAK_EXCLUDE;
-        const float *row = plane + (size_t)j * (size_t)w;
-        for (int i = 0; i < w; i++) {
-            float v = row[i];
-            if (!(found ? v > second : isfinite(v)) || !allowed(i, w, max_shift))
-                continue;
-            if (near_y) {
-                int ddx = shift_of(wrap(i - bi + w, w), w);
-                if (ddx >= -RPIV_PEAK_EXCLUDE && ddx <= RPIV_PEAK_EXCLUDE)
-                    continue;
+    /* second peak: the highest local maximum outside the first peak's neighbourhood. The
+     * highest value outside it usually is one (a noise peak); if not, every value above the
+     * best local maximum so far is examined. */
+    const int ex = RPIV_PEAK_EXCLUDE;
+    float second = -INFINITY;
+    int done = 0;
+    if (full && 2 * ex + 1 < h) {
+        /* column maxima over the rows away from the first peak, and over the rows near it
+         * but only in the columns away from it */
+        for (int i = 0; i < w; i++)
+            cm[i] = -INFINITY;
+        colmax_rows(plane, w, h, bj + ex + 1, bj + h - ex, 0, w, 0, 0, cm);
+        if (2 * ex + 1 < w) {
+            int lo = bi - ex, hi = bi + ex + 1; /* excluded columns: [lo, hi) modulo w */
+            int a0 = 0, a1 = lo, b0 = hi, b1 = w;
+            if (lo < 0)
+                a0 = a1 = 0, b0 = hi, b1 = lo + w;
+            else if (hi > w)
+                a0 = hi - w, a1 = lo, b0 = b1 = 0;
+            colmax_rows(plane, w, h, bj - ex + h, bj + ex + 1 + h, a0, a1, b0, b1, cm);
+        }
+        int i2, j2 = -1;
+        float m2 = max_index(cm, w, &i2);
+        for (int j = 0; j < h && i2 >= 0; j++)
+            if (plane[(size_t)j * (size_t)w + (size_t)i2] == m2 &&
+                !(near(j, bj, h, ex) && near(i2, bi, w, ex))) {
+                j2 = j;
+                break;
             }
-            if (local_max(plane, w, h, i, j)) {
-                second = v;
-                found = 1;
-            }
+        if (j2 < 0) {
+            done = 1; /* nothing outside the neighbourhood */
+        } else if (local_max(plane, w, h, i2, j2)) {
+            second = m2;
+            done = 1;
         }
     }
+    for (int jj = 0; jj < nr && !done; jj++) {
+        int j = full ? jj : rows[jj];
+        int ny = near(j, bj, h, ex);
+        const float *row = plane + (size_t)j * (size_t)w;
+        for (int ii = 0; ii < nc; ii++) {
+            int i = full ? ii : cols[ii];
+            if (!(row[i] > second) || (ny && near(i, bi, w, ex)) || !local_max(plane, w, h, i, j))
+                continue;
+            second = row[i];
+        }
+    }
+    int found = second > -INFINITY;
     out->second = found ? second : 0;
     if (found && second > 0 && best < RPIV_PEAK_RATIO_MAX * second)
         out->ratio = best / second;

@@ -23,27 +23,36 @@
  * particles). It does not depend on the thread count. */
 enum { BAND = 32 };
 
+/* Shot noise draws Poisson(m) as Poisson(m_k) + Poisson(m - m_k), exact in distribution,
+ * with m_k = background + k POIS_STEP the largest tabulated mean below m (Walker tables of
+ * GSL, O(1) per draw) and the small remainder from gsl_ran_poisson's direct method; means
+ * beyond the last table draw the whole excess from gsl_ran_poisson. */
+#define POIS_STEP    4.0
+#define POIS_ENTRIES 2e6
+enum { POIS_TABLES = 512 };
+
 /* Stream tags: particles, and noise of (frame, band). */
 #define TAG_PARTICLES 0ULL
 #define TAG_NOISE     (1ULL << 40)
 
 struct rpiv_synth {
-    rpiv_experiment e;  /* the parameters, copied                           */
-    rpiv_sheet *sheet;  /* I0(x*, z*)                                       */
-    rpiv_flow flow;     /* displacement over dt, px                         */
-    int w, h;           /* image size                                       */
-    double pix_m;       /* sensor pixel pitch                               */
-    double spp;         /* x* (= y*) per image pixel                        */
-    double x0s, y0s;    /* x*, y* of the left and top image edges           */
-    double reg[4];      /* particle region x0, y0, x1, y1, px               */
-    size_t n;           /* particles per pair                               */
-    double norm;        /* peak_counts / model peak of the reference particle */
-    double de0_m;       /* d_e of the reference particle in focus           */
-    int invariant;      /* 1: the displacement is constant along a path     */
-    size_t npz;         /* P(z*) table rows (0 = uniform)                   */
+    rpiv_experiment e;          /* the parameters, copied                           */
+    rpiv_sheet *sheet;          /* I0(x*, z*)                                       */
+    rpiv_flow flow;             /* displacement over dt, px                         */
+    int w, h;                   /* image size                                       */
+    double pix_m;               /* sensor pixel pitch                               */
+    double spp;                 /* x* (= y*) per image pixel                        */
+    double x0s, y0s;            /* x*, y* of the left and top image edges           */
+    double reg[4];              /* particle region x0, y0, x1, y1, px               */
+    size_t n;                   /* particles per pair                               */
+    double norm;                /* peak_counts / model peak of the reference particle */
+    double de0_m;               /* d_e of the reference particle in focus           */
+    int invariant;              /* 1: the displacement is constant along a path     */
+    size_t npz;                 /* P(z*) table rows (0 = uniform)                   */
     double *pz_z, *pz_p, *pz_c; /* nodes, density, cumulative integral      */
-    gsl_ran_discrete_t *bg;     /* Poisson(background) table (shot noise)   */
-    long bg_k0;                 /* its first count                          */
+    gsl_ran_discrete_t **ptab;  /* shot noise: Poisson(background + k POIS_STEP) */
+    long *ptab_k0;              /* first count of each table                */
+    int npt;                    /* number of tables                         */
     double maxval;              /* 2^bits - 1                               */
 };
 
@@ -55,7 +64,8 @@ typedef struct spot {
 /* ---- seeds ---------------------------------------------------------------------------- */
 
 /* A 64-bit finaliser (the splitmix64 one) so that neighbouring (seed, index, tag) give
- * unrelated streams. GSL's mt19937 takes 32 bits of seed. */
+ * unrelated streams. GSL's taus2 (L'Ecuyer's maximally equidistributed Tausworthe
+ * generator, period 2^88) takes 32 bits of seed. */
 static uint64_t mix64(uint64_t z)
 {
     z += 0x9e3779b97f4a7c15ULL;
@@ -133,8 +143,8 @@ static rpiv_status pz_load(rpiv_synth *s, const char *path)
     }
     s->pz_c[0] = 0;
     for (size_t k = 1; k < s->npz; k++)
-        s->pz_c[k] = s->pz_c[k - 1] +
-                     0.5 * (s->pz_p[k - 1] + s->pz_p[k]) * (s->pz_z[k] - s->pz_z[k - 1]);
+        s->pz_c[k] =
+            s->pz_c[k - 1] + 0.5 * (s->pz_p[k - 1] + s->pz_p[k]) * (s->pz_z[k] - s->pz_z[k - 1]);
     if (!(s->pz_c[s->npz - 1] > 0))
         st = rpiv_fail(RPIV_EFORMAT, "%s: P(z) integrates to zero", path);
 out_close:
@@ -169,26 +179,73 @@ static double sample_z(const rpiv_synth *s, gsl_rng *r)
 
 /* ---- making a generator ----------------------------------------------------------------- */
 
-static rpiv_status bg_table(rpiv_synth *s)
+/* Range of counts tabulated for Poisson(mu): beyond 12 sd + 40 counts either side the mass is
+ * below 1e-30. */
+static void pois_range(double mu, long *k0, long *k1)
 {
-    double mu = s->e.synth.background;
     double sd = sqrt(mu);
-    /* Beyond 12 sd + 40 counts either side the Poisson mass is below 1e-30. */
-    long k0 = (long)floor(mu - 12 * sd - 40), k1 = (long)ceil(mu + 12 * sd + 40);
-    if (k0 < 0)
-        k0 = 0;
-    size_t n = (size_t)(k1 - k0 + 1);
-    double *p = malloc(n * sizeof *p);
-    if (!p)
-        return rpiv_fail(RPIV_ENOMEM, "synth: out of memory (background table)");
-    for (size_t k = 0; k < n; k++)
-        p[k] = gsl_ran_poisson_pdf((unsigned int)(k0 + (long)k), mu);
-    s->bg = gsl_ran_discrete_preproc(n, p);
+    *k0 = (long)floor(mu - 12 * sd - 40);
+    *k1 = (long)ceil(mu + 12 * sd + 40);
+    if (*k0 < 0)
+        *k0 = 0;
+}
+
+static rpiv_status poisson_tables(rpiv_synth *s)
+{
+    double bg = s->e.synth.background;
+    long k0, k1;
+    /* at most POIS_ENTRIES table entries in all (16 bytes each): fewer tables for a high
+     * background */
+    int nt = POIS_TABLES;
+    for (;;) {
+        pois_range(bg + (nt - 1) * POIS_STEP, &k0, &k1);
+        if (nt == 1 || (double)nt * (double)(k1 - k0 + 1) <= POIS_ENTRIES)
+            break;
+        nt /= 2;
+    }
+    s->npt = nt;
+    s->ptab = calloc((size_t)nt, sizeof *s->ptab);
+    s->ptab_k0 = calloc((size_t)nt, sizeof *s->ptab_k0);
+    double *p = malloc((size_t)(k1 - k0 + 1) * sizeof *p); /* the largest table */
+    if (!s->ptab || !s->ptab_k0 || !p)
+        goto out_nomem;
+    for (int t = 0; t < nt; t++) {
+        double mu = bg + t * POIS_STEP;
+        if (mu == 0)
+            continue; /* Poisson(0) = 0: no table */
+        pois_range(mu, &k0, &k1);
+        /* the pmf from its mode outward by the ratios p(k+1)/p(k) = mu/(k+1) */
+        long km = (long)floor(mu), n = k1 - k0 + 1;
+        p[km - k0] = gsl_ran_poisson_pdf((unsigned int)km, mu);
+        for (long k = km + 1; k <= k1; k++)
+            p[k - k0] = p[k - 1 - k0] * mu / (double)k;
+        for (long k = km - 1; k >= k0; k--)
+            p[k - k0] = p[k + 1 - k0] * (double)(k + 1) / mu;
+        s->ptab[t] = gsl_ran_discrete_preproc((size_t)n, p);
+        if (!s->ptab[t])
+            goto out_nomem;
+        s->ptab_k0[t] = k0;
+    }
     free(p);
-    if (!s->bg)
-        return rpiv_fail(RPIV_ENOMEM, "synth: out of memory (background table)");
-    s->bg_k0 = k0;
     return RPIV_OK;
+out_nomem:
+    free(p);
+    return rpiv_fail(RPIV_ENOMEM, "synth: out of memory (shot-noise tables)");
+}
+
+/* A Poisson count of mean m >= background (see POIS_STEP). */
+static double shot(const rpiv_synth *s, double m, gsl_rng *r)
+{
+    double ex = m - s->e.synth.background;
+    int t = ex > 0 ? (int)(ex / POIS_STEP) : 0;
+    if (t >= s->npt)
+        t = s->npt - 1;
+    double rem = ex - t * POIS_STEP, c = 0;
+    if (s->ptab[t])
+        c = (double)(s->ptab_k0[t] + (long)gsl_ran_discrete(r, s->ptab[t]));
+    if (rem > 0)
+        c += gsl_ran_poisson(r, rem);
+    return c;
 }
 
 /* The flow from the spec and the geometry. */
@@ -269,8 +326,7 @@ static void region_of(rpiv_synth *s)
         s->reg[3] = s->reg[1];
 }
 
-rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flow,
-                           rpiv_synth **out)
+rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flow, rpiv_synth **out)
 {
     rpiv_status st;
     *out = NULL;
@@ -325,7 +381,7 @@ rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flo
     double dp0 = e->particles.dp_m;
     s->de0_m = rpiv_imaging_de_m(cam, dp0, 0);
     s->norm = e->synth.peak_counts / rpiv_imaging_peak(cam, dp0 * dp0, s->de0_m, 0);
-    if (e->synth.shot_noise && e->synth.background > 0 && (st = bg_table(s)))
+    if (e->synth.shot_noise && (st = poisson_tables(s)))
         goto out_free;
     *out = s;
     return RPIV_OK;
@@ -342,8 +398,12 @@ void rpiv_synth_free(rpiv_synth *s)
     free(s->pz_z);
     free(s->pz_p);
     free(s->pz_c);
-    if (s->bg)
-        gsl_ran_discrete_free(s->bg);
+    if (s->ptab)
+        for (int t = 0; t < s->npt; t++)
+            if (s->ptab[t])
+                gsl_ran_discrete_free(s->ptab[t]);
+    free(s->ptab);
+    free(s->ptab_k0);
     free(s);
 }
 
@@ -373,7 +433,7 @@ rpiv_status rpiv_synth_particles_new(const rpiv_synth *s, unsigned long index,
     *out = NULL;
     *n = 0;
     rpiv_synth_particle *p = malloc((s->n ? s->n : 1) * sizeof *p);
-    gsl_rng *r = gsl_rng_alloc(gsl_rng_mt19937);
+    gsl_rng *r = gsl_rng_alloc(gsl_rng_taus2);
     if (!p || !r) {
         free(p);
         if (r)
@@ -441,8 +501,7 @@ void rpiv_synth_image_model(const rpiv_synth *s, const rpiv_synth_particle *p, d
     double de = rpiv_imaging_de_m(cam, p->dp_m, zd);
     if (amp_counts) {
         double i0 = rpiv_sheet_eval(s->sheet, xstar, p->z);
-        *amp_counts = i0 > 0 ? s->norm * rpiv_imaging_peak(cam, i0 * p->dp_m * p->dp_m, de, zd)
-                             : 0;
+        *amp_counts = i0 > 0 ? s->norm * rpiv_imaging_peak(cam, i0 * p->dp_m * p->dp_m, de, zd) : 0;
     }
     if (de_px)
         *de_px = de / s->pix_m;
@@ -483,13 +542,13 @@ static void erf_weights(double c, double sig, int i0, int i1, double *wt)
     }
 }
 
-/* Add the spots listed for a band (rows b0 .. b1-1) into buf (band rows x image width). */
-static void render_band(const rpiv_synth *s, const spot *sp, const size_t *list, size_t cnt,
-                        int b0, int b1, double *buf, double *wx, double *wy)
+/* Add a band's spots (rows b0 .. b1-1) into buf (band rows x image width). */
+static void render_band(const rpiv_synth *s, const spot *sp, size_t cnt, int b0, int b1,
+                        double *buf, double *wx, double *wy)
 {
     double rad = s->e.synth.radius_sigma;
     for (size_t q = 0; q < cnt; q++) {
-        const spot *p = &sp[list[q]];
+        const spot *p = &sp[q];
         double r = rad * p->sig;
         double xl = p->x - r - 0.5, xr = p->x + r + 0.5, yl = p->y - r - 0.5, yr = p->y + r + 0.5;
         int x0 = xl < 0 ? 0 : (int)ceil(xl), x1 = xr > s->w - 1 ? s->w - 1 : (int)floor(xr);
@@ -507,18 +566,14 @@ static void render_band(const rpiv_synth *s, const spot *sp, const size_t *list,
     }
 }
 
-/* Background, shot noise (Poisson(bg + signal) drawn as Poisson(bg) + Poisson(signal), the
- * first from a table), read noise, rounding and saturation. */
+/* Background, shot noise, read noise, rounding and saturation. */
 static void noise_band(const rpiv_synth *s, const double *buf, size_t npx, float *out, gsl_rng *r)
 {
     const rpiv_synth_params *sp = &s->e.synth;
     for (size_t k = 0; k < npx; k++) {
         double v = buf[k];
         if (sp->shot_noise) {
-            double c = s->bg ? (double)(s->bg_k0 + (long)gsl_ran_discrete(r, s->bg)) : 0;
-            if (v > 0)
-                c += gsl_ran_poisson(r, v);
-            v = c;
+            v = shot(s, sp->background + v, r);
         } else {
             v += sp->background;
         }
@@ -529,9 +584,10 @@ static void noise_band(const rpiv_synth *s, const double *buf, size_t npx, float
     }
 }
 
-/* Per-band lists of the spots to draw, in spot order: list[start[b] .. start[b+1]). */
+/* Per-band copies of the spots to draw, in spot order: list[start[b] .. start[b+1]) (copies,
+ * not indices, so that each band reads its spots in sequence). */
 static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb, size_t **start,
-                          size_t **list)
+                          spot **list)
 {
     size_t *st = calloc((size_t)nb + 1, sizeof *st), total = 0;
     if (!st)
@@ -544,7 +600,7 @@ static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb,
     for (int b = 0; b < nb; b++)
         st[b + 1] += st[b];
     total = st[nb];
-    size_t *li = malloc((total ? total : 1) * sizeof *li);
+    spot *li = malloc((total ? total : 1) * sizeof *li);
     size_t *fill = malloc((size_t)nb * sizeof *fill);
     if (!li || !fill) {
         free(st);
@@ -556,7 +612,7 @@ static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb,
     for (size_t i = 0; i < n; i++)
         if (spot_rows(s, &sp[i], &y0, &y1))
             for (int b = y0 / BAND; b <= y1 / BAND; b++)
-                li[fill[b]++] = i;
+                li[fill[b]++] = sp[i];
     free(fill);
     *start = st;
     *list = li;
@@ -565,11 +621,12 @@ static rpiv_status bucket(const rpiv_synth *s, const spot *sp, size_t n, int nb,
 
 /* Draw nf frames: spots sp[f] into out[f] (w x h). With noise, out is overwritten by the
  * noisy, quantised image; without, the spots are added to out. */
-static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *const *out,
-                        int nf, unsigned long index, int noise)
+static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *const *out, int nf,
+                        unsigned long index, int noise)
 {
     int nb = (s->h + BAND - 1) / BAND;
-    size_t *start[2] = {NULL, NULL}, *list[2] = {NULL, NULL};
+    size_t *start[2] = {NULL, NULL};
+    spot *list[2] = {NULL, NULL};
     rpiv_status st = RPIV_OK;
     for (int f = 0; f < nf && !st; f++)
         st = bucket(s, sp[f], n, nb, &start[f], &list[f]);
@@ -581,7 +638,7 @@ static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *c
         size_t w = (size_t)s->w;
         double *buf = malloc(BAND * w * sizeof *buf);
         double *wx = malloc((w + 2) * sizeof *wx), *wy = malloc((BAND + 2) * sizeof *wy);
-        gsl_rng *r = noise ? gsl_rng_alloc(gsl_rng_mt19937) : NULL;
+        gsl_rng *r = noise ? gsl_rng_alloc(gsl_rng_taus2) : NULL;
         int ok = buf && wx && wy && (r || !noise);
         nomem |= !ok;
 #pragma omp for schedule(dynamic, 1)
@@ -591,8 +648,8 @@ static rpiv_status draw(const rpiv_synth *s, spot *const *sp, size_t n, float *c
             int f = it / nb, b = it % nb, b0 = b * BAND, b1 = b0 + BAND > s->h ? s->h : b0 + BAND;
             size_t npx = (size_t)(b1 - b0) * w;
             memset(buf, 0, npx * sizeof *buf);
-            render_band(s, sp[f], list[f] + start[f][b], start[f][b + 1] - start[f][b], b0, b1,
-                        buf, wx, wy);
+            render_band(s, list[f] + start[f][b], start[f][b + 1] - start[f][b], b0, b1, buf, wx,
+                        wy);
             float *o = out[f] + (size_t)b0 * w;
             if (noise) {
                 gsl_rng_set(r, stream_seed(s->e.synth.seed, index,
@@ -622,8 +679,8 @@ out_free:
 static rpiv_status size_ok(const rpiv_synth *s, const rpiv_image *im, const char *what)
 {
     if (im->w != s->w || im->h != s->h || !im->px)
-        return rpiv_fail(RPIV_ESIZE, "synth: %s is %dx%d, the generator makes %dx%d", what,
-                         im->w, im->h, s->w, s->h);
+        return rpiv_fail(RPIV_ESIZE, "synth: %s is %dx%d, the generator makes %dx%d", what, im->w,
+                         im->h, s->w, s->h);
     return RPIV_OK;
 }
 
@@ -646,8 +703,7 @@ rpiv_status rpiv_synth_render(const rpiv_synth *s, const rpiv_synth_particle *p,
     return st;
 }
 
-rpiv_status rpiv_synth_pair(const rpiv_synth *s, unsigned long index, rpiv_image *a,
-                            rpiv_image *b)
+rpiv_status rpiv_synth_pair(const rpiv_synth *s, unsigned long index, rpiv_image *a, rpiv_image *b)
 {
     rpiv_status st;
     if ((st = size_ok(s, a, "frame A")) || (st = size_ok(s, b, "frame B")))
@@ -692,36 +748,6 @@ rpiv_status rpiv_synth_pair_double(const rpiv_synth *s, unsigned long index, rpi
 }
 
 /* ---- ground truth ----------------------------------------------------------------------- */
-
-rpiv_status rpiv_synth_grid_of(const rpiv_synth *s, const rpiv_piv_params *piv,
-                               rpiv_synth_grid *g)
-{
-    int last = piv->npass - 1, ww = piv->win_w[last], wh = piv->win_h[last];
-    int sx = piv->step_px, sy = piv->step_px;
-    if (!sx) {
-        sx = (int)lround(ww * (1 - piv->overlap));
-        sy = (int)lround(wh * (1 - piv->overlap));
-    }
-    sx = sx < 1 ? 1 : sx;
-    sy = sy < 1 ? 1 : sy;
-    int r0 = 0, r1 = 0, r2 = s->w, r3 = s->h;
-    if (piv->roi[0] || piv->roi[1] || piv->roi[2] || piv->roi[3]) {
-        r0 = piv->roi[0];
-        r1 = piv->roi[1];
-        r2 = piv->roi[2] < s->w ? piv->roi[2] : s->w;
-        r3 = piv->roi[3] < s->h ? piv->roi[3] : s->h;
-    }
-    if (r2 - r0 < ww || r3 - r1 < wh)
-        return rpiv_fail(RPIV_ESIZE, "synth: window %dx%d larger than the region %dx%d", ww, wh,
-                         r2 - r0 > 0 ? r2 - r0 : 0, r3 - r1 > 0 ? r3 - r1 : 0);
-    g->nx = (r2 - r0 - ww) / sx + 1;
-    g->ny = (r3 - r1 - wh) / sy + 1;
-    g->x0 = r0 + 0.5 * (ww - 1);
-    g->y0 = r1 + 0.5 * (wh - 1);
-    g->dx = sx;
-    g->dy = sy;
-    return RPIV_OK;
-}
 
 /* z* of the sheet's peak at x*: the best of a scan of the channel height, refined by Brent's
  * minimiser of -I0 (the default R-PIV shape has a kink at its peak: no parabola fit). */
@@ -849,10 +875,9 @@ rpiv_status rpiv_synth_save_params(const rpiv_synth *s, const char *path)
             "#   flow %s: a %.9g, b %.9g, centre (%.6g, %.6g), y* at row 0 %.9g, y* per px %.9g\n",
             s->e.synth.seed, s->e.synth.pairs, in.width_px, in.height_px, in.x0_star,
             in.x0_star + in.width_px * in.star_per_px, in.y0_star,
-            in.y0_star + in.height_px * in.star_per_px, in.star_per_px, in.nparticles,
-            in.region[0], in.region[2], in.region[1], in.region[3], in.bulk_px, in.de_focus_px,
-            in.sigma_focus_px, flow_name(f->kind), f->a, f->b, f->cx, f->cy, f->y0_star,
-            f->ystar_per_px);
+            in.y0_star + in.height_px * in.star_per_px, in.star_per_px, in.nparticles, in.region[0],
+            in.region[2], in.region[1], in.region[3], in.bulk_px, in.de_focus_px, in.sigma_focus_px,
+            flow_name(f->kind), f->a, f->b, f->cx, f->cy, f->y0_star, f->ystar_per_px);
     rpiv_status st = rpiv_config_write(&s->e, fp);
     int bad = ferror(fp);
     bad |= fclose(fp) != 0;

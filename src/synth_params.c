@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -56,15 +57,21 @@ rpiv_status rpiv_synth_params_check(const rpiv_synth_params *p)
     if (!(p->radius_sigma >= 1 && p->radius_sigma <= 20))
         return rpiv_fail(RPIV_EINVAL, "synth.radius_sigma: %g outside 1..20", p->radius_sigma);
     if (!(p->cutoff_counts >= 0 && p->cutoff_counts <= 1e9))
-        return rpiv_fail(RPIV_EINVAL, "synth.cutoff_counts: %g outside 0..1e9",
-                         p->cutoff_counts);
+        return rpiv_fail(RPIV_EINVAL, "synth.cutoff_counts: %g outside 0..1e9", p->cutoff_counts);
     if (p->rk_steps < 1 || p->rk_steps > 1000)
         return rpiv_fail(RPIV_EINVAL, "synth.rk_steps: %d outside 1..1000", p->rk_steps);
-    if (!memchr(p->flow, '\0', sizeof p->flow) || !memchr(p->pz_profile, '\0', sizeof p->pz_profile))
+    if (!memchr(p->flow, '\0', sizeof p->flow) ||
+        !memchr(p->pz_profile, '\0', sizeof p->pz_profile))
         return rpiv_fail(RPIV_EINVAL, "synth: flow or pz_profile is not a terminated string");
     rpiv_flow f;
     int has_amp, has_centre;
-    return rpiv_synth_flow_parse(p->flow, &f, &has_amp, &has_centre);
+    rpiv_status st = rpiv_synth_flow_parse(p->flow, &f, &has_amp, &has_centre);
+    if (st) {
+        char msg[768];
+        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+        return rpiv_fail(st, "synth.flow: %s", msg);
+    }
+    return RPIV_OK;
 }
 
 /* The flow names, their kinds and how many numbers each takes (min..max). */
@@ -73,13 +80,12 @@ static const struct {
     rpiv_flow_kind kind;
     int nmin, nmax;
 } flows[] = {
-    {"uniform", RPIV_FLOW_UNIFORM, 2, 2},     {"duct", RPIV_FLOW_DUCT, 0, 1},
+    {"uniform", RPIV_FLOW_UNIFORM, 2, 2},       {"duct", RPIV_FLOW_DUCT, 0, 1},
     {"poiseuille", RPIV_FLOW_POISEUILLE, 0, 1}, {"poiseuille-y", RPIV_FLOW_POISEUILLE_Y, 1, 1},
-    {"oseen", RPIV_FLOW_OSEEN, 2, 4},         {"sine", RPIV_FLOW_SINE, 2, 2},
+    {"oseen", RPIV_FLOW_OSEEN, 2, 4},           {"sine", RPIV_FLOW_SINE, 2, 2},
 };
 
-rpiv_status rpiv_synth_flow_parse(const char *spec, rpiv_flow *flow, int *has_amp,
-                                  int *has_centre)
+rpiv_status rpiv_synth_flow_parse(const char *spec, rpiv_flow *flow, int *has_amp, int *has_centre)
 {
     static const char *const usage =
         "uniform:U,V | duct[:A] | poiseuille[:A] | poiseuille-y:A | oseen:A,RC[,CX,CY] | sine:A,L";

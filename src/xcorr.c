@@ -94,25 +94,86 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws)
     free(ws);
 }
 
-/* Remove the mean of v[0..n-1] in place; return sum of squares of the result. Sums in double
- * (16-bit grey levels squared over a 64 x 64 window exceed float's 24 bits). */
-static double demean(float *v, size_t n)
+/* Partial sums in LANES independent accumulators, combined in a fixed order at the end: the
+ * compiler can keep them in vector registers (a single running sum cannot be vectorised
+ * without reassociation), and the result does not depend on anything but the data. Float
+ * lanes are enough: a lane sums at most 64 x 64 / 16 = 256 grey levels of 16 bits, and the
+ * mean and energy only need ~1e-6 relative precision. */
+#define LANES 16
+
+/* Sum of v[0..n-1], n a multiple of LANES or not. */
+static double lane_sum(const float *v, size_t n)
 {
+    float acc[LANES] = {0};
+    size_t i = 0;
+    for (; i + LANES <= n; i += LANES)
+        for (int l = 0; l < LANES; l++)
+            acc[l] += v[i + (size_t)l];
     double s = 0;
-    for (size_t i = 0; i < n; i++)
+    for (; i < n; i++)
         s += (double)v[i];
-    float m = (float)(s / (double)n);
+    for (int l = 0; l < LANES; l++)
+        s += (double)acc[l];
+    return s;
+}
+
+/* Subtract m from v[0..n-1]; return the sum of squares of the result. */
+static double lane_center(float *v, size_t n, float m)
+{
+    float acc[LANES] = {0};
+    size_t i = 0;
+    for (; i + LANES <= n; i += LANES)
+        for (int l = 0; l < LANES; l++) {
+            float x = v[i + (size_t)l] - m;
+            v[i + (size_t)l] = x;
+            acc[l] += x * x;
+        }
     double e = 0;
-    for (size_t i = 0; i < n; i++) {
+    for (; i < n; i++) {
         v[i] -= m;
         e += (double)v[i] * (double)v[i];
     }
+    for (int l = 0; l < LANES; l++)
+        e += (double)acc[l];
     return e;
 }
 
-void rpiv_xcorr_run(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double *ea, double *eb)
+/* Remove the mean of v[0..n-1] in place; return the sum of squares of the result. */
+static double demean(float *v, size_t n)
 {
-    double e1 = demean(ws->a, x->n), e2 = demean(ws->b, x->n);
+    return lane_center(v, n, (float)(lane_sum(v, n) / (double)n));
+}
+
+/* Copy a w x h window from a frame of stride `stride` into dst, summing it on the way, then
+ * remove its mean; the energy is returned. */
+static double load_demean(float *dst, const float *src, size_t stride, int w, int h)
+{
+    float acc[LANES] = {0};
+    double s = 0;
+    for (int j = 0; j < h; j++) {
+        const float *a = src + (size_t)j * stride;
+        float *d = dst + (size_t)j * (size_t)w;
+        int i = 0;
+        for (; i + LANES <= w; i += LANES)
+            for (int l = 0; l < LANES; l++) {
+                float x = a[i + l];
+                d[i + l] = x;
+                acc[l] += x;
+            }
+        for (; i < w; i++) {
+            d[i] = a[i];
+            s += (double)a[i];
+        }
+    }
+    for (int l = 0; l < LANES; l++)
+        s += (double)acc[l];
+    size_t n = (size_t)w * (size_t)h;
+    return lane_center(dst, n, (float)(s / (double)n));
+}
+
+/* Transforms, spectrum product, inverse transform, for mean-removed windows. */
+static void correlate(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double e1, double e2)
+{
     fftwf_execute_dft_r2c(x->fwd, ws->a, ws->fa);
     fftwf_execute_dft_r2c(x->fwd, ws->b, ws->fb);
     /* R = IDFT(conj(A) B) / n; FFTW's c2r is unnormalised, so fold 1/n (and the energy
@@ -120,15 +181,35 @@ void rpiv_xcorr_run(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double *
     double sc = 1.0 / (double)x->n;
     if (mode == RPIV_XCORR_NORMALISE)
         sc = (e1 > 0 && e2 > 0) ? sc / sqrt(e1 * e2) : 0;
-    float s = (float)sc;
-    float *fa = ws->fa, *fb = ws->fb;
-    for (size_t k = 0; k < x->nc; k++) {
-        float ar = fa[2 * k], ai = fa[2 * k + 1], br = fb[2 * k], bi = fb[2 * k + 1];
-        fb[2 * k] = (ar * br + ai * bi) * s;
-        fb[2 * k + 1] = (ar * bi - ai * br) * s;
+    const float s = (float)sc;
+    const float *fa = ws->fa;
+    float *fb = ws->fb;
+    for (size_t k = 0; k < 2 * x->nc; k += 2) {
+        float ar = fa[k], ai = fa[k + 1], br = fb[k], bi = fb[k + 1];
+        fb[k] = (ar * br + ai * bi) * s;
+        fb[k + 1] = (ar * bi - ai * br) * s;
     }
     fb[0] = fb[1] = 0;
     fftwf_execute_dft_c2r(x->inv, ws->fb, ws->plane);
+}
+
+void rpiv_xcorr_run(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double *ea, double *eb)
+{
+    double e1 = demean(ws->a, x->n), e2 = demean(ws->b, x->n);
+    correlate(x, ws, mode, e1, e2);
+    if (ea)
+        *ea = e1;
+    if (eb)
+        *eb = e2;
+}
+
+void rpiv_xcorr_run_from(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const float *a,
+                         size_t stride_a, const float *b, size_t stride_b, int mode, double *ea,
+                         double *eb)
+{
+    double e1 = load_demean(ws->a, a, stride_a, x->w, x->h);
+    double e2 = load_demean(ws->b, b, stride_b, x->w, x->h);
+    correlate(x, ws, mode, e1, e2);
     if (ea)
         *ea = e1;
     if (eb)

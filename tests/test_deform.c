@@ -77,11 +77,11 @@ static void deform_predictor_keeps_linear_fields_linear(void)
 {
     lin lu = {1.1379, 0.0213, -0.0311}, lv = {-0.4127, 0.0087, 0.0152};
     rpiv_field *f = grid_field(9, 7, 15.5, 15.5, 16, lu, lv);
-    rpiv_deform_pred *p = NULL;
+    rpiv_deform_pred *p = NULL, *q = NULL;
     CHECK(f != NULL);
     if (!f)
         return;
-    CHECK_OK(rpiv_deform_pred_new(f, 160, 128, &p));
+    CHECK_OK(rpiv_deform_pred_new(f, 160, 128, 0, &p));
     if (!p)
         goto out;
     double u, v;
@@ -102,8 +102,22 @@ static void deform_predictor_keeps_linear_fields_linear(void)
         }
     }
     CHECK(maxerr < 2e-5);
+    /* with a shift, rows are evaluated at (x + shift, y + shift) */
+    CHECK_OK(rpiv_deform_pred_new(f, 160, 128, 0.25, &q));
+    maxerr = 0;
+    for (int y = 0; q && y < 128; y += 5) {
+        rpiv_deform_pred_row(q, y, 3, 150, ru, rv, scr);
+        for (int x = 3; x < 150; x++) {
+            double X = x + 0.25, Y = y + 0.25;
+            double e = fabs((double)ru[x - 3] - (lu.a + lu.bx * X + lu.by * Y));
+            e = fmax(e, fabs((double)rv[x - 3] - (lv.a + lv.bx * X + lv.by * Y)));
+            maxerr = fmax(maxerr, e);
+        }
+    }
+    CHECK(maxerr < 2e-5);
     free(scr);
 out:
+    rpiv_deform_pred_free(q);
     rpiv_deform_pred_free(p);
     rpiv_field_free(f);
 }
@@ -121,7 +135,7 @@ static void deform_predictor_interpolates_nodes(void)
         f->u[i] = (float)(8 * ti_rnd(&s) - 4);
         f->v[i] = (float)(8 * ti_rnd(&s) - 4);
     }
-    CHECK_OK(rpiv_deform_pred_new(f, 256, 160, &p));
+    CHECK_OK(rpiv_deform_pred_new(f, 256, 160, 0, &p));
     if (p)
         for (int j = 0; j < 5; j++)
             for (int i = 0; i < 6; i++) {
@@ -150,7 +164,7 @@ static void shift_errors(double d_tau, double *e_bspline, double *e_bilinear)
     ti_pair(&tp, ti_uniform, (void *)zero, ref, junk); /* same particles, at the midpoints */
     rpiv_field *f = grid_field(3, 3, 20, 20, 28, (lin){d[0], 0, 0}, (lin){d[1], 0, 0});
     rpiv_deform_pred *p = NULL;
-    CHECK_OK(rpiv_deform_pred_new(f, W, H, &p));
+    CHECK_OK(rpiv_deform_pred_new(f, W, H, 0, &p));
     memcpy(ca, a, sizeof(float) * W * H);
     memcpy(cb, b, sizeof(float) * W * H);
     rpiv_deform_prefilter(ca, W, H, 1);
@@ -216,7 +230,7 @@ static void deform_is_thread_count_independent(void)
     CHECK(memcmp(a, a2, sizeof(float) * n) == 0 && memcmp(b, b2, sizeof(float) * n) == 0);
     rpiv_field *f = grid_field(5, 4, 30, 25, 30, (lin){d[0], 0.01, 0.002}, (lin){d[1], -0.003, 0.02});
     rpiv_deform_pred *p = NULL;
-    CHECK_OK(rpiv_deform_pred_new(f, W, H, &p));
+    CHECK_OK(rpiv_deform_pred_new(f, W, H, RPIV_DEFORM_SHIFT, &p));
     const int rect[4] = {0, 0, W, H};
     CHECK_OK(rpiv_deform_run(a, b, W, H, p, rect, 100, 100, o[0], o[1], 1));
     CHECK_OK(rpiv_deform_run(a, b, W, H, p, rect, 100, 100, o[2], o[3], 2));

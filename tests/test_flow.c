@@ -37,6 +37,20 @@ static void duct_centre_value_matches_white(void)
     CHECK_NEAR(rpiv_duct_u(0.5, 0.5), 2.0962, 5e-4);
 }
 
+static void duct_flow_rate_factor_matches_its_series(void)
+{
+    /* the direct series, summed far: tail below sum_{i > 4001} 1/i^5 < 1e-14 */
+    double s = 0;
+    for (int i = 1; i < 4001; i += 2)
+        s += tanh(i * M_PI / 2) / pow(i, 5);
+    CHECK_NEAR(rpiv_duct_k(), 1 - 192 / pow(M_PI, 5) * s, 1e-13);
+    /* the constant rpiv_duct_u uses: U* at the centre with K computed */
+    double p3 = M_PI * M_PI * M_PI, sum = 0;
+    for (int i = 1, k = 0; i < 200; i += 2, k++)
+        sum += (k & 1 ? -1 : 1) / (cosh(i * M_PI / 2) * i * i * i);
+    CHECK_NEAR(rpiv_duct_u(0.5, 0.5), 48 / (p3 * rpiv_duct_k()) * (p3 / 32 - sum), 1e-12);
+}
+
 static void duct_is_symmetric_and_zero_on_walls(void)
 {
     const double ys[] = {0.0713, 0.2385, 0.4917};
@@ -90,6 +104,7 @@ int main(void)
     rpiv_init();
     RUN_TEST(duct_bulk_mean_is_one);
     RUN_TEST(duct_centre_value_matches_white);
+    RUN_TEST(duct_flow_rate_factor_matches_its_series);
     RUN_TEST(duct_is_symmetric_and_zero_on_walls);
     RUN_TEST(e1_of_known_profiles);
     RUN_TEST(oseen_peak_swirl_is_the_amplitude);

@@ -389,6 +389,24 @@ static void tiff_rgb_luminance_warns(void)
     }
 }
 
+/* Grey + declared alpha: the alpha sample is ignored, no warning. */
+static void tiff_grey_alpha(void)
+{
+    uint16_t d[3 * 2 * 2];
+    for (int i = 0; i < 6; i++)
+        d[2 * i] = (uint16_t)pat16(i, 5), d[2 * i + 1] = 777;
+    tu_tiff o = {.w = 3, .h = 2, .bps = 16, .spp = 2, .nextra = 1,
+                 .photo = PHOTOMETRIC_MINISBLACK};
+    CHECK(tu_tiff_write(tu_path("greyalpha.tif"), &o, d));
+    rpiv_image *im = NULL;
+    int warned = -1;
+    CHECK_OK(rpiv_image_load(tu_path("greyalpha.tif"), 0, &im, &warned));
+    CHECK(im && im->w == 3 && im->bits == 16 && warned == 0);
+    for (int i = 0; im && i < 6; i++)
+        CHECK_NEAR(im->px[i], pat16(i, 5), 0.0);
+    rpiv_image_free(im);
+}
+
 /* Min-is-white grey is inverted to min-is-black; 1-bit and 4-bit grey keep their levels. */
 static void tiff_miniswhite_and_low_depth(void)
 {
@@ -482,7 +500,13 @@ static void tiff_truncated_and_silent(void)
     if (f) {
         memcpy(f, h, sizeof h);
         CHECK(tu_write(tu_path("handmade.tif"), f, sizeof h + 8000));
-        CHECK(tu_write(tu_path("strip_short.tif"), f, sizeof h + 5000));
+        CHECK(tu_write(tu_path("strip_short.tif"), f, sizeof h + 7950));
+        CHECK(tu_write(tu_path("cut_data.tif"), f, sizeof h + 5000));
+        /* plausible size (1.6e9 pixels < 2^31) but far more data than the file holds */
+        uint32_t side = 40000;
+        memcpy(f + 10 + 8, &side, 4);
+        memcpy(f + 10 + 12 + 8, &side, 4);
+        CHECK(tu_write(tu_path("bighdr.tif"), f, sizeof h + 8000));
         /* absurd: 100000 x 100000 pixels */
         uint32_t huge = 100000;
         memcpy(f + 10 + 8, &huge, 4);
@@ -510,6 +534,12 @@ static void tiff_truncated_and_silent(void)
     rpiv_status s4 = rpiv_image_load(tu_path("absurd.tif"), 0, &im, NULL);
     char m4[1024];
     snprintf(m4, sizeof m4, "%s", rpiv_errmsg());
+    rpiv_status s5 = rpiv_image_load(tu_path("cut_data.tif"), 0, &im, NULL);
+    char m5[1024];
+    snprintf(m5, sizeof m5, "%s", rpiv_errmsg());
+    rpiv_status s6 = rpiv_image_load(tu_path("bighdr.tif"), 0, &im, NULL);
+    char m6[1024];
+    snprintf(m6, sizeof m6, "%s", rpiv_errmsg());
     fflush(stderr);
     if (cap && saved >= 0) {
         dup2(saved, 2);
@@ -524,7 +554,10 @@ static void tiff_truncated_and_silent(void)
     CHECK(s2 == RPIV_EFORMAT && strstr(m2, "cut.tif"));
     CHECK(s3 == RPIV_EFORMAT && strstr(m3, "cut8.tif"));
     CHECK(s4 == RPIV_EFORMAT && strstr(m4, "absurd.tif") && strstr(m4, "2^31"));
-    printf("    (%s)\n    (%s)\n    (%s)\n    (%s)\n", m1, m2, m3, m4);
+    CHECK(s5 == RPIV_EFORMAT && strstr(m5, "cut_data.tif") && strstr(m5, "truncated"));
+    CHECK(s6 == RPIV_EFORMAT && strstr(m6, "bighdr.tif") && strstr(m6, "cannot be stored"));
+    printf("    (%s)\n    (%s)\n    (%s)\n    (%s)\n    (%s)\n    (%s)\n", m1, m2, m3, m4,
+           m5, m6);
     CHECK(im == NULL);
     free(b);
     rpiv_image_free(big);
@@ -701,6 +734,23 @@ static void png_bad_input(void)
         fclose(f);
     CHECK_ERR(rpiv_image_load(tu_path("absurd.png"), 0, &im, NULL), RPIV_EFORMAT, "absurd.png");
     CHECK(strstr(rpiv_errmsg(), "2^31") != NULL);
+    /* 40000 x 40000 is under 2^31 pixels, but 1.6 GB of rows cannot inflate from ~60 bytes */
+    f = fopen(tu_path("bighdr.png"), "wb");
+    png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    info = png_create_info_struct(png);
+    if (f && png && info && !setjmp(png_jmpbuf(png))) {
+        png_init_io(png, f);
+        png_set_IHDR(png, info, 40000, 40000, 8, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+                     PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+        png_write_info(png, info);
+        png_write_chunk(png, (png_const_bytep) "IDAT", (png_const_bytep) "\x78\x9c\x03\x00", 4);
+        png_write_chunk(png, (png_const_bytep) "IEND", NULL, 0);
+    }
+    png_destroy_write_struct(&png, &info);
+    if (f)
+        fclose(f);
+    CHECK_ERR(rpiv_image_load(tu_path("bighdr.png"), 0, &im, NULL), RPIV_EFORMAT, "bighdr.png");
+    CHECK(strstr(rpiv_errmsg(), "cannot be inflated") != NULL);
     rpiv_image_free(big);
 }
 
@@ -776,6 +826,12 @@ static void bmp_palette_is_grey_of_palette(void)
     put32(buf + 22, 100000);
     CHECK(tu_write(tu_path("absurd.bmp"), buf, n));
     CHECK_ERR(rpiv_image_load(tu_path("absurd.bmp"), 0, &im, NULL), RPIV_EFORMAT, "absurd.bmp");
+    put32(buf + 18, 7);
+    put32(buf + 22, 3);
+    put32(buf + 30, 0xffa34081u); /* compression type found by fuzzing */
+    CHECK(tu_write(tu_path("comp.bmp"), buf, n));
+    CHECK_ERR(rpiv_image_load(tu_path("comp.bmp"), 0, &im, NULL), RPIV_EFORMAT, "comp.bmp");
+    CHECK(strstr(rpiv_errmsg(), "compression") != NULL);
     CHECK(tu_write(tu_path("hdr.bmp"), buf, 20));
     CHECK_ERR(rpiv_image_load(tu_path("hdr.bmp"), 0, &im, NULL), RPIV_EFORMAT, "hdr.bmp");
 }
@@ -828,6 +884,18 @@ static void bmp24_and_jpeg(void)
         CHECK_ERR(rpiv_image_load(tu_path("cut.jpg"), 0, &im, NULL), RPIV_EFORMAT, "cut.jpg");
         CHECK(tu_write(tu_path("cut4.jpg"), b, 4));
         CHECK_ERR(rpiv_image_load(tu_path("cut4.jpg"), 0, &im, NULL), RPIV_EFORMAT, "cut4.jpg");
+        /* a frame header claiming 40000 x 40000 pixels in a file of under 1 kB */
+        size_t i = 2;
+        while (i + 4 < n && b[i] == 0xFF && b[i + 1] != 0xC0)
+            i += 2 + ((size_t)b[i + 2] << 8 | b[i + 3]);
+        CHECK(i + 9 < n && b[i] == 0xFF && b[i + 1] == 0xC0);
+        if (i + 9 < n) {
+            b[i + 5] = 0x9C, b[i + 6] = 0x40, b[i + 7] = 0x9C, b[i + 8] = 0x40; /* 40000 */
+            CHECK(tu_write(tu_path("bighdr.jpg"), b, n));
+            CHECK_ERR(rpiv_image_load(tu_path("bighdr.jpg"), 0, &im, NULL), RPIV_EFORMAT,
+                      "bighdr.jpg");
+            CHECK(strstr(rpiv_errmsg(), "40000x40000") != NULL);
+        }
         free(b);
     }
 }
@@ -961,6 +1029,55 @@ out:
     rpiv_image_free(b);
 }
 
+/* Mutated copies of valid files (truncated at random lengths, or 1-4 random bytes changed;
+ * fixed seed) either load or fail with a status and a message naming the file: no crash, no
+ * sanitizer report, no leak. */
+static void corrupted_files_never_crash(void)
+{
+    const char *src[6] = {"rt16.tif", "rt16.png", "tiled16.tif", "pal.bmp", "rgb.jpg", "b.pgm"};
+    uint64_t seed = 0x2385A1F3ULL;
+    int loaded = 0, failed = 0;
+    for (int k = 0; k < 6; k++) {
+        size_t n;
+        unsigned char *b = tu_read(tu_path(src[k]), &n);
+        CHECK(b != NULL && n > 8);
+        if (!b || n <= 8) {
+            free(b);
+            continue;
+        }
+        unsigned char *m = malloc(n);
+        for (int it = 0; m && it < 120; it++) {
+            memcpy(m, b, n);
+            size_t len = n;
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            if (it % 2) {
+                len = 1 + (size_t)((seed >> 33) % (n - 1));
+            } else {
+                int nflip = 1 + (int)((seed >> 20) % 4);
+                for (int f = 0; f < nflip; f++) {
+                    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+                    m[(seed >> 33) % n] ^= (unsigned char)(1u + ((seed >> 13) % 255u));
+                }
+            }
+            CHECK(tu_write(tu_path("mutant.img"), m, len));
+            rpiv_image *im = NULL;
+            rpiv_status st = rpiv_image_load(tu_path("mutant.img"), 0, &im, NULL);
+            if (st == RPIV_OK) {
+                loaded++;
+                CHECK(im && im->w >= 1 && im->h >= 1);
+            } else {
+                failed++;
+                CHECK(im == NULL && strstr(rpiv_errmsg(), "mutant.img") != NULL);
+                CHECK(st == RPIV_EFORMAT || st == RPIV_EIO || st == RPIV_EINVAL);
+            }
+            rpiv_image_free(im);
+        }
+        free(m);
+        free(b);
+    }
+    printf("    (%d mutants: %d loaded, %d refused)\n", loaded + failed, loaded, failed);
+}
+
 int main(void)
 {
     if (!tu_init("test_image"))
@@ -979,6 +1096,7 @@ int main(void)
     RUN_TEST(tiff_tiles_strips_compression);
     RUN_TEST(tiff_palette_luminance);
     RUN_TEST(tiff_rgb_luminance_warns);
+    RUN_TEST(tiff_grey_alpha);
     RUN_TEST(tiff_miniswhite_and_low_depth);
     RUN_TEST(tiff_unsupported_layouts);
     RUN_TEST(tiff_truncated_and_silent);
@@ -991,6 +1109,7 @@ int main(void)
     RUN_TEST(fixture_oseen_pair);
     RUN_TEST(fixture_jpeg_crop);
     RUN_TEST(fixture_bmp_crop);
+    RUN_TEST(corrupted_files_never_crash);
     if (!getenv("KEEP")) tu_cleanup();
     return check_summary();
 }

@@ -15,7 +15,9 @@ static void defocus_term_uses_the_aperture_and_working_distance(void)
 {
     rpiv_camera c = rpiv_camera_default();
     double zdef = rpiv_imaging_defocus_m(&c, 8e-3, 0.45 + 0.3187);
-    CHECK_NEAR(zdef, 8e-3 * 0.3187, 1e-15);
+    CHECK_NEAR(zdef, 8e-3 * 0.3187 / 1.33, 1e-15); /* apparent depth through the wall */
+    c.n_medium = 1;
+    CHECK_NEAR(rpiv_imaging_defocus_m(&c, 8e-3, 0.45 - 0.3187), 8e-3 * 0.3187, 1e-15);
     double da = 0.135 / 5.6, foc = 0.39 * zdef * da / (0.5 + zdef);
     double d0 = rpiv_imaging_de_m(&c, 10e-6, 0);
     CHECK_NEAR(rpiv_imaging_de_m(&c, 10e-6, zdef), sqrt(d0 * d0 + foc * foc), 1e-15);

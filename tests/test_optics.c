@@ -25,8 +25,8 @@ static double desc_T(double eta, double ti)
 
 static void refraction_matches_snell_and_fresnel(void)
 {
-    const double cases[][3] = {{1.0, 1.49, 0.4187}, {1.49, 1.33, 1.0871}, {1.33, 1.0, 0.2963},
-                               {1.49, 1.0, 0.5113}};
+    const double cases[][3] = {
+        {1.0, 1.49, 0.4187}, {1.49, 1.33, 1.0871}, {1.33, 1.0, 0.2963}, {1.49, 1.0, 0.5113}};
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         double n1 = cases[c][0], n2 = cases[c][1], ti = cases[c][2], tt, Tp, Ts, Tu;
         CHECK(rpiv_optics_refract(n1, n2, ti, RPIV_POLAR_P, &tt, &Tp) == 1);
@@ -153,10 +153,10 @@ static void lens_focuses_the_beam_at_its_focal_length(void)
     rpiv_optics_result_free(r);
 }
 
-/* The default experiment (paper set-up, beta1 = 1.3 deg in the air): the sheet leaves the
- * floor a few degrees up and thickens along x*. Paper (measured): about 5 deg, e* = 0.42 at
- * x* = 6.5, z*_max = 0.5 at x* = 6.3. This geometry: 3.93 deg, e* = 0.417 at x* = 6.5,
- * z*_max = 0.43 at x* = 6.5, e* = -0.078 + 0.0756 x* (docs/optics.md). */
+/* The default experiment (paper set-up, beta1 = 1.3 deg in the air; 1e6 rays, as in
+ * docs/optics.md): the sheet leaves the floor a few degrees up and thickens along x*. Paper
+ * (measured): about 5 deg, e* = 0.42 at x* = 6.5, z*_max = 0.5 at x* = 6.3. This geometry:
+ * 3.90 deg, e* = 0.416 and z*_max = 0.437 at x* = 6.5, e* = -0.079 + 0.0761 x*. */
 static void default_sheet_is_inclined_and_thickens(void)
 {
     rpiv_laser l = rpiv_laser_default();
@@ -165,6 +165,7 @@ static void default_sheet_is_inclined_and_thickens(void)
     double xs[17];
     for (int k = 0; k < 17; k++)
         xs[k] = 1 + 0.5 * k;
+    l.nrays = 1000000;
     rpiv_optics_result *r = trace(&l, &p, 8e-3, xs, 17, &o);
     if (!r)
         return;
@@ -173,18 +174,21 @@ static void default_sheet_is_inclined_and_thickens(void)
     if (f) {
         double incl = atan(f->zm1) / DEG;
         CHECK(incl > 2 && incl < 8); /* "a few degrees" */
-        CHECK_NEAR(incl, 3.93, 0.05);
-        CHECK_NEAR(f->e1, 0.0756, 0.002);
+        CHECK_NEAR(incl, 3.90, 0.02);
+        CHECK_NEAR(f->e1, 0.0761, 0.001);
         CHECK(f->nused == 17);
-        CHECK(f->rms_zm < 0.015 && f->rms_e < 0.015);
+        CHECK(f->rms_zm < 0.01 && f->rms_e < 0.01);
+        /* self-similar, as measured (paper): the normalised profiles collapse on z+ within a
+         * few per cent rms (0.035 here, the near field x* < 3 included) */
+        CHECK(f->rms_shape < 0.05);
     }
     rpiv_sheet_metrics m4, m11;
     CHECK_OK(rpiv_optics_metrics(r, 4, &m4));   /* x* = 3 */
     CHECK_OK(rpiv_optics_metrics(r, 11, &m11)); /* x* = 6.5 */
     CHECK(m11.e > 1.5 * m4.e);
     CHECK(m11.zmax > m4.zmax);
-    CHECK_NEAR(m11.e, 0.417, 0.01);
-    CHECK_NEAR(m11.zmax, 0.432, 0.01);
+    CHECK_NEAR(m11.e, 0.416, 0.003);
+    CHECK_NEAR(m11.zmax, 0.437, 0.003);
     /* asymmetric as measured: the tail is below the peak */
     CHECK((m11.zmax - m11.zinf) > 1.3 * (m11.zsup - m11.zmax));
     rpiv_optics_selfsim_free(f);
@@ -339,6 +343,7 @@ static void one_ray_sensitivity_to_the_index_ratio(void)
     CHECK(rows[36].transmitted && !rows[37].transmitted); /* 0.0020 vs 0.0025 */
     CHECK_NEAR(rows[64].T, 0, 0);
     CHECK_NEAR(rows[64].dT_rel, -1, 0);
+    CHECK(isnan(rows[64].dtheta_rel));
     /* T falls and theta_t grows monotonically with deta up to the cut-off */
     for (int i = 1; i <= 36; i++)
         CHECK(rows[i].T < rows[i - 1].T && rows[i].theta_t > rows[i - 1].theta_t);
@@ -423,6 +428,7 @@ static void selfsim_fit_recovers_lines_and_shape(void)
         CHECK_NEAR(f->zm1, 0.0731, 1e-3);
         CHECK_NEAR(f->zm0, 0.0219, 2e-3);
         CHECK(f->nused == NX);
+        CHECK(f->rms_shape < 0.01); /* built self-similar: only sampling departs */
         /* the mean shape is S(z+ q) */
         for (size_t g = 0; g < f->n; g++)
             if (fabs(f->zplus[g]) < 1.0)
@@ -515,8 +521,7 @@ static void bad_inputs_fail_with_a_status(void)
         rpiv_optics_selfsim *f = (rpiv_optics_selfsim *)&m;
         double xx[2] = {-3, -2};
         double *in2 = calloc(2 * r->nz, sizeof *in2);
-        CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 2, r->zstar, r->nz, in2, 0.01, &f),
-                    RPIV_ENUMERIC);
+        CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 2, r->zstar, r->nz, in2, 0.01, &f), RPIV_ENUMERIC);
         CHECK(f == NULL);
         CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 1, r->zstar, r->nz, in2, 0.01, &f), RPIV_EINVAL);
         CHECK_FAILS(rpiv_optics_selfsim_fit(xx, 2, r->zstar, r->nz, in2, 0, &f), RPIV_EINVAL);

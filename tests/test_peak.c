@@ -108,6 +108,25 @@ static void peak_ratio_of_two_peaks(void)
     CHECK(pk.second < 1e-3f || pk.ratio > 100);
 }
 
+/* The highest value outside the first peak's 5x5 neighbourhood is the flank of a broad first
+ * peak, not a peak: the second peak is the lower, separate one. */
+static void peak_second_peak_is_a_local_maximum(void)
+{
+    float p[W * H] = {0};
+    add_gauss(p, 2, 1, 2.6, 1.0);
+    add_gauss(p, -10, -8, 0.8, 0.2713);
+    rpiv_peak pk;
+    rpiv_peak_find(p, W, H, 0, RPIV_SUBPIXEL_GAUSS, &pk);
+    CHECK(pk.ix == 2 && pk.iy == 1);
+    CHECK_NEAR(pk.second, 0.2713, 1e-4);
+    CHECK_NEAR(pk.ratio, 1.0 / 0.2713, 2e-3);
+    /* and a plane with only the broad peak has no second peak above its far tails */
+    float q[W * H] = {0};
+    add_gauss(q, -3, 4, 2.6, 1.0);
+    rpiv_peak_find(q, W, H, 0, RPIV_SUBPIXEL_GAUSS, &pk);
+    CHECK(pk.second < 1e-3f);
+}
+
 static void peak_search_range_is_honoured(void)
 {
     float p[W * H] = {0};
@@ -146,6 +165,7 @@ int main(void)
     RUN_TEST(peak_parabola_is_exact_on_a_parabola_and_biased_on_a_gaussian);
     RUN_TEST(peak_centroid_matches_analytic_value);
     RUN_TEST(peak_ratio_of_two_peaks);
+    RUN_TEST(peak_second_peak_is_a_local_maximum);
     RUN_TEST(peak_search_range_is_honoured);
     RUN_TEST(peak_flat_plane_reports_failed_fit);
     return check_summary();

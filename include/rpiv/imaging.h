@@ -5,8 +5,11 @@
  *
  * Units: lengths in metres unless the name says otherwise; z* is height / channel height h.
  * Reading of the paper (docs/model.md): the defocus distance z' of Eq. "diam" and "int" is a
- * physical length, z' = h |z* - z*_OP|; the paper writes the normalised difference, which
- * cannot be added to s0 (a length). */
+ * physical length; the paper writes the normalised difference |z* - z*_OP|, which cannot be
+ * added to s0 (a length). The camera looks into the fluid through a flat wall, so a particle
+ * a geometric distance h |z* - z*_OP| from the object plane is defocused like one at the
+ * apparent (paraxial) distance z' = h |z* - z*_OP| / n_medium in air; n_medium = 1 gives the
+ * paper's geometric reading. */
 #ifndef RPIV_IMAGING_H
 #define RPIV_IMAGING_H
 
@@ -24,6 +27,8 @@ typedef struct rpiv_camera {
     double zop_star;         /* object plane height z*_OP (0.45)                          */
     double lambda_p_m;       /* wavelength of the light reaching the sensor, m (570e-9)   */
     double beta2;            /* beta^2 of the Gaussian approximation of the Airy disc (3.67) */
+    double n_medium;         /* refractive index of the fluid the camera looks into through a
+                                flat wall (1.33); 1 = the paper's geometric defocus      */
 } rpiv_camera;
 
 /* The seeding. */
@@ -43,7 +48,7 @@ double rpiv_camera_pixel_m(const rpiv_camera *c);
 /* Lens aperture diameter D_a = f / f#, m. */
 double rpiv_camera_aperture_m(const rpiv_camera *c);
 
-/* Defocus distance z' = h |z* - z*_OP|, m. */
+/* Defocus distance z' = h |z* - z*_OP| / n_medium, m (apparent distance in air). */
 double rpiv_imaging_defocus_m(const rpiv_camera *c, double h_m, double zstar);
 
 /* Effective particle image diameter d_e on the sensor (Eq. "diam"), m:

@@ -38,35 +38,32 @@ typedef enum rpiv_polar {
  * deviates by asin(n_air sin(beta1) / n_pmma)) or on the PMMA side (after refraction: the
  * reading that reproduces the paper's one-ray figures, fig. 10). The face refracts in both
  * cases; docs/optics.md compares them. */
-typedef enum rpiv_beta1_side {
-    RPIV_BETA1_AIR = 0,
-    RPIV_BETA1_PMMA = 1
-} rpiv_beta1_side;
+typedef enum rpiv_beta1_side { RPIV_BETA1_AIR = 0, RPIV_BETA1_PMMA = 1 } rpiv_beta1_side;
 
 /* The laser and its emitting optics. */
 typedef struct rpiv_laser {
-    double lambda_m;        /* wavelength, m (532e-9; recorded, not used by the 2-D tracer) */
-    double beam_d_m;        /* beam diameter at 1/e^2 at the laser output, m (6e-3)         */
-    double expander;        /* beam expander factor (2): 1/e^2 diameter at the lens 12 mm   */
-    double divergence_rad;  /* full divergence angle at the laser output, rad (3.5e-3)      */
-    double lens_f_m;        /* spherical converging lens focal length, m (0.5)              */
-    double lens_dist_m;     /* lens to the prism's inclined face along the axis, m (0.27)   */
-    double beta1_deg;       /* axis deviation from the face normal, deg (1.3)               */
-    rpiv_beta1_side beta1_side; /* side of the face beta1 is measured on (air)              */
-    double bundle_m;        /* full width of the equally spaced ray bundle at the lens, m
-                               (19e-3: the paper's "complete beam ... of width 19 mm")     */
-    long nrays;             /* rays traced (100000)                                         */
-    rpiv_polar polar;       /* Fresnel transmission (p)                                     */
+    double lambda_m;            /* wavelength, m (532e-9; recorded, unused by the 2-D tracer) */
+    double beam_d_m;            /* beam diameter at 1/e^2 at the laser output, m (6e-3) */
+    double expander;            /* beam expander factor (2): 1/e^2 diameter 12 mm at the lens */
+    double divergence_rad;      /* full divergence angle at the laser output, rad (3.5e-3) */
+    double lens_f_m;            /* spherical converging lens focal length, m (0.5) */
+    double lens_dist_m;         /* lens to the inclined face along the axis, m (0.27) */
+    double beta1_deg;           /* axis deviation from the face normal, deg (1.3) */
+    double bundle_m;            /* full width of the equally spaced ray bundle at the lens, m
+                                   (19e-3: the paper's "complete beam ... of width 19 mm") */
+    long nrays;                 /* rays traced (100000) */
+    rpiv_polar polar;           /* Fresnel transmission (p) */
+    rpiv_beta1_side beta1_side; /* side of the face beta1 is measured on (air) */
 } rpiv_laser;
 
 /* The PMMA prism and the fluid. */
 typedef struct rpiv_prism {
-    double theta_p_deg;     /* inclination of the inclined face, deg (64)                   */
-    double thickness_m;     /* block thickness, m (49e-3): distance from the beam's entry
-                               point on the face to the floor along the face normal         */
-    double n_pmma;          /* refractive index of PMMA (1.49)                              */
-    double n_water;         /* refractive index of the fluid (1.33)                         */
-    double n_air;           /* refractive index of air (1.0)                                */
+    double theta_p_deg; /* inclination of the inclined face, deg (64) */
+    double thickness_m; /* block thickness, m (49e-3): distance from the beam's entry
+                           point on the face to the floor along the face normal */
+    double n_pmma;      /* refractive index of PMMA (1.49) */
+    double n_water;     /* refractive index of the fluid (1.33) */
+    double n_air;       /* refractive index of air (1.0) */
 } rpiv_prism;
 
 rpiv_laser rpiv_laser_default(void);
@@ -96,18 +93,18 @@ int rpiv_optics_refract(double n1, double n2, double theta_i, rpiv_polar pol, do
 /* The central ray (lens axis) through the set-up, traced whether or not the floor reflects it
  * totally. Angles in rad. */
 typedef struct rpiv_optics_axis {
-    double beta1_air;     /* incidence on the inclined face (air side)                   */
-    double beta1_pmma;    /* deviation from the face normal inside the PMMA              */
-    double theta_i;       /* incidence on the floor (PMMA/water), = theta_p - beta1_pmma */
-    double theta_c;       /* critical angle asin(n_water / n_pmma)                       */
-    double theta_t;       /* refraction angle in the water (pi/2 if totally reflected)   */
-    double elevation;     /* angle of the transmitted axis above the floor, pi/2 - theta_t */
-    double T_face, T_floor; /* Fresnel transmissions of the two interfaces (0 if TIR)    */
-    double path_pmma_m;   /* axis path from the face to the floor                        */
-    double path_air_m;    /* = lens_dist_m                                               */
-    double depth_m;       /* depth of the entry point P below the floor                  */
-    double x_apex_m;      /* apex (face/floor edge) relative to the emerging point x = 0 */
-    int transmitted;      /* 0 if the axis is totally reflected at the floor             */
+    double beta1_air;       /* incidence on the inclined face (air side) */
+    double beta1_pmma;      /* deviation from the face normal inside the PMMA */
+    double theta_i;         /* incidence on the floor (PMMA/water), = theta_p - beta1_pmma */
+    double theta_c;         /* critical angle asin(n_water / n_pmma) */
+    double theta_t;         /* refraction angle in the water (pi/2 if totally reflected) */
+    double elevation;       /* angle of the transmitted axis above the floor, pi/2 - theta_t */
+    double T_face, T_floor; /* Fresnel transmissions of the two interfaces (0 if TIR) */
+    double path_pmma_m;     /* axis path from the face to the floor */
+    double path_air_m;      /* = lens_dist_m */
+    double depth_m;         /* depth of the entry point P below the floor */
+    double x_apex_m;        /* apex (face/floor edge) relative to the emerging point x = 0 */
+    int transmitted;        /* 0 if the axis is totally reflected at the floor */
 } rpiv_optics_axis;
 
 RPIV_NODISCARD rpiv_status rpiv_optics_axis_of(const rpiv_laser *l, const rpiv_prism *p,
@@ -116,8 +113,8 @@ RPIV_NODISCARD rpiv_status rpiv_optics_axis_of(const rpiv_laser *l, const rpiv_p
 /* ---- tracing the beam ------------------------------------------------------------------ */
 
 typedef struct rpiv_optics_opts {
-    double dz_star;     /* profile bin width in z* (0.005: 200 bins over the channel)         */
-    double smooth_star; /* Gaussian smoothing of the profiles, sigma in z* (0 = none)        */
+    double dz_star;     /* profile bin width in z* (0.005: 200 bins over the channel) */
+    double smooth_star; /* Gaussian smoothing of the profiles, sigma in z* (0 = none) */
     int threads;        /* OpenMP threads (0 = OpenMP's default); results do not depend on it */
 } rpiv_optics_opts;
 
@@ -127,12 +124,12 @@ RPIV_NODISCARD rpiv_status rpiv_optics_opts_check(const rpiv_optics_opts *o);
 /* Power bookkeeping, normalised by the incident power Ig (so incident = 1 up to rounding):
  * incident = refl_face + refl_floor + tir + missed + transmitted. */
 typedef struct rpiv_optics_stats {
-    double incident;    /* Ig: the Gaussian weights of all rays                          */
-    double refl_face;   /* reflected by the air/PMMA face (Fresnel 1 - T)                */
-    double refl_floor;  /* reflected by the floor below the critical angle (1 - T)       */
-    double tir;         /* lost by total internal reflection at the floor                */
-    double missed;      /* rays that miss the face or go down in the prism (0 normally)  */
-    double transmitted; /* It / Ig: power entering the water                             */
+    double incident;    /* Ig: the Gaussian weights of all rays */
+    double refl_face;   /* reflected by the air/PMMA face (Fresnel 1 - T) */
+    double refl_floor;  /* reflected by the floor below the critical angle (1 - T) */
+    double tir;         /* lost by total internal reflection at the floor */
+    double missed;      /* rays that miss the face or go down in the prism (0 normally) */
+    double transmitted; /* It / Ig: power entering the water */
     long n_rays, n_tir, n_missed, n_transmitted;
 } rpiv_optics_stats;
 
@@ -144,15 +141,15 @@ typedef struct rpiv_optics_stats {
  * (z* = 1) before a station are absorbed there and do not count at it. Read-only. */
 typedef struct rpiv_optics_result {
     size_t nx, nz;
-    double *xstar;      /* [nx] stations                                               */
-    double *zstar;      /* [nz] bin centres                                            */
-    double *inten;      /* [nx * nz]                                                   */
+    double *xstar; /* [nx] stations */
+    double *zstar; /* [nz] bin centres */
+    double *inten; /* [nx * nz] */
     double dz_star, smooth_star;
     rpiv_optics_stats stats;
     rpiv_optics_axis axis;
-    rpiv_laser laser;   /* the parameters traced (polarisation, beta1, rays ...)       */
+    rpiv_laser laser; /* the parameters traced (polarisation, beta1, rays ...) */
     rpiv_prism prism;
-    double h_m;         /* channel height                                              */
+    double h_m; /* channel height */
 } rpiv_optics_result;
 
 /* Trace laser->nrays equally spaced rays (no random numbers) and bin their crossings of the
@@ -160,10 +157,9 @@ typedef struct rpiv_optics_result {
  * *out owns a new result (free with rpiv_optics_result_free). Errors: RPIV_EINVAL (bad
  * parameters, named), RPIV_ENOMEM, RPIV_EINTR if the progress callback asks to stop
  * (progress is reported in rays, from the calling thread). */
-RPIV_NODISCARD rpiv_status rpiv_optics_trace(const rpiv_laser *l, const rpiv_prism *p,
-                                             double h_m, const double *xstar, size_t nx,
-                                             const rpiv_optics_opts *o,
-                                             const rpiv_progress *prog,
+RPIV_NODISCARD rpiv_status rpiv_optics_trace(const rpiv_laser *l, const rpiv_prism *p, double h_m,
+                                             const double *xstar, size_t nx,
+                                             const rpiv_optics_opts *o, const rpiv_progress *prog,
                                              rpiv_optics_result **out);
 void rpiv_optics_result_free(rpiv_optics_result *r); /* NULL is a no-op */
 
@@ -185,19 +181,22 @@ RPIV_NODISCARD rpiv_status rpiv_optics_metrics(const rpiv_optics_result *r, size
  * The sheet's inclination is atan(zm1), its thickness growth e1. */
 typedef struct rpiv_optics_selfsim {
     double e0, e1, zm0, zm1;
-    double rms_e, rms_zm;  /* rms residuals of the two lines                        */
-    size_t nused;          /* stations with metrics                                 */
-    size_t n;              /* shape rows                                            */
-    double *zplus, *shape; /* [n]                                                   */
+    double rms_e, rms_zm;  /* rms residuals of the two lines */
+    double rms_shape;      /* rms departure of the stations' normalised profiles
+                              from the mean shape (0 = exactly self-similar) */
+    size_t nused;          /* stations with metrics */
+    size_t n;              /* shape rows */
+    double *zplus, *shape; /* [n] */
 } rpiv_optics_selfsim;
 
 /* Fit from nx profiles sampled on the same nz heights zstar (increasing), inten[k * nz + j]
  * at station xstar[k] (any scale per station). Needs at least 2 stations with metrics,
  * otherwise RPIV_ENUMERIC. On RPIV_OK *out owns a new fit (rpiv_optics_selfsim_free). Usable on
  * measured profiles as well as traced ones. */
-RPIV_NODISCARD rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double *zstar,
-                                            size_t nz, const double *inten, double dzplus,
-                                            rpiv_optics_selfsim **out);
+RPIV_NODISCARD rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx,
+                                                   const double *zstar, size_t nz,
+                                                   const double *inten, double dzplus,
+                                                   rpiv_optics_selfsim **out);
 void rpiv_optics_selfsim_free(rpiv_optics_selfsim *f); /* NULL is a no-op */
 
 /* Write a fit as a sheet profile file (sheet.h, "# rpiv-sheet 1"), readable with
@@ -213,7 +212,7 @@ typedef struct rpiv_optics_sweep_row {
     double zmax, zinf, zsup, e; /* NaN when the profile has no quarter-height crossing */
     double it_ig;
     double ipeak, ipeak_star;
-    double elevation_deg;       /* of the axis in the water (NaN if totally reflected) */
+    double elevation_deg; /* of the axis in the water (NaN if totally reflected) */
 } rpiv_optics_sweep_row;
 
 /* Sweep beta1 over n values beta1[i] (deg) at station xstar, everything else from *l.
@@ -221,9 +220,8 @@ typedef struct rpiv_optics_sweep_row {
  * result's nz bins (nz = ceil(1/dz_star)) are filled. Reference peak: a trace at beta1 = 2 deg
  * (reused if in the list). Errors as rpiv_optics_trace. */
 RPIV_NODISCARD rpiv_status rpiv_optics_sweep_beta1(const rpiv_laser *l, const rpiv_prism *p,
-                                                   double h_m, double xstar,
-                                                   const double *beta1, size_t n,
-                                                   const rpiv_optics_opts *o,
+                                                   double h_m, double xstar, const double *beta1,
+                                                   size_t n, const rpiv_optics_opts *o,
                                                    const rpiv_progress *prog,
                                                    rpiv_optics_sweep_row *rows, double *profiles);
 
@@ -234,8 +232,8 @@ size_t rpiv_optics_nbins(const rpiv_optics_opts *o);
 
 /* For the axis ray (incidence theta_i on the floor fixed by the geometry), the floor's
  * refraction with eta = n_pmma / n_water + deta: theta_t, T and their relative changes from
- * deta = 0. transmitted = 0 beyond the cut-off (then theta_t = pi/2, T = 0, relative changes
- * of T = -1). */
+ * deta = 0. transmitted = 0 beyond the cut-off (then theta_t = pi/2, T = 0, dT_rel = -1 and
+ * dtheta_rel = NaN). */
 typedef struct rpiv_optics_sens_row {
     double deta, theta_t, T, dtheta_rel, dT_rel;
     int transmitted;
@@ -258,22 +256,18 @@ RPIV_NODISCARD rpiv_status rpiv_optics_sensitivity(const rpiv_laser *l, const rp
 RPIV_NODISCARD rpiv_status rpiv_optics_save_profile(const rpiv_optics_result *r, size_t k,
                                                     const char *path);
 /* One row per station: x*, z*_inf, z*_max, z*_sup, e*, I_max (nan where metrics are missing). */
-RPIV_NODISCARD rpiv_status rpiv_optics_save_metrics(const rpiv_optics_result *r,
-                                                    const char *path);
+RPIV_NODISCARD rpiv_status rpiv_optics_save_metrics(const rpiv_optics_result *r, const char *path);
 /* Sweep rows (beta1, e*, z*_inf, z*_max, z*_sup, It/Ig, I_peak, I*_peak, axis elevation);
  * if profiles is not NULL, also `profiles_path`: z* then one I0* column per beta1. l and p are
  * recorded in the header (their beta1 is the swept one). */
 RPIV_NODISCARD rpiv_status rpiv_optics_save_sweep(const rpiv_laser *l, const rpiv_prism *p,
-                                                  double xstar,
-                                                  const rpiv_optics_sweep_row *rows, size_t n,
-                                                  const char *path, const double *profiles,
-                                                  const rpiv_optics_opts *o,
+                                                  double xstar, const rpiv_optics_sweep_row *rows,
+                                                  size_t n, const char *path,
+                                                  const double *profiles, const rpiv_optics_opts *o,
                                                   const char *profiles_path);
 /* deta, theta_t (deg), T, dtheta_t/theta_t0, dT/T0, transmitted; the cut-off in the header. */
-RPIV_NODISCARD rpiv_status rpiv_optics_save_sensitivity(const rpiv_laser *l,
-                                                        const rpiv_prism *p,
-                                                        const rpiv_optics_sens_row *rows,
-                                                        size_t n, double cutoff,
-                                                        const char *path);
+RPIV_NODISCARD rpiv_status rpiv_optics_save_sensitivity(const rpiv_laser *l, const rpiv_prism *p,
+                                                        const rpiv_optics_sens_row *rows, size_t n,
+                                                        double cutoff, const char *path);
 
 #endif /* RPIV_OPTICS_H */

@@ -7,6 +7,9 @@
 #include "rpiv/field.h"
 #include "rpiv/image.h"
 #include "rpiv/peak.h"
+#include "rpiv/progress.h"
+
+#include <stddef.h>
 
 #define RPIV_PIV_MAX_PASSES 8
 
@@ -39,6 +42,104 @@ typedef struct rpiv_piv_params {
 rpiv_piv_params rpiv_piv_params_default(void);
 RPIV_NODISCARD rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p);
 
-/* (The engine API follows; see the PIV engine issue.) */
+/* ---- the engine ---------------------------------------------------------------------------
+ *
+ * A plan (rpiv_piv) is made once for an image size and a set of parameters: the grid of every
+ * pass (windows inside the ROI, centred in it), the FFTW plans of every window size, one
+ * workspace per thread and per pass, and the frame buffers. Each pass k:
+ *   1. interpolates the predictor (the validated field of pass k-1) to every pixel with a
+ *      cubic B-spline on its grid, and deforms both frames symmetrically by -+1/2 of it
+ *      (cubic B-spline image interpolation; rpiv/deform.h); pass 0 has no predictor;
+ *   2. correlates every window pair by FFT (rpiv/xcorr.h), windows mean-removed;
+ *   3. locates the highest peak with the sub-pixel fit chosen (rpiv/peak.h): the vector is
+ *      the predictor at the window centre plus the residual shift;
+ *   4. validates with the normalised median test and replaces rejected vectors by the median
+ *      of their valid neighbours (rpiv/validate.h).
+ * Window k of a pass covers pixels ox + i*sx .. ox + i*sx + W-1; its vector sits at the
+ * window's centre, x = ox + i*sx + (W-1)/2 (pixel centres at integers, so a 32 px window
+ * starting at 0 is centred at 15.5). Vectors whose window has more than half of its pixels
+ * masked are flagged RPIV_FLAG_MASKED with u = v = 0. Windows whose plane has no usable peak
+ * (a blank window, a flat plane) are rejected like outliers and replaced.
+ *
+ * Results are identical for any thread count: threads split windows, rows and columns, and
+ * nothing is summed across threads. */
+typedef struct rpiv_piv rpiv_piv;
+
+/* A plan for pairs of w x h frames. mask (NULL = none) is a w x h image, 0 = masked pixel
+ * (the file named by p->mask is the caller's to load). Errors: RPIV_EINVAL (parameters),
+ * RPIV_ESIZE (a window larger than the image or ROI, a ROI outside the image, a mask of
+ * another size), RPIV_ELIMIT (buffers above p->max_mem_mb), RPIV_ENOMEM. Makes FFTW plans:
+ * call from one thread at a time. */
+RPIV_NODISCARD rpiv_status rpiv_piv_new(const rpiv_piv_params *p, int w, int h,
+                                        const rpiv_image *mask, rpiv_piv **out);
+void rpiv_piv_free(rpiv_piv *pv); /* NULL is a no-op */
+
+int rpiv_piv_npass(const rpiv_piv *pv);
+int rpiv_piv_threads(const rpiv_piv *pv);
+const rpiv_piv_params *rpiv_piv_params_of(const rpiv_piv *pv);
+/* Bytes held by the plan's buffers (frames, workspaces). */
+size_t rpiv_piv_memory(const rpiv_piv *pv);
+
+/* A zeroed field on the grid of pass `pass` (0-based), scale and dt set from the params. */
+RPIV_NODISCARD rpiv_status rpiv_piv_grid(const rpiv_piv *pv, int pass, rpiv_field **out);
+
+/* Background frames subtracted on loading (bg_a from frame A, bg_b from frame B), copied;
+ * NULL, NULL removes them. RPIV_ESIZE if a size differs from the plan's. */
+RPIV_NODISCARD rpiv_status rpiv_piv_set_background(rpiv_piv *pv, const rpiv_image *bg_a,
+                                                   const rpiv_image *bg_b);
+
+/* Load a pair into the plan (copied: background subtracted, masked pixels set to the frame's
+ * mean over unmasked pixels). The caller may free a and b afterwards. RPIV_ESIZE if their
+ * size differs from the plan's. */
+RPIV_NODISCARD rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a,
+                                         const rpiv_image *b);
+
+/* Run pass `pass` on the loaded pair with `predictor` (any grid; NULL: none, windows
+ * correlated where they are) into a new field on the pass's grid: measured, validated,
+ * rejected vectors replaced. RPIV_EINVAL if nothing is loaded or pass is out of range. */
+RPIV_NODISCARD rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor,
+                                         rpiv_field **out);
+
+/* The whole multi-pass run on one pair: load, then every pass, each pass's field being the
+ * next one's predictor. *out is the last pass's field. */
+RPIV_NODISCARD rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b,
+                                        rpiv_field **out);
+
+/* ---- series --------------------------------------------------------------------------------
+ * (The ensemble run over a series is rpiv_ensemble_run, rpiv/ensemble.h.) */
+
+/* The background of a series: the per-pixel minimum or mean of all A frames (*bg_a) and of
+ * all B frames (*bg_b), read once, streaming (memory: two frames, and two double sums for the
+ * mean). RPIV_EINVAL for kind NONE or no pairs, RPIV_ESIZE (naming the pair) if the frames
+ * change size, RPIV_EINTR on a stop request, and the image readers' errors. */
+RPIV_NODISCARD rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
+                                               const rpiv_progress *progress,
+                                               rpiv_image **bg_a, rpiv_image **bg_b);
+
+/* Called with every field of a series, in pair order; a non-OK return stops the series with
+ * that status. The field is only lent for the call. */
+typedef rpiv_status (*rpiv_piv_sink)(void *user, size_t index, const rpiv_field *f);
+
+/* Instantaneous processing of a series: every pair is read, loaded into the plan (its images
+ * freed at once, so memory holds the plan's frames only) and run through all passes; each
+ * final field goes to sink. Errors name the pair; RPIV_EINTR on a stop request. */
+RPIV_NODISCARD rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs,
+                                           rpiv_piv_sink sink, void *user,
+                                           const rpiv_progress *progress);
+
+/* Mean and RMS (standard deviation) of a series of fields on one grid, point by point, over
+ * the vectors flagged valid (Welford's update in double, in the order added). At a point with
+ * no valid vector the replaced ones are used and the point is flagged RPIV_FLAG_REPLACED; a
+ * point masked in every field stays RPIV_FLAG_MASKED with 0. peak_ratio and corr are the means
+ * of the same vectors. */
+typedef struct rpiv_piv_stats rpiv_piv_stats;
+RPIV_NODISCARD rpiv_status rpiv_piv_stats_new(const rpiv_field *grid, rpiv_piv_stats **out);
+void rpiv_piv_stats_free(rpiv_piv_stats *s); /* NULL is a no-op */
+/* RPIV_ESIZE if f's grid differs from the first one's. */
+RPIV_NODISCARD rpiv_status rpiv_piv_stats_add(rpiv_piv_stats *s, const rpiv_field *f);
+size_t rpiv_piv_stats_count(const rpiv_piv_stats *s);
+/* New fields *mean and *rms (u, v: mean and standard deviation, px). RPIV_EINVAL if empty. */
+RPIV_NODISCARD rpiv_status rpiv_piv_stats_finish(const rpiv_piv_stats *s, rpiv_field **mean,
+                                                 rpiv_field **rms);
 
 #endif /* RPIV_PIV_H */

@@ -32,27 +32,30 @@
 #include <stddef.h>
 
 typedef struct rpiv_synth_params {
-    int width_px, height_px;  /* image size; 0 = the camera's sensor (0). A size other than the
-                                 sensor's is a window of the sensor centred on the field of view */
-    int pairs;                /* number of pairs (500)                              */
-    unsigned long seed;       /* RNG seed (1)                                       */
-    double dt_s;              /* pulse separation, s (1e-3: 3.50 px bulk, 7.33 px duct centre) */
-    int bits;                 /* 8, 12 or 16 (16)                                   */
-    double peak_counts;       /* peak grey level of the (continuous) Gaussian image of an in-focus
-                                 particle of the mean diameter at I0 = 1 (1000)      */
-    double background;        /* constant background, counts (100)                */
-    double read_noise;        /* Gaussian read noise sigma, counts (5)              */
+    /* image size; 0 = the camera's sensor (0). Another size is a window of the sensor
+     * centred on the field of view (same pixel pitch). */
+    int width_px, height_px;
+    int pairs;          /* number of pairs (500) */
+    unsigned long seed; /* RNG seed (1) */
+    double dt_s;        /* pulse separation, s (1e-3: 3.50 px bulk, 7.33 px duct centre) */
+    int bits;           /* 8, 12 or 16 (16) */
+    /* peak of the continuous Gaussian image of an in-focus particle of the mean diameter at
+     * I0 = 1, counts (1000) */
+    double peak_counts;
+    double background;        /* constant background, counts (100) */
+    double read_noise;        /* Gaussian read noise sigma, counts (5) */
     int shot_noise;           /* 1: Poisson shot noise, gain 1 count per photo-electron (1) */
-    double margin_px;         /* particle margin around the image, px (16)          */
-    double w_star;            /* out-of-plane displacement between frames, z* (0)  */
-    int double_frame;         /* 1: write A above B in one file (0)                 */
-    char flow[RPIV_PATH_MAX]; /* flow spec, see rpiv_synth_flow_parse ("duct")      */
-    double truth_z;           /* z* of the ground truth of z-dependent flows; < 0: the
-                                 sheet's peak z*_max(x*) (gauss: z*_B; uniform: z*_OP) (-1) */
-    char pz_profile[RPIV_PATH_MAX]; /* tabulated P(z*) file, "" = uniform ("")         */
-    double radius_sigma;      /* particle images are drawn out to this many sigma (4) */
-    double cutoff_counts;     /* particle images with a peak below this are not drawn (1e-3) */
-    int rk_steps;             /* RK4 steps over dt/2 for flows that vary along the path (4) */
+    double margin_px;         /* particle margin around the image, px (16) */
+    double w_star;            /* out-of-plane displacement between frames, z* (0) */
+    int double_frame;         /* 1: write A above B in one file (0) */
+    char flow[RPIV_PATH_MAX]; /* flow spec, see rpiv_synth_flow_parse ("duct") */
+    /* z* of the ground truth of z-dependent flows; < 0: the sheet's peak z*_max(x*)
+     * (gauss: z*_B; uniform: z*_OP) (-1) */
+    double truth_z;
+    char pz_profile[RPIV_PATH_MAX]; /* tabulated P(z*) file, "" = uniform ("") */
+    double radius_sigma;            /* particle images are drawn out to this many sigma (4) */
+    double cutoff_counts;           /* particle images with a lower peak are not drawn (1e-3) */
+    int rk_steps;                   /* RK4 steps over dt/2 for flows varying along the path (4) */
 } rpiv_synth_params;
 
 rpiv_synth_params rpiv_synth_params_default(void);
@@ -88,16 +91,16 @@ void rpiv_synth_free(rpiv_synth *s); /* NULL is a no-op */
 
 /* Derived figures of a generator. */
 typedef struct rpiv_synth_info {
-    int width_px, height_px;  /* image size                                          */
-    double pixel_m;           /* sensor pixel pitch, m                               */
-    double star_per_px;       /* x* (= y*) per image pixel: pixel / (M h)            */
-    double x0_star, y0_star;  /* x*, y* of the image's left and top edges            */
-    double region[4];         /* particle region x0, y0, x1, y1 in px (edges)        */
-    size_t nparticles;        /* particles per pair: round(density * region area)    */
-    double bulk_px;           /* U_b dt M / pixel, px                                */
-    double de_focus_px;       /* d_e of a particle of the mean d_p in focus, px      */
-    double sigma_focus_px;    /* its Gaussian sigma, px                              */
-    rpiv_flow flow;           /* the displacement field used                         */
+    int width_px, height_px; /* image size */
+    double pixel_m;          /* sensor pixel pitch, m */
+    double star_per_px;      /* x* (= y*) per image pixel: pixel / (M h) */
+    double x0_star, y0_star; /* x*, y* of the image's left and top edges */
+    double region[4];        /* particle region x0, y0, x1, y1 in px (edges) */
+    size_t nparticles;       /* particles per pair: round(density * region area) */
+    double bulk_px;          /* U_b dt M / pixel, px */
+    double de_focus_px;      /* d_e of a particle of the mean d_p in focus, px */
+    double sigma_focus_px;   /* its Gaussian sigma, px */
+    rpiv_flow flow;          /* the displacement field used */
 } rpiv_synth_info;
 void rpiv_synth_get_info(const rpiv_synth *s, rpiv_synth_info *info);
 
@@ -135,23 +138,14 @@ RPIV_NODISCARD rpiv_status rpiv_synth_render(const rpiv_synth *s, const rpiv_syn
 /* Pair `index` (0-based; the CLI's file pair_00001 is index 0) into a and b, which must be the
  * generator's size (RPIV_ESIZE otherwise); their bits are set to the bit depth. Values are
  * integer counts in 0 .. 2^bits - 1. RPIV_ENOMEM. */
-RPIV_NODISCARD rpiv_status rpiv_synth_pair(const rpiv_synth *s, unsigned long index,
-                                           rpiv_image *a, rpiv_image *b);
+RPIV_NODISCARD rpiv_status rpiv_synth_pair(const rpiv_synth *s, unsigned long index, rpiv_image *a,
+                                           rpiv_image *b);
 /* The same pair as one double-frame image of width w and height 2h (A above B). */
 RPIV_NODISCARD rpiv_status rpiv_synth_pair_double(const rpiv_synth *s, unsigned long index,
                                                   rpiv_image *ab);
 
-/* The grid of the PIV output for the [piv] section: the final pass's window w x h, step
- * step_px or round(w (1 - overlap)) (at least 1), inside the ROI (whole image if all zero),
- * first centre at (roi_x0 + (w-1)/2, roi_y0 + (h-1)/2). RPIV_ESIZE if the window does not fit. */
-typedef struct rpiv_synth_grid {
-    int nx, ny;
-    double x0, y0, dx, dy;
-} rpiv_synth_grid;
-RPIV_NODISCARD rpiv_status rpiv_synth_grid_of(const rpiv_synth *s, const rpiv_piv_params *piv,
-                                              rpiv_synth_grid *g);
-
-/* Fill the field's u, v (px over dt) with the ground truth at its grid points: the flow's
+/* Fill the field's u, v (px over dt) with the ground truth at its grid points (any grid, e.g.
+ * the final pass's of rpiv_piv_grid, as `rpiv synth` writes truth.txt): the flow's
  * displacement at (x, y) and z* = truth_z (or the sheet's peak there, see truth_z); flag
  * RPIV_FLAG_MASKED where there is no fluid (duct rows outside 0 < y* < 1), else VALID;
  * peak_ratio and corr are set to 0; scale_mm_per_px and dt_s are set. */

@@ -1,0 +1,342 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* bench/bench_piv.c - speed and memory of the PIV engine on a synthetic 2560 x 2160 16-bit
+ * pair (the paper's camera): particles d_tau = 2.5 px, 0.05 per pixel, uniform displacement
+ * (3.3, -1.7) px, 1 % Gaussian noise.
+ *
+ * Cases (each in its own process, so that its peak RSS is its own):
+ *   piv_3pass    the full 64 -> 32 -> 32 run at 50 % overlap on the pair in memory (load,
+ *                three passes with deformation and validation), 1 and 2 threads; reference:
+ *                the bare FFTs the run needs (the same FFTW plans, the same count:
+ *                2 r2c + 1 c2r per window and pass, on cached buffers), same threads.
+ *   one_pair     the pair read from its TIFF files and processed as `rpiv piv` does; peak RSS.
+ *   ensemble     sum of correlation over N pairs (default 100: four distinct pairs listed 25
+ *                times) read from TIFF files; reference: N times the bare FFTs. Pairs per
+ *                second and peak RSS.
+ * Every case checks its result: RMS error against the known displacement must be <= 0.012
+ * px per component, otherwise the line is marked FAILED and the exit status is 1.
+ * Environment: BENCH_ENSEMBLE_PAIRS=N (default 100), BENCH_REPEATS=R (default 5). */
+#include "bench.h"
+
+#include "../tests/piv_testimg.h"
+#include "rpiv/ensemble.h"
+#include "rpiv/image.h"
+#include "rpiv/piv.h"
+
+#include <fftw3.h>
+#include <omp.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+enum { W = 2560, H = 2160, NDISTINCT = 4 };
+static const double DISP[2] = {3.3, -1.7};
+static char dir[64];
+
+static void pair_paths(int i, char *pa, char *pb, size_t n)
+{
+    snprintf(pa, n, "%s/pair%da.tif", dir, i);
+    snprintf(pb, n, "%s/pair%db.tif", dir, i);
+}
+
+/* The 16-bit pair i: offset 100, particle peak 3000, noise 1 % of the peak, rounded. */
+static int make_pair(int i)
+{
+    rpiv_image *a = NULL, *b = NULL;
+    char pa[128], pb[128];
+    if (rpiv_image_new(W, H, &a) || rpiv_image_new(W, H, &b))
+        return 1;
+    ti_params tp = {W, H, 0.05, 2.5, 3000, 0.01, 100, 20240 + (uint64_t)i};
+    ti_pair(&tp, ti_uniform, (void *)DISP, a->px, b->px);
+    for (size_t k = 0; k < (size_t)W * H; k++) {
+        a->px[k] = fminf(65535.0f, fmaxf(0.0f, rintf(a->px[k])));
+        b->px[k] = fminf(65535.0f, fmaxf(0.0f, rintf(b->px[k])));
+    }
+    pair_paths(i, pa, pb, sizeof pa);
+    int bad = rpiv_image_save_tiff16(a, pa) || rpiv_image_save_tiff16(b, pb);
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+    return bad;
+}
+
+static rpiv_pairs *pairs_of(int n)
+{
+    char **args = calloc(2 * (size_t)n, sizeof *args);
+    rpiv_pairs *p = NULL;
+    for (int i = 0; i < n; i++) {
+        args[2 * i] = malloc(128);
+        args[2 * i + 1] = malloc(128);
+        pair_paths(i % NDISTINCT, args[2 * i], args[2 * i + 1], 128);
+    }
+    /* a list file keeps repeated pairs (the a/b matcher would reject duplicates) */
+    char list[128];
+    snprintf(list, sizeof list, "%s/pairs.txt", dir);
+    FILE *fp = fopen(list, "w");
+    for (int i = 0; fp && i < n; i++)
+        fprintf(fp, "%s %s\n", args[2 * i], args[2 * i + 1]);
+    if (fp)
+        fclose(fp);
+    char *one[1] = {list};
+    if (rpiv_pairs_from_args(1, one, RPIV_PAIR_AB, &p))
+        fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
+    for (int i = 0; i < 2 * n; i++)
+        free(args[i]);
+    free(args);
+    return p;
+}
+
+/* RMS error of a field against DISP, worst component. */
+static double rms_error(const rpiv_field *f)
+{
+    double su = 0, sv = 0;
+    size_t n = (size_t)f->nx * (size_t)f->ny;
+    for (size_t k = 0; k < n; k++) {
+        double eu = (double)f->u[k] - DISP[0], ev = (double)f->v[k] - DISP[1];
+        su += eu * eu;
+        sv += ev * ev;
+    }
+    return sqrt(fmax(su, sv) / (double)n);
+}
+
+static uint64_t field_sum(const rpiv_field *f)
+{
+    size_t n = (size_t)f->nx * (size_t)f->ny;
+    return bench_checksum(bench_checksum(0, f->u, n), f->v, n);
+}
+
+/* The bare FFTs of a run of plan pv: per pass, nwin x (2 r2c + 1 c2r) of the pass's window
+ * with FFTW_ESTIMATE plans (those of rpiv_xcorr), windows split among `threads`. ms. */
+static double fft_bound(const rpiv_piv *pv, int threads, int repeats, double *cpu_ms)
+{
+    const rpiv_piv_params *p = rpiv_piv_params_of(pv);
+    double t[16], tc[16];
+    for (int r = 0; r < repeats; r++) {
+        double total = 0, ctotal = 0;
+        for (int k = 0; k < p->npass; k++) {
+            rpiv_field *g = NULL;
+            if (rpiv_piv_grid(pv, k, &g))
+                return -1;
+            int ww = p->win_w[k], wh = p->win_h[k];
+            long nwin = (long)g->nx * g->ny;
+            rpiv_field_free(g);
+            size_t nr = (size_t)ww * (size_t)wh, nc = (size_t)(ww / 2 + 1) * (size_t)wh;
+            float *in[64];
+            fftwf_complex *ca[64], *cb[64];
+            for (int th = 0; th < threads; th++) {
+                in[th] = fftwf_malloc(nr * sizeof(float));
+                ca[th] = fftwf_malloc(nc * sizeof(fftwf_complex));
+                cb[th] = fftwf_malloc(nc * sizeof(fftwf_complex));
+                for (size_t i = 0; i < nr; i++)
+                    in[th][i] = (float)((i * 7919) % 113);
+            }
+            fftwf_plan fwd = fftwf_plan_dft_r2c_2d(wh, ww, in[0], ca[0], FFTW_ESTIMATE);
+            fftwf_plan inv = fftwf_plan_dft_c2r_2d(wh, ww, cb[0], in[0], FFTW_ESTIMATE);
+            double t0 = bench_now(), c0 = bench_cpu();
+#pragma omp parallel for schedule(dynamic, 8) num_threads(threads)
+            for (long win = 0; win < nwin; win++) {
+                int th = omp_get_thread_num();
+                fftwf_execute_dft_r2c(fwd, in[th], ca[th]);
+                fftwf_execute_dft_r2c(fwd, in[th], cb[th]);
+                fftwf_execute_dft_c2r(inv, cb[th], in[th]);
+            }
+            total += bench_now() - t0;
+            ctotal += bench_cpu() - c0;
+            fftwf_destroy_plan(fwd);
+            fftwf_destroy_plan(inv);
+            for (int th = 0; th < threads; th++) {
+                fftwf_free(in[th]);
+                fftwf_free(ca[th]);
+                fftwf_free(cb[th]);
+            }
+        }
+        t[r] = 1e3 * total;
+        tc[r] = 1e3 * ctotal;
+    }
+    if (cpu_ms)
+        *cpu_ms = bench_median(tc, repeats);
+    return bench_median(t, repeats);
+}
+
+static int env_int(const char *name, int def)
+{
+    const char *s = getenv(name);
+    return s && atoi(s) > 0 ? atoi(s) : def;
+}
+
+/* ---- cases (run in a child process) ------------------------------------------------------ */
+
+static int case_run(int threads)
+{
+    int repeats = env_int("BENCH_REPEATS", 5);
+    rpiv_pairs *pairs = pairs_of(1);
+    rpiv_image *a = NULL, *b = NULL;
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = threads;
+    if (!pairs || rpiv_pairs_load(pairs, 0, &a, &b) || rpiv_piv_new(&prm, W, H, NULL, &pv) ||
+        rpiv_piv_run(pv, a, b, &f)) { /* warm-up */
+        fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
+        return 1;
+    }
+    double err = rms_error(f);
+    uint64_t sum = field_sum(f);
+    rpiv_field_free(f);
+    double t[16], tc[16], ph[4][16];
+    for (int r = 0; r < repeats; r++) {
+        rpiv_field *fk[3] = {NULL, NULL, NULL};
+        double t0 = bench_now(), c0 = bench_cpu();
+        if (rpiv_piv_load(pv, a, b))
+            return 1;
+        double t1 = bench_now();
+        ph[0][r] = 1e3 * (t1 - t0);
+        for (int k = 0; k < 3; k++) {
+            double s0 = bench_now();
+            if (rpiv_piv_step(pv, k, k ? fk[k - 1] : NULL, &fk[k]))
+                return 1;
+            ph[k + 1][r] = 1e3 * (bench_now() - s0);
+        }
+        t[r] = 1e3 * (bench_now() - t0);
+        tc[r] = 1e3 * (bench_cpu() - c0);
+        if (field_sum(fk[2]) != sum) {
+            printf("# FAILED: repeated runs give different results\n");
+            return 1;
+        }
+        for (int k = 0; k < 3; k++)
+            rpiv_field_free(fk[k]);
+    }
+    double fft_cpu = 0, run = bench_median(t, repeats), fft = fft_bound(pv, threads, 3, &fft_cpu);
+    double run_cpu = bench_median(tc, repeats);
+    bench_line("piv_3pass", W, H, threads, run, fft, sum);
+    printf("#   CPU time (all threads): run %.1f ms, bare FFTs %.1f ms, ratio %.2f\n", run_cpu,
+           fft_cpu, run_cpu / fft_cpu);
+    printf("#   phases (median ms): load %.1f, pass 1 (64 px) %.1f, pass 2 (32 px, deform) %.1f, "
+           "pass 3 %.1f; RMS error %.4f px (limit 0.012)%s\n", bench_median(ph[0], repeats),
+           bench_median(ph[1], repeats), bench_median(ph[2], repeats),
+           bench_median(ph[3], repeats), err, err <= 0.012 ? "" : " FAILED");
+    rpiv_piv_free(pv);
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+    rpiv_pairs_free(pairs);
+    return err <= 0.012 ? 0 : 1;
+}
+
+typedef struct sink_ctx {
+    double err;
+} sink_ctx;
+
+static rpiv_status sink(void *user, size_t i, const rpiv_field *f)
+{
+    (void)i;
+    ((sink_ctx *)user)->err = rms_error(f);
+    return RPIV_OK;
+}
+
+static int case_one_pair(int threads)
+{
+    rpiv_pairs *pairs = pairs_of(1);
+    rpiv_piv *pv = NULL;
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = threads;
+    sink_ctx s = {1e9};
+    double t0 = bench_now();
+    if (!pairs || rpiv_piv_new(&prm, W, H, NULL, &pv) || rpiv_piv_series(pv, pairs, sink, &s, NULL)) {
+        fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
+        return 1;
+    }
+    double ms = 1e3 * (bench_now() - t0);
+    printf("#   one pair read from 16-bit TIFF files and processed, %d threads: %.0f ms, RMS "
+           "error %.4f px, peak RSS %.0f MB (target < 150 MB)%s\n", threads, ms, s.err,
+           bench_maxrss_mb(), s.err <= 0.012 && bench_maxrss_mb() < 150 ? "" : " FAILED");
+    rpiv_piv_free(pv);
+    rpiv_pairs_free(pairs);
+    return s.err <= 0.012 ? 0 : 1;
+}
+
+static int case_ensemble(int threads, int n)
+{
+    rpiv_pairs *pairs = pairs_of(n);
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = threads;
+    prm.ensemble = 1;
+    double t0 = bench_now();
+    if (!pairs || rpiv_piv_new(&prm, W, H, NULL, &pv) || rpiv_ensemble_run(pv, pairs, NULL, &f)) {
+        fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
+        return 1;
+    }
+    double ms = 1e3 * (bench_now() - t0), err = rms_error(f);
+    char name[32];
+    snprintf(name, sizeof name, "ensemble_%d", n);
+    bench_line(name, W, H, threads, ms, n * fft_bound(pv, threads, 1, NULL), field_sum(f));
+    printf("#   %.2f pairs/s (each pair read and correlated once per pass, 3 passes); RMS "
+           "error %.4f px; peak RSS %.0f MB (target < 300 MB)%s\n", 1e3 * n / ms, err,
+           bench_maxrss_mb(), err <= 0.012 && bench_maxrss_mb() < 300 ? "" : " FAILED");
+    rpiv_field_free(f);
+    rpiv_piv_free(pv);
+    rpiv_pairs_free(pairs);
+    return err <= 0.012 ? 0 : 1;
+}
+
+/* Run fn(arg, arg2) in a child process; its exit status. */
+static int in_child(int (*fn)(int, int), int arg, int arg2)
+{
+    fflush(stdout);
+    pid_t pid = fork();
+    if (pid == 0) {
+        int rc = fn(arg, arg2);
+        fflush(stdout);
+        _exit(rc);
+    }
+    int status = 0;
+    if (pid < 0 || waitpid(pid, &status, 0) < 0)
+        return 1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+}
+
+static int run1(int threads, int unused)
+{
+    (void)unused;
+    return case_run(threads);
+}
+
+static int one1(int threads, int unused)
+{
+    (void)unused;
+    return case_one_pair(threads);
+}
+
+int main(void)
+{
+    rpiv_init();
+    int maxt = omp_get_max_threads(), nens = env_int("BENCH_ENSEMBLE_PAIRS", 100), bad = 0;
+    bench_header("bench_piv", maxt);
+    snprintf(dir, sizeof dir, "/tmp/rpiv_bench_XXXXXX");
+    if (!mkdtemp(dir)) {
+        perror("bench_piv: mkdtemp");
+        return 1;
+    }
+    double t0 = bench_now();
+    for (int i = 0; i < NDISTINCT; i++)
+        if (make_pair(i)) {
+            fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
+            return 1;
+        }
+    printf("# %d synthetic 16-bit %dx%d pairs written in %.1f s; reference = bare FFTs of the "
+           "run (same FFTW plans, same count)\n", NDISTINCT, W, H, bench_now() - t0);
+    bench_columns();
+    bad |= in_child(run1, 1, 0);
+    if (maxt >= 2)
+        bad |= in_child(run1, 2, 0);
+    bad |= in_child(one1, maxt, 0);
+    bad |= in_child(case_ensemble, maxt, nens);
+    char pa[128], pb[128];
+    for (int i = 0; i < NDISTINCT; i++) {
+        pair_paths(i, pa, pb, sizeof pa);
+        remove(pa);
+        remove(pb);
+    }
+    snprintf(pa, sizeof pa, "%s/pairs.txt", dir);
+    remove(pa);
+    rmdir(dir);
+    return bad;
+}

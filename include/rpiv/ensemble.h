@@ -1,0 +1,86 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* rpiv/ensemble.h - ensemble (sum-of-correlation) PIV: one accumulator per pass.
+ *
+ * The paper averages the correlation planes of hundreds of pairs before locating the peak
+ * (section "Statistical aspect and convergence", Eq. "statform"): at every pass, for every
+ * window, the planes of all pairs are summed, and the peak of the sum gives the ensemble
+ * displacement; pass k's predictor is the ensemble field of pass k-1, so the series is read
+ * once per pass. An accumulator holds, for one pass, the summed raw correlation plane of every
+ * window, R(s) = sum over pairs of sum_x a'(x) b'(x + s) (not normalised pair by pair: each
+ * particle image weighs by its intensity, as in the model's integral, Eq. "statform"), and the
+ * summed window energies sum a'^2 and sum b'^2, from which the peak's correlation coefficient
+ * is formed at the end.
+ *
+ * Memory: one float plane per window, independent of the number of pairs (2560 x 2160 frames,
+ * 32 px windows at 50 % overlap: 21 306 planes of 4 KB, 87 MB). Sums are float: pair-by-pair
+ * addition of planes whose values agree to a few percent loses ~1e-6 relative per step,
+ * far below the pair-to-pair scatter, and halves the memory of double sums.
+ *
+ * Determinism: each window's sums are added pair by pair in the order of the add calls, by
+ * one thread, so the result does not depend on the thread count. Merging accumulators (MPI
+ * ranks, resumed checkpoints) adds the sums of several groups of pairs: the result equals the
+ * single-process one up to float rounding of the different grouping.
+ *
+ * Scale-out and checkpoints: rpiv_ensemble_data exposes the raw sums as one float array
+ * (MPI_Reduce with MPI_FLOAT/MPI_SUM into a root accumulator, then rpiv_ensemble_set_npairs
+ * with the total), rpiv_ensemble_save/_load write and read them with a header that ties them
+ * to the plan, the pass and the predictor. */
+#ifndef RPIV_ENSEMBLE_H
+#define RPIV_ENSEMBLE_H
+
+#include "rpiv/error.h"
+#include "rpiv/field.h"
+#include "rpiv/image.h"
+#include "rpiv/piv.h"
+#include "rpiv/progress.h"
+
+#include <stddef.h>
+
+typedef struct rpiv_ensemble rpiv_ensemble;
+
+/* An empty accumulator for pass `pass` of plan pv, with the predictor of that pass (the
+ * finished field of pass-1; NULL for the first pass). The predictor is copied; pv must
+ * outlive the accumulator, and pairs added through it use pv's buffers (one add at a time
+ * per plan). RPIV_ELIMIT when the plan's buffers and the sums exceed piv.max_mem_mb. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predictor,
+                                             rpiv_ensemble **out);
+void rpiv_ensemble_free(rpiv_ensemble *e); /* NULL is a no-op */
+
+/* Add one pair: load it into the plan (background, mask), deform it by the predictor,
+ * correlate every window and add each plane and energy to its sum. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_add(rpiv_ensemble *e, const rpiv_image *a,
+                                             const rpiv_image *b);
+
+/* dst += src: the sums of two accumulators of the same plan layout, pass and predictor.
+ * RPIV_EINVAL if they do not match. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_merge(rpiv_ensemble *dst, const rpiv_ensemble *src);
+
+/* The raw sums, *n floats: for every window in grid order its plane (W*H, circular order as in
+ * rpiv/peak.h), then for every window its two energies. Owned by e. */
+float *rpiv_ensemble_data(rpiv_ensemble *e, size_t *n);
+size_t rpiv_ensemble_npairs(const rpiv_ensemble *e);
+void rpiv_ensemble_set_npairs(rpiv_ensemble *e, size_t npairs);
+int rpiv_ensemble_pass(const rpiv_ensemble *e);
+
+/* Write the sums to path (atomically: temporary file, then rename) with a header recording
+ * the image size, pass, window, grid, pair count and a hash of the predictor. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_save(const rpiv_ensemble *e, const char *path);
+
+/* Read sums written by rpiv_ensemble_save into e, replacing its own. RPIV_EIO (cannot read),
+ * RPIV_EFORMAT (not such a file, truncated, or written for another plan, pass or predictor:
+ * the message says which). */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path);
+
+/* Locate the peak of every summed plane: the ensemble field of the pass (predictor plus
+ * residual, correlation coefficient from the summed energies, peak ratio), validated and
+ * with rejected vectors replaced; it is the predictor of the next pass. RPIV_EINVAL if no
+ * pair was added. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out);
+
+/* The whole ensemble run over a series: for every pass, every pair of `pairs` is loaded and
+ * added, then the pass is finished into the next predictor. Progress counts pairs over all
+ * passes; a stop request returns RPIV_EINTR. *out is the last pass's field. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_run(rpiv_piv *pv, const rpiv_pairs *pairs,
+                                             const rpiv_progress *progress, rpiv_field **out);
+
+#endif /* RPIV_ENSEMBLE_H */

@@ -1,0 +1,78 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* Shared inside the ccm module (src/ccm*.c); not installed. */
+#ifndef RPIV_CCM_IMPL_H
+#define RPIV_CCM_IMPL_H
+
+#include "rpiv/ccm.h"
+
+#include <gsl/gsl_integration.h>
+#include <stdio.h>
+
+struct rpiv_ccm_work {
+    rpiv_ccm_params p;
+    gsl_integration_workspace *iw;
+    gsl_integration_glfixed_table *gl;
+    double *scan_z, *scan_v; /* p.scan samples */
+    double *ia, *ib;         /* intervals of the last adaptive pass (p.limit) */
+    size_t nint;
+    rpiv_ccm_corr *corr;                /* the rule of rpiv_ccm_predict */
+    gsl_integration_glfixed_table *gl1; /* coarse rule of the first pass */
+    double *zn;                         /* heights of the terms of the last rule built */
+    size_t zcap;
+};
+
+/* Per-model quantities fixed for one window: the reference amplitude and pixel pitch. */
+typedef struct ccm_frame {
+    const rpiv_ccm_model *m;
+    double pixel_m; /* sensor pixel pitch */
+    double ref;     /* R_D peak of the reference particle (normalisation) */
+    double pnorm;   /* 1 / int P dz */
+} ccm_frame;
+
+void ccm_frame_init(ccm_frame *f, const rpiv_ccm_model *m);
+
+/* The term of one particle (Eq. "CCM_gen"), relative to the reference. */
+rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, double i2, double dp1,
+                        double dp2, double ddx, double ddy);
+/* The Eq. "CCM_simp" term of a particle at height z (I0, d_e, DX, DY from the model);
+ * ccm_amp_term: the same without evaluating the velocity (DX = DY = 0). */
+rpiv_ccm_gauss ccm_amp_term(const ccm_frame *f, double z);
+rpiv_ccm_gauss ccm_simp_term(const ccm_frame *f, double z);
+
+/* The velocity profile of a model tabulated on p->utab nodes of [zlo, zhi] (Akima spline),
+ * when p->utab > 0: *tm is a copy of m whose u (and v) read the table. Release with
+ * ccm_utab_free. */
+typedef struct ccm_utab {
+    void *su, *sv; /* gsl_spline */
+    rpiv_ccm_func u0, v0;
+    double zlo, zhi;
+} ccm_utab;
+RPIV_NODISCARD rpiv_status ccm_utab_init(ccm_utab *t, const rpiv_ccm_model *m,
+                                         const rpiv_ccm_params *p, rpiv_ccm_model *tm);
+void ccm_utab_free(ccm_utab *t);
+
+/* Presence law P(z) (unnormalised; 1 when the model has none). */
+double ccm_presence(const rpiv_ccm_model *m, double z);
+
+/* The integer-sampled maximum of R (1-D along the common DY row when all DY are equal). */
+RPIV_NODISCARD rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
+                                           int *mx, int *my);
+
+/* Breakpoints for the quadrature over [zlo, zhi]: zlo, the model's breaks, z*_OP, the sampled
+ * maxima and quarter-height crossings of I0 and P, zhi; sorted, unique. Returns the count. */
+size_t ccm_breakpoints(const rpiv_ccm_model *m, rpiv_ccm_work *w, double *pts, size_t cap);
+
+/* Mix (seed, index) into one 32-bit-safe RNG seed (splitmix64). */
+unsigned long ccm_seed(unsigned long seed, unsigned long index);
+
+/* Atomic text files: write to "<path>.tmp", then rename over path. tmp has RPIV_PATH_MAX + 16
+ * bytes. ccm_file_end closes fp and publishes (or removes the temporary on failure). */
+RPIV_NODISCARD rpiv_status ccm_file_begin(const char *path, char *tmp, FILE **fp);
+RPIV_NODISCARD rpiv_status ccm_file_end(FILE *fp, const char *tmp, const char *path);
+/* Write each line of hdr prefixed with "# ". */
+void ccm_file_header(FILE *fp, const char *hdr);
+
+/* GSL status -> rpiv status with a message naming what failed. */
+rpiv_status ccm_gsl_fail(int gsl_status, const char *what);
+
+#endif /* RPIV_CCM_IMPL_H */

@@ -1,0 +1,313 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* The demo: parameters, the run (the steps in order, timed) and the helpers its steps share.
+ * docs/demo.md describes the study. */
+#include "demo_impl.h"
+
+#include "rpiv/field.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_spline.h>
+#include <omp.h>
+
+rpiv_demo_params rpiv_demo_params_default(void)
+{
+    rpiv_demo_params p = {.width_px = 0,
+                          .margin_px = 32,
+                          .rpiv_pairs = 100,
+                          .ppiv_pairs = 12,
+                          .ppiv_e_star = 0.05,
+                          .ppiv_z0 = 0.0625,
+                          .ppiv_dz = 0.0625,
+                          .ppiv_planes = 15,
+                          .ppiv_slab = 1.5,
+                          .optics_x0 = 0.5,
+                          .optics_x1 = 9.0,
+                          .optics_dx = 0.25,
+                          .profile_x = 5.0,
+                          .wall_z = 0.12,
+                          .core_z = 0.2,
+                          .nsnap = 9,
+                          .snap = {1, 2, 5, 10, 20, 50, 100, 200, 500},
+                          .save_images = 1,
+                          .cache_mb = 1024,
+                          .threads = 0};
+    return p;
+}
+
+rpiv_demo_params rpiv_demo_params_quick(void)
+{
+    rpiv_demo_params p = rpiv_demo_params_default();
+    p.width_px = 512;
+    p.ppiv_pairs = 3;
+    p.rpiv_pairs = 16;
+    return p;
+}
+
+rpiv_status rpiv_demo_params_check(const rpiv_demo_params *p)
+{
+    if (p->width_px < 0 || p->width_px > 1 << 16)
+        return rpiv_fail(RPIV_EINVAL, "demo: width_px = %d outside [0, 65536]", p->width_px);
+    if (p->margin_px < 0 || p->margin_px > 4096)
+        return rpiv_fail(RPIV_EINVAL, "demo: margin_px = %d outside [0, 4096]", p->margin_px);
+    if (p->rpiv_pairs < 1 || p->rpiv_pairs > 1000000)
+        return rpiv_fail(RPIV_EINVAL, "demo: rpiv_pairs = %d outside [1, 1000000]", p->rpiv_pairs);
+    if (p->ppiv_pairs < 1 || p->ppiv_pairs > 1000000)
+        return rpiv_fail(RPIV_EINVAL, "demo: ppiv_pairs = %d outside [1, 1000000]", p->ppiv_pairs);
+    if (!(p->ppiv_e_star > 0 && p->ppiv_e_star <= 1))
+        return rpiv_fail(RPIV_EINVAL, "demo: ppiv_e_star = %g outside (0, 1]", p->ppiv_e_star);
+    if (p->ppiv_planes < 2 || p->ppiv_planes > 256)
+        return rpiv_fail(RPIV_EINVAL, "demo: ppiv_planes = %d outside [2, 256]", p->ppiv_planes);
+    if (!(p->ppiv_dz > 0))
+        return rpiv_fail(RPIV_EINVAL, "demo: ppiv_dz = %g must be > 0", p->ppiv_dz);
+    double zl = p->ppiv_z0 + (p->ppiv_planes - 1) * p->ppiv_dz;
+    if (!(p->ppiv_z0 > 0 && zl < 1))
+        return rpiv_fail(RPIV_EINVAL,
+                         "demo: P-PIV planes %g ... %g must lie strictly inside (0, 1)", p->ppiv_z0,
+                         zl);
+    if (!(p->ppiv_slab > 0 && p->ppiv_slab <= 100))
+        return rpiv_fail(RPIV_EINVAL, "demo: ppiv_slab = %g outside (0, 100]", p->ppiv_slab);
+    if (!(isfinite(p->optics_x0) && isfinite(p->optics_x1) && p->optics_x1 > p->optics_x0 &&
+          p->optics_dx > 0 && (p->optics_x1 - p->optics_x0) / p->optics_dx <= 10000))
+        return rpiv_fail(RPIV_EINVAL,
+                         "demo: optics stations %g : %g : %g (need x1 > x0, 0 < dx, at most "
+                         "10000 stations)",
+                         p->optics_x0, p->optics_dx, p->optics_x1);
+    if (!isfinite(p->profile_x))
+        return rpiv_fail(RPIV_EINVAL, "demo: profile_x must be finite");
+    if (!(p->wall_z > 0 && p->wall_z < 1 && p->core_z > 0 && p->core_z < 1))
+        return rpiv_fail(RPIV_EINVAL, "demo: wall_z = %g and core_z = %g must be in (0, 1)",
+                         p->wall_z, p->core_z);
+    if (p->nsnap > RPIV_DEMO_MAX_SNAP)
+        return rpiv_fail(RPIV_EINVAL, "demo: nsnap = %zu above %d", p->nsnap, RPIV_DEMO_MAX_SNAP);
+    for (size_t k = 0; k < p->nsnap; k++)
+        if (p->snap[k] < 1 || (k && p->snap[k] <= p->snap[k - 1]))
+            return rpiv_fail(RPIV_EINVAL,
+                             "demo: snap[%zu] = %d: snapshots must be >= 1 and "
+                             "increasing",
+                             k, p->snap[k]);
+    if (!(p->cache_mb >= 0 && p->cache_mb <= 1e6))
+        return rpiv_fail(RPIV_EINVAL, "demo: cache_mb = %g outside [0, 1e6]", p->cache_mb);
+    if (p->threads < 0 || p->threads > 1024)
+        return rpiv_fail(RPIV_EINVAL, "demo: threads = %d outside [0, 1024]", p->threads);
+    return RPIV_OK;
+}
+
+/* ---- helpers ------------------------------------------------------------------------------ */
+
+void demo_note(demo_ctx *c, const char *fmt, ...)
+{
+    if (!c->log || !c->log->fn)
+        return;
+    char line[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    c->log->fn(c->log->user, line);
+}
+
+rpiv_status demo_tick(demo_ctx *c, size_t n)
+{
+    c->done += n;
+    if (c->done > c->total)
+        c->total = c->done;
+    if (rpiv_progress_report(c->prog, c->done, c->total))
+        return rpiv_fail(RPIV_EINTR, "demo: interrupted");
+    return RPIV_OK;
+}
+
+rpiv_status demo_path(const demo_ctx *c, const char *name, char *buf, size_t size)
+{
+    int n = snprintf(buf, size, "%s/%s", c->dir, name);
+    if (n < 0 || (size_t)n >= size)
+        return rpiv_fail(RPIV_EINVAL, "demo: path too long: %s/%s", c->dir, name);
+    return RPIV_OK;
+}
+
+void demo_add_plot(demo_ctx *c, const char *name)
+{
+    rpiv_demo_result *r = c->res;
+    if (r->nplots >= RPIV_DEMO_MAX_PLOTS)
+        return;
+    snprintf(r->plots[r->nplots], sizeof r->plots[0], "%s", name);
+    r->nplots++;
+}
+
+double demo_vol_eval(const demo_ctx *c, int i, int j, double z)
+{
+    size_t idx = (size_t)j * (size_t)c->nx + (size_t)i;
+    if (!c->fluid[idx] || !(z >= 0 && z <= 1))
+        return NAN;
+    size_t nk = c->nz + 2, plane = (size_t)c->nx * (size_t)c->ny;
+    double u[258];
+    for (size_t k = 0; k < nk; k++)
+        u[k] = c->uvol[k * plane + idx];
+    /* a natural cubic spline through the planes and the wall zeros (the paper's "cubic
+     * spline" reconstruction); made per call: 17 knots cost less than caching 5000 splines */
+    gsl_spline *sp = gsl_spline_alloc(gsl_interp_cspline, nk);
+    if (!sp)
+        return NAN;
+    double v = NAN;
+    if (gsl_spline_init(sp, c->zk, u, nk) == GSL_SUCCESS)
+        v = gsl_spline_eval(sp, z, NULL);
+    gsl_spline_free(sp);
+    return v;
+}
+
+double demo_field_at_y(const demo_ctx *c, const rpiv_field *f, int i, double ystar)
+{
+    /* row coordinate of ystar on the grid */
+    double t = (ystar - c->ys[0]) / (c->ys[1] - c->ys[0]);
+    if (!(t >= 0 && t <= c->ny - 1))
+        return NAN;
+    int j0 = (int)floor(t);
+    if (j0 >= c->ny - 1)
+        j0 = c->ny - 2;
+    double a = t - j0;
+    size_t k0 = (size_t)j0 * (size_t)c->nx + (size_t)i, k1 = k0 + (size_t)c->nx;
+    if (!c->fluid[k0] || !c->fluid[k1])
+        return NAN;
+    return ((1 - a) * (double)f->u[k0] + a * (double)f->u[k1]) / c->bulk_px;
+}
+
+/* ---- the run ------------------------------------------------------------------------------ */
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static rpiv_status mkdir_one(const char *path)
+{
+    if (mkdir(path, 0777) == 0 || errno == EEXIST) {
+        struct stat sb;
+        if (stat(path, &sb) == 0 && S_ISDIR(sb.st_mode))
+            return RPIV_OK;
+        return rpiv_fail(RPIV_EIO, "%s: exists and is not a folder", path);
+    }
+    return rpiv_fail(RPIV_EIO, "%s: cannot make folder: %s", path, strerror(errno));
+}
+
+/* dir and its parents, then dir/data and dir/images. */
+static rpiv_status make_dirs(demo_ctx *c)
+{
+    char buf[RPIV_PATH_MAX];
+    size_t n = strlen(c->dir);
+    rpiv_status st;
+    for (size_t k = 1; k <= n; k++) {
+        if (k < n && c->dir[k] != '/')
+            continue;
+        memcpy(buf, c->dir, k);
+        buf[k] = '\0';
+        if ((st = mkdir_one(buf)))
+            return st;
+    }
+    if ((st = demo_path(c, "data", buf, sizeof buf)) || (st = mkdir_one(buf)))
+        return st;
+    if (c->p.save_images &&
+        ((st = demo_path(c, "images", buf, sizeof buf)) || (st = mkdir_one(buf))))
+        return st;
+    return RPIV_OK;
+}
+
+static void ctx_free(demo_ctx *c)
+{
+    rpiv_optics_result_free(c->trace);
+    rpiv_optics_selfsim_free(c->fit);
+    rpiv_sheet_free(c->sheet);
+    rpiv_image_free(c->mask);
+    rpiv_image_free(c->sample);
+    rpiv_field_free(c->ppiv_mid);
+    rpiv_field_free(c->rfield);
+    for (size_t k = 0; k < RPIV_DEMO_MAX_SNAP; k++)
+        rpiv_field_free(c->snapf[k]);
+    void *arrays[] = {c->mzinf,  c->mzmax,  c->mzsup,  c->me,        c->sweep_prof, c->xs,
+                      c->ys,     c->fluid,  c->zk,     c->uvol,      c->plane_e1,   c->col_ok,
+                      c->czinf,  c->czmax,  c->czsup,  c->e1inf,     c->e1max,      c->e1sup,
+                      c->ur_mid, c->up_mid, c->umodel, c->usnap_mid, c->inv_z,      c->inv_zm};
+    for (size_t k = 0; k < sizeof arrays / sizeof arrays[0]; k++)
+        free(arrays[k]);
+}
+
+/* The snapshots: p->snap below N, then N itself. */
+static void snapshots(demo_ctx *c)
+{
+    c->nsnap = 0;
+    for (size_t k = 0; k < c->p.nsnap && c->nsnap < RPIV_DEMO_MAX_SNAP - 1; k++)
+        if (c->p.snap[k] < c->p.rpiv_pairs)
+            c->snap[c->nsnap++] = c->p.snap[k];
+    c->snap[c->nsnap++] = c->p.rpiv_pairs;
+}
+
+rpiv_status rpiv_demo_run(const rpiv_experiment *e, const rpiv_demo_params *p, const char *dir,
+                          const rpiv_progress *prog, const rpiv_demo_log *log,
+                          rpiv_demo_result *out)
+{
+    rpiv_status st;
+    if ((st = rpiv_demo_params_check(p)) || (st = rpiv_experiment_check(e)))
+        return st;
+    if (!dir || !dir[0])
+        return rpiv_fail(RPIV_EINVAL, "demo: no output folder");
+    demo_ctx *c = calloc(1, sizeof *c);
+    rpiv_demo_result *res = calloc(1, sizeof *res);
+    if (!c || !res) {
+        free(c);
+        free(res);
+        return rpiv_fail(RPIV_ENOMEM, "demo: out of memory");
+    }
+    c->e = *e;
+    c->p = *p;
+    c->prog = prog;
+    c->log = log;
+    c->res = res;
+    if (snprintf(c->dir, sizeof c->dir, "%s", dir) >= (int)sizeof c->dir) {
+        st = rpiv_fail(RPIV_EINVAL, "demo: output folder name too long: %s", dir);
+        goto out_free;
+    }
+    while (strlen(c->dir) > 1 && c->dir[strlen(c->dir) - 1] == '/')
+        c->dir[strlen(c->dir) - 1] = '\0';
+    snapshots(c);
+    res->threads = p->threads > 0 ? p->threads : omp_get_max_threads();
+    c->e.piv.threads = p->threads;
+    if ((st = make_dirs(c)))
+        goto out_free;
+
+    double t0 = now_s(), t;
+    rpiv_status (*const steps[])(demo_ctx *) = {demo_geometry, demo_optics,  demo_flow,  demo_ppiv,
+                                                demo_rpiv,     demo_compare, demo_report};
+    /* the image band is set up first, counted with step 2 (flow, mask, grid) */
+    const int step_of[] = {1, 0, 1, 2, 3, 4, 5};
+    for (size_t k = 0; k < sizeof steps / sizeof steps[0]; k++) {
+        t = now_s();
+        if ((st = steps[k](c)))
+            goto out_free;
+        double dt = now_s() - t;
+        res->step_seconds[step_of[k]] += dt;
+        res->seconds = now_s() - t0;
+        if (k != 0) /* the band set-up is part of step 2 */
+            demo_note(c, "  (step %d: %.1f s)", step_of[k] + 1, res->step_seconds[step_of[k]]);
+    }
+    res->seconds = now_s() - t0;
+    c->total = c->done;
+    if ((st = demo_tick(c, 0)))
+        goto out_free;
+    demo_note(c, "done in %.1f s: %s/report.md, %s/report.html", res->seconds, c->dir, c->dir);
+    if (out)
+        *out = *res;
+out_free:
+    ctx_free(c);
+    free(c);
+    free(res);
+    return st;
+}

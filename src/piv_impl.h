@@ -1,0 +1,99 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/piv_impl.h - the PIV plan's insides, shared by piv.c (per pair) and ensemble.c. */
+#ifndef RPIV_SRC_PIV_IMPL_H
+#define RPIV_SRC_PIV_IMPL_H
+
+#include "rpiv/deform.h"
+#include "rpiv/piv.h"
+#include "rpiv/xcorr.h"
+
+#include <stddef.h>
+
+typedef struct piv_pass {
+    int ww, wh;              /* window size, px                                    */
+    int sx, sy;              /* grid step, px                                      */
+    int nx, ny;              /* grid size                                          */
+    int ox, oy;              /* first pixel of window (0, 0)                       */
+    int rect[4];             /* pixels covered by the windows: x0, y0, x1, y1      */
+    size_t nwin;
+    rpiv_xcorr *xc;
+    rpiv_xcorr_work **ws;    /* one per thread                                     */
+    unsigned char *masked;   /* nwin flags (1 = masked window), NULL without mask   */
+} piv_pass;
+
+enum { PIV_EMPTY = 0, PIV_RAW = 1, PIV_COEF = 2 };
+
+struct rpiv_piv {
+    rpiv_piv_params p;
+    int w, h, nthreads, npass;
+    int roi[4];
+    piv_pass pass[RPIV_PIV_MAX_PASSES];
+    unsigned char *mask;     /* w*h, 1 = masked pixel; NULL = no mask                */
+    float *bga, *bgb;        /* backgrounds, NULL = none                             */
+    float *ia, *ib;          /* loaded frames, then their B-spline coefficients      */
+    int deforms;             /* passes after the first deform the frames             */
+    float fill_a, fill_b;    /* mean grey level of the loaded frames                 */
+    int state;               /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
+    size_t bytes;            /* memory held                                          */
+};
+
+/* What a pass correlates: frames (stride w) whose first row is image row row0, and the
+ * predictor that shifts the windows (by deformation, or by integer offsets). */
+typedef struct piv_source {
+    const float *fa, *fb;
+    int row0;                     /* image row of fa[0], fb[0]                         */
+    const rpiv_deform_pred *pred; /* NULL: no predictor                               */
+    int offsets;                  /* 1: integer window offsets from pred (deform off)  */
+    int deform;                   /* 1: the frames are deformed by pred, strip by strip */
+    double shift;                 /* pixel x of the frames stands for x + shift        */
+} piv_source;
+
+/* Called from the worker threads with each correlated window (distinct windows at once):
+ * the raw plane in ws->plane, the energies, and the shift of the window pair. */
+typedef void (*piv_win_fn)(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea,
+                           double eb, double pu, double pv_);
+
+/* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
+ * NULL), calling fn for each. A deforming pass works strip by strip: the rows under one row
+ * of windows are deformed into a thread's buffer of a window's height (the overlap with the
+ * previous strip moved up, only the new rows computed), then that row of windows is
+ * correlated; no deformed frame is ever held whole, and threads never wait for each other. */
+RPIV_NODISCARD rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
+                                        piv_win_fn fn, void *ctx);
+
+/* The sampling shift of pass k: RPIV_DEFORM_SHIFT for a deforming pass (k > 0, deformation
+ * on), 0 otherwise. Vectors of the pass sit at their window's centre plus this shift. */
+double piv_shift(const rpiv_piv *pv, int k);
+
+/* Build the interpolant of a predictor field (copied; rejected and masked vectors filled
+ * with neighbour medians first), rows evaluated at pixel + shift. */
+RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
+                                        double shift, rpiv_deform_pred **out);
+
+/* The source of pass k without touching the frames (predictor, shift, offsets mode). */
+void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);
+
+/* Check the loaded pair can serve pass k with predictor pred and describe the source;
+ * prefilters the frames (once per pair) when the pass deforms. */
+RPIV_NODISCARD rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
+                                       piv_source *src);
+
+/* Correlate window `win` of pass ps from src with the workspace ws (raw plane, energies);
+ * *pu, *pv get the displacement the window pair was shifted by (the predictor at the centre,
+ * or the integer offset). */
+void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src,
+                rpiv_xcorr_work *ws, size_t win, double *ea, double *eb, double *pu,
+                double *pv_);
+
+/* Just the displacement window `win` is shifted by (as piv_window gives it). */
+void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, double *pu,
+                      double *pv_);
+
+/* The vector of window `win` from its (raw or summed) plane and energies: into f at win. */
+void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, double ea,
+                double eb, double pu, double pv_, rpiv_field *f, size_t win);
+
+/* Validate (median test if enabled) and replace rejected vectors. */
+RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);
+
+#endif /* RPIV_SRC_PIV_IMPL_H */

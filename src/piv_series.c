@@ -1,0 +1,224 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/piv_series.c - series of pairs: background, instantaneous processing, mean and RMS. */
+#include "piv_impl.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Re-raise the current failure with the pair named in front of its message. */
+static rpiv_status pair_fail(rpiv_status st, const rpiv_pairs *pairs, size_t i)
+{
+    char msg[768];
+    snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+    return rpiv_fail(st, "pair %zu (%s): %s", i + 1, pairs->pair[i].path_a, msg);
+}
+
+rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
+                                const rpiv_progress *progress, rpiv_image **bg_a,
+                                rpiv_image **bg_b)
+{
+    *bg_a = *bg_b = NULL;
+    if (kind != RPIV_BACKGROUND_MIN && kind != RPIV_BACKGROUND_MEAN)
+        return rpiv_fail(RPIV_EINVAL, "piv.background: no background kind chosen");
+    if (!pairs->n)
+        return rpiv_fail(RPIV_EINVAL, "piv.background: no image pairs");
+    rpiv_image *ga = NULL, *gb = NULL;
+    double *sum = NULL;
+    rpiv_status st = RPIV_OK;
+    size_t n = 0;
+    for (size_t i = 0; i < pairs->n && !st; i++) {
+        rpiv_image *a = NULL, *b = NULL;
+        if ((st = rpiv_pairs_load(pairs, i, &a, &b)))
+            break;
+        if (!ga) {
+            n = (size_t)a->w * (size_t)a->h;
+            if ((st = rpiv_image_copy(a, &ga)) || (st = rpiv_image_copy(b, &gb)))
+                goto next;
+            if (kind == RPIV_BACKGROUND_MEAN) {
+                sum = calloc(2 * n, sizeof *sum);
+                if (!sum) {
+                    st = rpiv_fail(RPIV_ENOMEM, "piv.background: out of memory");
+                    goto next;
+                }
+            }
+        } else if (a->w != ga->w || a->h != ga->h) {
+            st = rpiv_fail(RPIV_ESIZE, "pair %zu (%s): %dx%d frames, the series' first pair "
+                           "has %dx%d", i + 1, pairs->pair[i].path_a, a->w, a->h, ga->w, ga->h);
+            goto next;
+        }
+        if (kind == RPIV_BACKGROUND_MEAN) {
+            for (size_t k = 0; k < n; k++) {
+                sum[k] += (double)a->px[k];
+                sum[n + k] += (double)b->px[k];
+            }
+        } else {
+            for (size_t k = 0; k < n; k++) {
+                ga->px[k] = fminf(ga->px[k], a->px[k]);
+                gb->px[k] = fminf(gb->px[k], b->px[k]);
+            }
+        }
+        if (rpiv_progress_report(progress, i + 1, pairs->n))
+            st = rpiv_fail(RPIV_EINTR, "piv.background: interrupted after %zu of %zu pairs",
+                           i + 1, pairs->n);
+    next:
+        rpiv_image_free(a);
+        rpiv_image_free(b);
+    }
+    if (!st && kind == RPIV_BACKGROUND_MEAN)
+        for (size_t k = 0; k < n; k++) {
+            ga->px[k] = (float)(sum[k] / (double)pairs->n);
+            gb->px[k] = (float)(sum[n + k] / (double)pairs->n);
+        }
+    free(sum);
+    if (st) {
+        rpiv_image_free(ga);
+        rpiv_image_free(gb);
+        return st;
+    }
+    *bg_a = ga;
+    *bg_b = gb;
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_piv_sink sink,
+                            void *user, const rpiv_progress *progress)
+{
+    if (!pairs->n)
+        return rpiv_fail(RPIV_EINVAL, "piv: no image pairs");
+    for (size_t i = 0; i < pairs->n; i++) {
+        rpiv_image *a = NULL, *b = NULL;
+        rpiv_field *prev = NULL, *f = NULL;
+        rpiv_status st = rpiv_pairs_load(pairs, i, &a, &b);
+        if (!st && (st = rpiv_piv_load(pv, a, b)))
+            st = pair_fail(st, pairs, i);
+        rpiv_image_free(a);
+        rpiv_image_free(b);
+        for (int k = 0; !st && k < pv->npass; k++) {
+            st = rpiv_piv_step(pv, k, prev, &f);
+            rpiv_field_free(prev);
+            prev = f;
+        }
+        if (!st)
+            st = sink(user, i, prev);
+        rpiv_field_free(prev);
+        if (st)
+            return st;
+        if (rpiv_progress_report(progress, i + 1, pairs->n))
+            return rpiv_fail(RPIV_EINTR, "piv: interrupted after %zu of %zu pairs", i + 1,
+                             pairs->n);
+    }
+    return RPIV_OK;
+}
+
+/* ---- mean and RMS ------------------------------------------------------------------------ */
+
+struct rpiv_piv_stats {
+    rpiv_field *grid;
+    size_t nfields;
+    /* per point, for valid vectors (index 0) and for replaced ones (index 1) */
+    double *cnt[2], *mu[2], *mv[2], *su[2], *sv[2], *pr[2], *cr[2];
+    double *block;
+};
+
+void rpiv_piv_stats_free(rpiv_piv_stats *s)
+{
+    if (!s)
+        return;
+    rpiv_field_free(s->grid);
+    free(s->block);
+    free(s);
+}
+
+rpiv_status rpiv_piv_stats_new(const rpiv_field *grid, rpiv_piv_stats **out)
+{
+    *out = NULL;
+    rpiv_piv_stats *s = calloc(1, sizeof *s);
+    if (!s)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for statistics");
+    rpiv_status st = rpiv_field_new(grid->nx, grid->ny, grid->x0, grid->y0, grid->dx, grid->dy,
+                                    &s->grid);
+    size_t n = (size_t)grid->nx * (size_t)grid->ny;
+    if (!st) {
+        s->grid->scale_mm_per_px = grid->scale_mm_per_px;
+        s->grid->dt_s = grid->dt_s;
+        s->block = calloc(14 * n, sizeof *s->block);
+        if (!s->block)
+            st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for statistics");
+    }
+    if (st) {
+        rpiv_piv_stats_free(s);
+        return st;
+    }
+    double **arr[7] = {s->cnt, s->mu, s->mv, s->su, s->sv, s->pr, s->cr};
+    for (int a = 0; a < 7; a++)
+        for (int c = 0; c < 2; c++)
+            arr[a][c] = s->block + (size_t)(2 * a + c) * n;
+    *out = s;
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_piv_stats_add(rpiv_piv_stats *s, const rpiv_field *f)
+{
+    const rpiv_field *g = s->grid;
+    if (f->nx != g->nx || f->ny != g->ny || f->x0 != g->x0 || f->y0 != g->y0 || f->dx != g->dx ||
+        f->dy != g->dy)
+        return rpiv_fail(RPIV_ESIZE, "piv: field of %dx%d points at (%g, %g) step (%g, %g) "
+                         "added to statistics of %dx%d at (%g, %g) step (%g, %g)", f->nx, f->ny,
+                         f->x0, f->y0, f->dx, f->dy, g->nx, g->ny, g->x0, g->y0, g->dx, g->dy);
+    size_t n = (size_t)g->nx * (size_t)g->ny;
+    for (size_t k = 0; k < n; k++) {
+        int c = f->flag[k] == RPIV_FLAG_VALID ? 0 : (f->flag[k] == RPIV_FLAG_REPLACED ? 1 : -1);
+        if (c < 0)
+            continue;
+        double m = ++s->cnt[c][k], du = (double)f->u[k] - s->mu[c][k],
+               dv = (double)f->v[k] - s->mv[c][k];
+        s->mu[c][k] += du / m;
+        s->mv[c][k] += dv / m;
+        s->su[c][k] += du * ((double)f->u[k] - s->mu[c][k]);
+        s->sv[c][k] += dv * ((double)f->v[k] - s->mv[c][k]);
+        s->pr[c][k] += ((double)f->peak_ratio[k] - s->pr[c][k]) / m;
+        s->cr[c][k] += ((double)f->corr[k] - s->cr[c][k]) / m;
+    }
+    s->nfields++;
+    return RPIV_OK;
+}
+
+size_t rpiv_piv_stats_count(const rpiv_piv_stats *s)
+{
+    return s->nfields;
+}
+
+rpiv_status rpiv_piv_stats_finish(const rpiv_piv_stats *s, rpiv_field **mean, rpiv_field **rms)
+{
+    *mean = *rms = NULL;
+    if (!s->nfields)
+        return rpiv_fail(RPIV_EINVAL, "piv: no field to average");
+    rpiv_field *m = NULL, *r = NULL;
+    rpiv_status st;
+    if ((st = rpiv_field_copy(s->grid, &m)) || (st = rpiv_field_copy(s->grid, &r))) {
+        rpiv_field_free(m);
+        return st;
+    }
+    size_t n = (size_t)s->grid->nx * (size_t)s->grid->ny;
+    for (size_t k = 0; k < n; k++) {
+        int c = s->cnt[0][k] > 0 ? 0 : (s->cnt[1][k] > 0 ? 1 : -1);
+        if (c < 0) {
+            m->flag[k] = r->flag[k] = RPIV_FLAG_MASKED;
+            continue;
+        }
+        double cnt = s->cnt[c][k];
+        m->flag[k] = r->flag[k] = c ? RPIV_FLAG_REPLACED : RPIV_FLAG_VALID;
+        m->u[k] = (float)s->mu[c][k];
+        m->v[k] = (float)s->mv[c][k];
+        r->u[k] = (float)sqrt(s->su[c][k] / cnt);
+        r->v[k] = (float)sqrt(s->sv[c][k] / cnt);
+        m->peak_ratio[k] = r->peak_ratio[k] = (float)s->pr[c][k];
+        m->corr[k] = r->corr[k] = (float)s->cr[c][k];
+    }
+    *mean = m;
+    *rms = r;
+    return RPIV_OK;
+}

@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
+# rpiv demo: --help, bad options (exit 2, one stderr line naming the option), an output folder
+# that cannot be made (exit 1, names it), and a tiny run (--quick shrunk further: a 256 px band,
+# 1 pair per P-PIV plane, 4 R-PIV pairs; seconds, also under the sanitizers) that writes the
+# report, valid PNG plots, the data files and the summary on stdout, and whose R-PIV field
+# rpiv synth + rpiv piv reproduce exactly from the files it wrote. The figures themselves are
+# checked by tests/test_demo.c on a larger run.
+set -u
+bin=${RPIV_BIN:?}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+# sanitizer builds: no list of the (fontconfig) suppressions used on stderr at exit
+export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
+fail=0; pass=0
+ok() { pass=$((pass + 1)); }
+ko() { echo "FAIL: $*" >&2; fail=$((fail + 1)); }
+is_png() { [ "$(head -c 8 "$1" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]; }
+# expect_usage ARGS...: exit 2 and one stderr line
+expect_usage() {
+    "$bin" demo "$@" >"$tmp/out" 2>"$tmp/err"
+    local rc=$?
+    [ $rc -eq 2 ] && ok || ko "demo $*: exit $rc, expected 2"
+    [ "$(wc -l <"$tmp/err")" -eq 1 ] && ok || ko "demo $*: $(wc -l <"$tmp/err") stderr lines"
+}
+
+"$bin" demo --help >"$tmp/help" && ok || ko "--help"
+grep -q -- '--quick' "$tmp/help" && grep -q -- '--pairs' "$tmp/help" && ok || ko "help text"
+
+expect_usage --pairs 0
+grep -q -- '--pairs' "$tmp/err" && ok || ko "--pairs 0 not named: $(cat "$tmp/err")"
+expect_usage --ppiv-pairs abc
+grep -q -- '--ppiv-pairs' "$tmp/err" && ok || ko "--ppiv-pairs not named"
+expect_usage --width 12
+grep -q -- '--width' "$tmp/err" && ok || ko "--width not named"
+expect_usage --frobnicate
+grep -q -- 'frobnicate' "$tmp/err" && ok || ko "unknown option not named"
+expect_usage extra-argument
+grep -q -- 'extra-argument' "$tmp/err" && ok || ko "extra argument not named"
+expect_usage --set camera.fnumber=-2
+grep -q -- 'fnumber' "$tmp/err" && ok || ko "bad --set not named: $(cat "$tmp/err")"
+
+# an output folder under a regular file
+: >"$tmp/plain"
+"$bin" demo --quick --quiet --out "$tmp/plain/out" >"$tmp/out" 2>"$tmp/err"
+rc=$?
+[ $rc -eq 1 ] && ok || ko "unwritable --out: exit $rc, expected 1"
+grep -q "plain" "$tmp/err" && ok || ko "unwritable --out not named: $(cat "$tmp/err")"
+
+# a tiny run
+out="$tmp/run"
+"$bin" demo --quick --width 256 --ppiv-pairs 1 --pairs 4 --out "$out" >"$tmp/out" 2>"$tmp/err"
+rc=$?
+[ $rc -eq 0 ] && ok || { ko "tiny run: exit $rc"; cat "$tmp/err" >&2; }
+grep -q "report.md" "$tmp/out" && grep -q "R-PIV vs CCM" "$tmp/out" && ok || ko "summary on stdout"
+grep -q "step 5/6" "$tmp/err" && ok || ko "no step lines on stderr"
+for f in report.md report.html data/sheet_fit.txt data/rpiv.txt data/compare_x.txt \
+    images/rpiv_a.tif; do
+    [ -s "$out/$f" ] && ok || ko "$f missing"
+done
+n=0
+for png in "$out"/*.png; do
+    [ -e "$png" ] || continue
+    n=$((n + 1))
+    name=$(basename "$png")
+    is_png "$png" && ok || ko "$name: not a PNG"
+    grep -q "($name)" "$out/report.md" && ok || ko "$name not in report.md"
+    grep -q "src=\"$name\"" "$out/report.html" && ok || ko "$name not in report.html"
+done
+[ "$n" -ge 14 ] && ok || ko "only $n plots"
+# the demo composes the commands: the same R-PIV pairs and field through rpiv synth and
+# rpiv piv with the parameter file and the mask the demo wrote
+"$bin" synth --quiet --config "$out/data/rpiv.ini" --out "$tmp/pairs" && ok || ko "rpiv synth --config data/rpiv.ini"
+cmp -s "$tmp/pairs/pair_00001_a.tif" "$out/images/rpiv_a.tif" && ok || ko "rpiv synth made another frame A"
+"$bin" piv --quiet --config "$out/data/rpiv.ini" --mask "$out/data/mask.png" "$tmp/pairs/pair_*" \
+    -o "$tmp/rpiv.txt" && ok || ko "rpiv piv --config data/rpiv.ini"
+"$bin" compare --component u "$out/data/rpiv.txt" "$tmp/rpiv.txt" >"$tmp/cmp" && ok || ko "rpiv compare"
+[ "$(awk '$1 == "E1" { print $2 }' "$tmp/cmp")" = 0 ] && ok || ko "rpiv piv field differs: $(cat "$tmp/cmp")"
+
+# --quiet: nothing on stderr
+"$bin" demo --quick --width 256 --ppiv-pairs 1 --pairs 2 --quiet --out "$tmp/q" >"$tmp/out" \
+    2>"$tmp/err" && ok || ko "quiet run"
+[ ! -s "$tmp/err" ] && ok || ko "--quiet wrote on stderr: $(head -3 "$tmp/err")"
+
+echo "demo: $pass passed, $fail failed"
+[ $fail -eq 0 ]

@@ -1,0 +1,491 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* Accuracy of the multi-pass engine on synthetic pairs with known displacement (issue 3):
+ * pixel-integrated Gaussian particles, d_tau = 2.5 px, 0.05 particles per pixel, windows
+ * 64, 32, 32 at 50 % overlap. RPIV_SLOW_TESTS=1 runs the full 0..8 px sweep. */
+#include "check.h"
+#include "piv_testimg.h"
+#include "rpiv/piv.h"
+
+#include <string.h>
+
+typedef struct pair {
+    int w, h;
+    float *a, *b;
+    rpiv_image ia, ib;
+} pair;
+
+static void pair_make(pair *p, const ti_params *tp, ti_flow_fn fn, void *user)
+{
+    p->w = tp->w;
+    p->h = tp->h;
+    p->a = malloc(sizeof(float) * (size_t)tp->w * (size_t)tp->h);
+    p->b = malloc(sizeof(float) * (size_t)tp->w * (size_t)tp->h);
+    ti_pair(tp, fn, user, p->a, p->b);
+    p->ia = (rpiv_image){tp->w, tp->h, 16, p->a};
+    p->ib = (rpiv_image){tp->w, tp->h, 16, p->b};
+}
+
+static void pair_free(pair *p)
+{
+    free(p->a);
+    free(p->b);
+}
+
+static rpiv_field *run(const rpiv_piv_params *prm, const pair *p)
+{
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_piv_new(prm, p->w, p->h, NULL, &pv));
+    if (pv)
+        CHECK_OK(rpiv_piv_run(pv, &p->ia, &p->ib, &f));
+    rpiv_piv_free(pv);
+    return f;
+}
+
+typedef struct errs {
+    double mean_u, mean_v, rms_u, rms_v;
+    int n, replaced, outliers; /* outliers: |error| > 0.5 px */
+} errs;
+
+static errs field_errors(const rpiv_field *f, ti_flow_fn fn, void *user)
+{
+    errs e = {0};
+    for (int j = 0; j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+            double u, v;
+            fn(user, f->x0 + i * f->dx, f->y0 + j * f->dy, &u, &v);
+            double eu = (double)f->u[k] - u, ev = (double)f->v[k] - v;
+            e.mean_u += eu;
+            e.mean_v += ev;
+            e.rms_u += eu * eu;
+            e.rms_v += ev * ev;
+            e.replaced += f->flag[k] == RPIV_FLAG_REPLACED;
+            e.outliers += sqrt(eu * eu + ev * ev) > 0.5;
+            e.n++;
+        }
+    e.mean_u /= e.n;
+    e.mean_v /= e.n;
+    e.rms_u = sqrt(e.rms_u / e.n);
+    e.rms_v = sqrt(e.rms_v / e.n);
+    return e;
+}
+
+static ti_params base(int w, int h, uint64_t seed)
+{
+    return (ti_params){w, h, 0.05, 2.5, 1000, 0, 0, seed};
+}
+
+/* ---- uniform displacements: no peak locking ------------------------------------------------ */
+
+static void piv_uniform_shifts_have_no_peak_locking(void)
+{
+    static double shifts[81];
+    int n = 0;
+    if (getenv("RPIV_SLOW_TESTS") && atoi(getenv("RPIV_SLOW_TESTS")) == 1) {
+        for (int k = 0; k <= 80; k++)
+            shifts[n++] = 0.1 * k;
+    } else {
+        for (int k = 0; k <= 10; k++)
+            shifts[n++] = 0.1 * k;
+        const double spread[] = {1.3, 2.2, 2.7, 3.4, 4.1, 4.9, 5.5, 6.3, 7.2, 7.6, 8.0};
+        for (size_t k = 0; k < sizeof spread / sizeof *spread; k++)
+            shifts[n++] = spread[k];
+    }
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = 1; /* piv_results_identical_for_1_and_2_threads covers the threads */
+    double worst_rms = 0, worst_mean = 0;
+    for (int k = 0; k < n; k++) {
+        /* both components, u = s and v = -s: every sub-pixel fraction in each */
+        double d[2] = {shifts[k], -shifts[k]};
+        ti_params tp = base(256, 256, 1000 + (uint64_t)k);
+        pair p;
+        pair_make(&p, &tp, ti_uniform, d);
+        rpiv_field *f = run(&prm, &p);
+        if (f) {
+            errs e = field_errors(f, ti_uniform, d);
+            double rms = fmax(e.rms_u, e.rms_v), mean = fmax(fabs(e.mean_u), fabs(e.mean_v));
+            worst_rms = fmax(worst_rms, rms);
+            worst_mean = fmax(worst_mean, mean);
+            if (rms > 0.015 || mean > 0.005)
+                printf("    shift %.1f: mean %+.4f %+.4f rms %.4f %.4f\n", shifts[k], e.mean_u,
+                       e.mean_v, e.rms_u, e.rms_v);
+            CHECK(rms <= 0.015);
+            CHECK(mean <= 0.005);
+            CHECK(e.replaced == 0);
+        }
+        rpiv_field_free(f);
+        pair_free(&p);
+    }
+    printf("    %d shifts 0..8 px, 256x256: worst RMS error %.4f px, worst |mean error| %.4f px\n",
+           n, worst_rms, worst_mean);
+}
+
+/* ---- noise -------------------------------------------------------------------------------- */
+
+static void piv_uniform_with_noise(void)
+{
+    double d[2] = {3.3, -1.7};
+    ti_params tp = base(512, 512, 77);
+    tp.noise = 0.01;
+    tp.offset = 100;
+    pair p;
+    pair_make(&p, &tp, ti_uniform, d);
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    rpiv_field *f = run(&prm, &p);
+    if (f) {
+        errs e = field_errors(f, ti_uniform, d);
+        printf("    (3.3, -1.7) px, 1 %% noise, 512x512: mean %+.4f %+.4f, RMS %.4f %.4f px\n",
+               e.mean_u, e.mean_v, e.rms_u, e.rms_v);
+        CHECK(e.rms_u <= 0.012 && e.rms_v <= 0.012);
+    }
+    rpiv_field_free(f);
+    pair_free(&p);
+}
+
+/* ---- sinusoidal shear --------------------------------------------------------------------- */
+
+static void sine(void *user, double x, double y, double *u, double *v)
+{
+    (void)user;
+    (void)x;
+    *u = 3.0 * sin(2 * M_PI * y / 64.0);
+    *v = 0;
+}
+
+/* Least-squares amplitude of u(y) = A sin(2 pi y / 64) + B cos(...) over the field. */
+static double sine_amplitude(const rpiv_field *f)
+{
+    double ss = 0, cc = 0, sc = 0, us = 0, uc = 0;
+    for (int j = 0; j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            double y = f->y0 + j * f->dy, s = sin(2 * M_PI * y / 64), c = cos(2 * M_PI * y / 64);
+            double u = f->u[(size_t)j * (size_t)f->nx + (size_t)i];
+            ss += s * s;
+            cc += c * c;
+            sc += s * c;
+            us += u * s;
+            uc += u * c;
+        }
+    double det = ss * cc - sc * sc, A = (us * cc - uc * sc) / det, B = (uc * ss - us * sc) / det;
+    return sqrt(A * A + B * B);
+}
+
+static void piv_sinusoidal_shear_amplitude(void)
+{
+    ti_params tp = base(256, 256, 4242);
+    pair p;
+    pair_make(&p, &tp, sine, NULL);
+    /* At 4 vectors per wavelength the extrema look like outliers to a 3x3 median test (their
+     * 6 neighbours across the zero crossings all differ by the full amplitude): the test is
+     * switched off, as it must be for any field sampled this coarsely. */
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.median_thr = 0;
+    rpiv_field *f = run(&prm, &p);
+    rpiv_piv_params one = prm;
+    one.npass = 1;
+    one.win_w[0] = one.win_h[0] = 32;
+    rpiv_field *g = run(&one, &p);
+    rpiv_piv_params four = prm;
+    four.npass = 4;
+    four.win_w[3] = four.win_h[3] = 32;
+    rpiv_field *h4 = run(&four, &p);
+    if (f && g && h4) {
+        double a3 = sine_amplitude(f) / 3, a1 = sine_amplitude(g) / 3, a4 = sine_amplitude(h4) / 3;
+        printf("    sine 3 px / 64 px: amplitude kept %.1f %% (64,32,32), %.1f %% (one 32 px pass),"
+               " %.1f %% (64,32,32,32)\n", 100 * a3, 100 * a1, 100 * a4);
+        CHECK(a3 >= 0.85);
+        CHECK(a1 < 0.75 && a1 > 0.55); /* the top-hat window's sinc(pi/2) = 0.64, about */
+        CHECK(a4 > a3);
+    }
+    rpiv_field_free(f);
+    rpiv_field_free(g);
+    rpiv_field_free(h4);
+    pair_free(&p);
+}
+
+/* ---- Lamb-Oseen vortex -------------------------------------------------------------------- */
+
+/* Swirl u_theta(r) = a * g(r / rc) / g_max, g(s) = (1 - exp(-s^2)) / s; the peak a = 6 px is
+ * reached at r = 1.1209 rc. */
+static void oseen(void *user, double x, double y, double *u, double *v)
+{
+    const double *c = user; /* cx, cy */
+    const double a = 6, rc = 48, gmax = 0.6381726863;
+    double dx = x - c[0], dy = y - c[1], r = sqrt(dx * dx + dy * dy);
+    if (r < 1e-9) {
+        *u = *v = 0;
+        return;
+    }
+    double s = r / rc, ut = a * (1 - exp(-s * s)) / s / gmax;
+    *u = -ut * dy / r;
+    *v = ut * dx / r;
+}
+
+static void piv_lamb_oseen_vortex_has_few_outliers(void)
+{
+    double c[2] = {191.37, 160.81};
+    ti_params tp = base(384, 320, 555);
+    pair p;
+    pair_make(&p, &tp, oseen, c);
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    rpiv_field *f = run(&prm, &p);
+    if (f) {
+        errs e = field_errors(f, oseen, c);
+        printf("    Lamb-Oseen 6 px, rc 48 px, 384x320: %d vectors, %d outliers (> 0.5 px), "
+               "%d replaced, RMS %.4f %.4f px\n", e.n, e.outliers, e.replaced, e.rms_u, e.rms_v);
+        CHECK(e.outliers < 0.005 * e.n);
+        CHECK(e.rms_u < 0.1 && e.rms_v < 0.1);
+    }
+    rpiv_field_free(f);
+    pair_free(&p);
+}
+
+/* ---- determinism ---------------------------------------------------------------------------- */
+
+static void piv_results_identical_for_1_and_2_threads(void)
+{
+    double c[2] = {120.3, 101.9};
+    ti_params tp = base(240, 208, 31);
+    tp.noise = 0.02;
+    pair p;
+    pair_make(&p, &tp, oseen, c);
+    rpiv_piv_params p1 = rpiv_piv_params_default(), p2 = p1;
+    p1.threads = 1;
+    p2.threads = 2;
+    rpiv_field *f1 = run(&p1, &p), *f2 = run(&p2, &p);
+    if (f1 && f2) {
+        size_t n = (size_t)f1->nx * (size_t)f1->ny;
+        CHECK(f1->nx == f2->nx && f1->ny == f2->ny);
+        CHECK(!memcmp(f1->u, f2->u, n * sizeof(float)) && !memcmp(f1->v, f2->v, n * sizeof(float)));
+        CHECK(!memcmp(f1->flag, f2->flag, n));
+        CHECK(!memcmp(f1->peak_ratio, f2->peak_ratio, n * sizeof(float)));
+        CHECK(!memcmp(f1->corr, f2->corr, n * sizeof(float)));
+    }
+    rpiv_field_free(f1);
+    rpiv_field_free(f2);
+    pair_free(&p);
+}
+
+/* ---- options --------------------------------------------------------------------------------- */
+
+static void piv_grid_and_peak_values(void)
+{
+    double d[2] = {1.2731, 0.4418};
+    ti_params tp = base(256, 200, 8);
+    pair p;
+    pair_make(&p, &tp, ti_uniform, d);
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    rpiv_field *f = run(&prm, &p);
+    if (f) {
+        /* 32 px windows every 16 px, centred in the image; deformed passes sample a quarter
+         * pixel right of and below the window centre (RPIV_DEFORM_SHIFT) */
+        CHECK(f->nx == 15 && f->ny == 11);
+        CHECK_NEAR(f->x0, 15.75, 1e-12);
+        CHECK_NEAR(f->y0, (200 - 32 - 160) / 2 + 15.75, 1e-12);
+        CHECK(f->dx == 16 && f->dy == 16);
+        double cmin = 1, rmin = 1e9;
+        for (int k = 0; k < f->nx * f->ny; k++) {
+            cmin = fmin(cmin, f->corr[k]);
+            rmin = fmin(rmin, f->peak_ratio[k]);
+        }
+        /* noise-free deformed windows correlate almost perfectly */
+        CHECK(cmin > 0.9 && cmin <= 1.0);
+        CHECK(rmin > 2);
+    }
+    rpiv_field_free(f);
+    pair_free(&p);
+}
+
+static void piv_subpixel_methods_and_window_offset_mode(void)
+{
+    double d[2] = {2.3187, -1.6402};
+    ti_params tp = base(192, 192, 19);
+    pair p;
+    pair_make(&p, &tp, ti_uniform, d);
+    const rpiv_subpixel m[3] = {RPIV_SUBPIXEL_GAUSS, RPIV_SUBPIXEL_PARABOLA, RPIV_SUBPIXEL_CENTROID};
+    for (int k = 0; k < 3; k++) {
+        rpiv_piv_params prm = rpiv_piv_params_default();
+        prm.subpixel = m[k];
+        rpiv_field *f = run(&prm, &p);
+        if (f) {
+            errs e = field_errors(f, ti_uniform, d);
+            printf("    sub-pixel method %d: mean %+.4f %+.4f RMS %.4f %.4f px\n", (int)m[k],
+                   e.mean_u, e.mean_v, e.rms_u, e.rms_v);
+            /* Each pass corrects the last one's residual by the estimator's gain at small
+             * shifts: ~1 for the Gaussian, a little less for the parabola, much less for the
+             * centroid of a narrow peak, so after three passes the centroid keeps a few
+             * hundredths of the first residual. */
+            const double tol[3] = {0.008, 0.012, 0.06};
+            CHECK(fmax(e.rms_u, e.rms_v) < tol[k]);
+        }
+        rpiv_field_free(f);
+    }
+    /* without deformation: integer window offsets; the Gaussian fit's peak locking shows */
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.deform = 0;
+    rpiv_field *f = run(&prm, &p);
+    if (f) {
+        errs e = field_errors(f, ti_uniform, d);
+        printf("    window offset (no deformation), shift (2.3187, -1.6402): mean error %+.4f "
+               "%+.4f, RMS %.4f %.4f px\n", e.mean_u, e.mean_v, e.rms_u, e.rms_v);
+        CHECK(fmax(e.rms_u, e.rms_v) < 0.08);
+        CHECK(f->x0 == 15.5);
+    }
+    rpiv_field_free(f);
+    pair_free(&p);
+}
+
+static void piv_roi_and_mask(void)
+{
+    double d[2] = {2.1931, 0.8377};
+    ti_params tp = base(256, 224, 61);
+    pair p;
+    pair_make(&p, &tp, ti_uniform, d);
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.roi[0] = 40, prm.roi[1] = 24, prm.roi[2] = 210, prm.roi[3] = 200;
+    rpiv_field *f = run(&prm, &p);
+    if (f) {
+        /* 170 x 176 px: 9 x 10 windows of 32 every 16, centred in the ROI */
+        CHECK(f->nx == 9 && f->ny == 10);
+        CHECK_NEAR(f->x0, 40 + (170 - 32 - 128) / 2 + 15.75, 1e-12);
+        CHECK_NEAR(f->y0, 24 + (176 - 32 - 144) / 2 + 15.75, 1e-12);
+        errs e = field_errors(f, ti_uniform, d);
+        CHECK(fmax(e.rms_u, e.rms_v) < 0.01);
+    }
+    rpiv_field_free(f);
+
+    /* a horizontal band masked (a wall with a reflection): its vectors flagged 2, u = v = 0 */
+    float *m = malloc(sizeof(float) * 256 * 224);
+    for (int y = 0; y < 224; y++)
+        for (int x = 0; x < 256; x++) {
+            int in = y >= 96 && y < 136;
+            m[y * 256 + x] = in ? 0.0f : 1.0f;
+            if (in) /* saturated garbage that must not leak into the neighbours */
+                p.a[y * 256 + x] = p.b[y * 256 + x] = (float)(4000 * ((x * 7 + y * 13) % 5));
+        }
+    rpiv_image mask = {256, 224, 8, m};
+    prm = rpiv_piv_params_default();
+    rpiv_piv *pv = NULL;
+    CHECK_OK(rpiv_piv_new(&prm, 256, 224, &mask, &pv));
+    if (pv)
+        CHECK_OK(rpiv_piv_run(pv, &p.ia, &p.ib, &f));
+    if (pv && f) {
+        int nmask = 0;
+        double r2 = 0;
+        int n = 0;
+        for (int j = 0; j < f->ny; j++)
+            for (int i = 0; i < f->nx; i++) {
+                size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+                double y = f->y0 + j * f->dy;
+                if (f->flag[k] == RPIV_FLAG_MASKED) {
+                    nmask++;
+                    CHECK(f->u[k] == 0 && f->v[k] == 0);
+                    CHECK(y > 96 - 16 && y < 136 + 16);
+                } else if (y < 96 - 16 || y > 136 + 16) {
+                    double eu = (double)f->u[k] - d[0], ev = (double)f->v[k] - d[1];
+                    r2 += eu * eu + ev * ev;
+                    n++;
+                }
+            }
+        CHECK(nmask >= 15 && nmask <= 45);
+        CHECK(sqrt(r2 / n) < 0.02);
+        rpiv_field_free(f);
+    }
+    rpiv_piv_free(pv);
+    free(m);
+    pair_free(&p);
+}
+
+/* A static background (a gradient and bright spots, identical in both frames) pulls the peak
+ * to zero; subtracting it restores the result. */
+static void piv_background_subtraction(void)
+{
+    double d[2] = {3.6123, 1.2077};
+    ti_params tp = base(192, 160, 71);
+    pair p;
+    pair_make(&p, &tp, ti_uniform, d);
+    size_t n = 192 * 160;
+    float *bg = malloc(sizeof(float) * n);
+    for (int y = 0; y < 160; y++)
+        for (int x = 0; x < 192; x++) {
+            double v = 300 + 2.0 * x + 200 * exp(-((x % 37 - 18) * (x % 37 - 18) + (y % 29 - 14) * (y % 29 - 14)) / 8.0);
+            bg[y * 192 + x] = (float)v;
+            p.a[y * 192 + x] += (float)v;
+            p.b[y * 192 + x] += (float)v;
+        }
+    rpiv_image ibg = {192, 160, 16, bg};
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_piv_new(&prm, 192, 160, NULL, &pv));
+    if (pv) {
+        CHECK_OK(rpiv_piv_set_background(pv, &ibg, &ibg));
+        CHECK_OK(rpiv_piv_run(pv, &p.ia, &p.ib, &f));
+        if (f) {
+            errs e = field_errors(f, ti_uniform, d);
+            CHECK(fmax(e.rms_u, e.rms_v) < 0.01);
+        }
+        rpiv_field_free(f);
+        rpiv_image small = {100, 160, 16, bg};
+        CHECK_FAILS(rpiv_piv_set_background(pv, &small, &ibg), RPIV_ESIZE);
+        CHECK_OK(rpiv_piv_set_background(pv, NULL, NULL));
+    }
+    rpiv_piv_free(pv);
+    free(bg);
+    pair_free(&p);
+}
+
+/* ---- errors ------------------------------------------------------------------------------- */
+
+static void piv_errors_are_reported(void)
+{
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    rpiv_piv *pv = (rpiv_piv *)&prm;
+    /* a window larger than the image */
+    CHECK_FAILS(rpiv_piv_new(&prm, 48, 200, NULL, &pv), RPIV_ESIZE);
+    CHECK(pv == NULL);
+    CHECK(strstr(rpiv_errmsg(), "64x64") && strstr(rpiv_errmsg(), "larger than the image"));
+    /* ... or than the ROI */
+    prm.roi[0] = 10, prm.roi[1] = 10, prm.roi[2] = 60, prm.roi[3] = 190;
+    CHECK_FAILS(rpiv_piv_new(&prm, 256, 256, NULL, &pv), RPIV_ESIZE);
+    CHECK(strstr(rpiv_errmsg(), "ROI") != NULL);
+    /* a ROI outside the image */
+    prm.roi[2] = 300;
+    CHECK_FAILS(rpiv_piv_new(&prm, 256, 256, NULL, &pv), RPIV_ESIZE);
+    prm = rpiv_piv_params_default();
+    prm.overlap = 0.97;
+    CHECK_FAILS(rpiv_piv_new(&prm, 256, 256, NULL, &pv), RPIV_EINVAL);
+    prm = rpiv_piv_params_default();
+    prm.max_mem_mb = 1;
+    CHECK_FAILS(rpiv_piv_new(&prm, 1024, 1024, NULL, &pv), RPIV_ELIMIT);
+    prm = rpiv_piv_params_default();
+    float px[64 * 64] = {0};
+    rpiv_image small = {64, 64, 8, px};
+    CHECK_FAILS(rpiv_piv_new(&prm, 128, 128, &small, &pv), RPIV_ESIZE);
+    CHECK_OK(rpiv_piv_new(&prm, 128, 128, NULL, &pv));
+    if (pv) {
+        rpiv_field *f = (rpiv_field *)&prm;
+        CHECK_FAILS(rpiv_piv_step(pv, 0, NULL, &f), RPIV_EINVAL); /* nothing loaded */
+        CHECK(f == NULL);
+        CHECK_FAILS(rpiv_piv_step(pv, 3, NULL, &f), RPIV_EINVAL);
+        CHECK_FAILS(rpiv_piv_run(pv, &small, &small, &f), RPIV_ESIZE);
+        CHECK(strstr(rpiv_errmsg(), "64x64") != NULL);
+    }
+    rpiv_piv_free(pv);
+}
+
+int main(void)
+{
+    RUN_TEST(piv_uniform_shifts_have_no_peak_locking);
+    RUN_TEST(piv_uniform_with_noise);
+    RUN_TEST(piv_sinusoidal_shear_amplitude);
+    RUN_TEST(piv_lamb_oseen_vortex_has_few_outliers);
+    RUN_TEST(piv_results_identical_for_1_and_2_threads);
+    RUN_TEST(piv_grid_and_peak_values);
+    RUN_TEST(piv_subpixel_methods_and_window_offset_mode);
+    RUN_TEST(piv_roi_and_mask);
+    RUN_TEST(piv_background_subtraction);
+    RUN_TEST(piv_errors_are_reported);
+    return check_summary();
+}

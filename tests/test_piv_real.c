@@ -1,0 +1,84 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* The real pairs of ../shared/data (recordings and images made by other people, in the
+ * formats PIV users have) go through the default multi-pass run without error; the fraction
+ * of vectors rejected by validation is printed for docs/benchmarks.md. Skipped (77) when
+ * RPIV_SHARED_DATA is not set or not there. RPIV_SLOW_TESTS=1 adds the two largest pairs. */
+#include "check.h"
+#include "rpiv/image.h"
+#include "rpiv/piv.h"
+
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+
+typedef struct real_pair {
+    const char *dir, *a, *b;
+    int slow;
+} real_pair;
+
+static const real_pair pairs[] = {
+    {"pivchallenge2014_E", "im00001.tif", "im00002.tif", 0},
+    {"uvmat_jet", "c060a.png", "c060b.png", 0},
+    {"uvmat_oseen", "Oseen_center_01.tif", "Oseen_center_02.tif", 0},
+    {"openpiv_exp1", "exp1_001_a.bmp", "exp1_001_b.bmp", 0},
+    {"openpiv_palette", "2image_00.tif", "2image_01.tif", 0},
+    {"pivlab_karman", "PIVlab_Karman_01.bmp", "PIVlab_Karman_02.bmp", 0},
+    {"pivlab_jet", "Jet_0001A.jpg", "Jet_0001B.jpg", 0},
+    {"milestone", "im00505a.png", "im00505b.png", 1},
+    {"openpiv_camera", "Camera1-0101.tif", "Camera1-0102.tif", 1},
+};
+
+static void real_pairs_are_processed(void)
+{
+    const char *root = getenv("RPIV_SHARED_DATA");
+    struct stat st;
+    if (!root || stat(root, &st) != 0 || !S_ISDIR(st.st_mode)) {
+        check_skip("RPIV_SHARED_DATA absent");
+        return;
+    }
+    int slow = getenv("RPIV_SLOW_TESTS") && atoi(getenv("RPIV_SLOW_TESTS")) == 1;
+    for (size_t i = 0; i < sizeof pairs / sizeof *pairs; i++) {
+        if (pairs[i].slow && !slow)
+            continue;
+        char pa[1024], pb[1024];
+        snprintf(pa, sizeof pa, "%s/%s/%s", root, pairs[i].dir, pairs[i].a);
+        snprintf(pb, sizeof pb, "%s/%s/%s", root, pairs[i].dir, pairs[i].b);
+        char *args[2] = {pa, pb};
+        rpiv_pairs *pp = NULL;
+        rpiv_image *a = NULL, *b = NULL;
+        rpiv_piv *pv = NULL;
+        rpiv_field *f = NULL;
+        rpiv_piv_params prm = rpiv_piv_params_default();
+        prm.threads = 1;
+        CHECK_OK(rpiv_pairs_from_args(2, args, RPIV_PAIR_AB, &pp));
+        if (pp)
+            CHECK_OK(rpiv_pairs_load(pp, 0, &a, &b));
+        if (a)
+            CHECK_OK(rpiv_piv_new(&prm, a->w, a->h, NULL, &pv));
+        if (pv)
+            CHECK_OK(rpiv_piv_run(pv, a, b, &f));
+        if (f) {
+            size_t n = (size_t)f->nx * (size_t)f->ny, rep = 0, finite = 1;
+            for (size_t k = 0; k < n; k++) {
+                rep += f->flag[k] == RPIV_FLAG_REPLACED;
+                finite &= isfinite(f->u[k]) && isfinite(f->v[k]) && isfinite(f->corr[k]);
+            }
+            printf("    %-20s %4dx%-4d %6zu vectors, %5.2f %% rejected and replaced\n",
+                   pairs[i].dir, a->w, a->h, n, 100.0 * (double)rep / (double)n);
+            CHECK(finite);
+            CHECK(rep < n / 2); /* a sanity bound: these are all usable recordings */
+        }
+        rpiv_field_free(f);
+        rpiv_piv_free(pv);
+        rpiv_image_free(a);
+        rpiv_image_free(b);
+        rpiv_pairs_free(pp);
+    }
+}
+
+int main(void)
+{
+    rpiv_init();
+    RUN_TEST(real_pairs_are_processed);
+    return check_summary();
+}
