@@ -6,6 +6,7 @@
 #include "field_impl.h"
 
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -259,6 +260,15 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
             st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: flag %g is not an integer 0..255", path, lineno,
                            val[4]);
             goto out_free;
+        }
+        /* u, v (and rpiv's peak ratio and correlation) are stored as float */
+        for (int c = 2; c < (nc < MAXCOL ? nc : MAXCOL); c++) {
+            if ((c == 2 || c == 3 || (is_rpiv && c >= 5)) && fabs(val[c]) > (double)FLT_MAX) {
+                st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: column %d: %g is beyond the range of a "
+                                             "32-bit float",
+                               path, lineno, c + 1, val[c]);
+                goto out_free;
+            }
         }
         if (!rows_push(&r)) {
             st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory at line %ld", path, lineno);
