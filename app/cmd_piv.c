@@ -71,8 +71,9 @@ static void help(void)
         "i mod K). Ensemble: the ranks' sums are added (in double) before every pass ends;\n"
         "checkpoints are FILE.rank0 ... FILE.rank<K-1> and resume needs the same K. Per\n"
         "pair: each rank writes the files of its pairs; a .nc series, --mean-rms and --plot\n"
-        "are written by rank 0. See docs/cluster.md.\n\n"
-        "Algorithm, choices and measured accuracy: docs/piv.md.\n");
+        "are written by rank 0. See docs/cluster.md. MPI support in this build: %s.\n\n"
+        "Algorithm, choices and measured accuracy: docs/piv.md.\n",
+        rpiv_mpi_built() ? "yes" : "no");
 }
 
 /* ".txt" etc. if path ends in a known field extension, else NULL. */

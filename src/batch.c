@@ -10,6 +10,7 @@
 #include "mpi_impl.h"
 #include "piv_impl.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -385,8 +386,8 @@ static void ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
         snprintf(win + strlen(win), sizeof win - strlen(win), "%s%dx%d", k ? "," : "",
                  p->win_w[k], p->win_h[k]);
     snprintf(id->plan, sizeof id->plan,
-             "%dx%d frames, windows %s, overlap %.15g, step %d px, subpixel %s, median %.15g "
-             "(eps %.15g px), deform %d, background %s, roi %d,%d,%d,%d, mask %s",
+             "%dx%d frames, windows %.100s, overlap %.15g, step %d px, subpixel %s, median %.15g "
+             "(eps %.15g px), deform %d, background %s, roi %d,%d,%d,%d, mask %.300s",
              pv->w, pv->h, win, p->overlap, p->step_px, sub[p->subpixel], p->median_thr,
              p->median_eps, p->deform, bg[p->background], p->roi[0], p->roi[1], p->roi[2],
              p->roi[3], p->mask[0] ? p->mask : "none");
@@ -508,6 +509,26 @@ static rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, i
 out_free:
     free(tmp);
     return st;
+}
+
+/* Remove the temporary files a killed run left next to path (path.tmp<pid>). */
+static void remove_stale(const char *path)
+{
+    char dir[4096], name[4096];
+    const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
+    if (!slash)
+        snprintf(dir, sizeof dir, ".");
+    else
+        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path) + (slash == path), path);
+    size_t nb = strlen(base);
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    for (struct dirent *de; (de = readdir(d));)
+        if (!strncmp(de->d_name, base, nb) && !strncmp(de->d_name + nb, ".tmp", 4) &&
+            snprintf(name, sizeof name, "%s/%s", dir, de->d_name) < (int)sizeof name)
+            remove(name);
+    closedir(d);
 }
 
 /* Is there a file at path? */
@@ -697,11 +718,12 @@ out_fail:
 
 /* ---- the ensemble run -------------------------------------------------------------------- */
 
-/* Add pair i to e: RPIV_OK when added or (skip_bad) skipped; else the error, naming it. */
-static rpiv_status add_pair(rpiv_batch *b, rpiv_ensemble *e, size_t i, int *added)
+/* Add pair i to e (plan pv): RPIV_OK when added or (skip_bad) skipped; else the error. */
+static rpiv_status add_pair(rpiv_batch *b, const rpiv_piv *pv, rpiv_ensemble *e, size_t i,
+                            int *added)
 {
     rpiv_image *a = NULL, *bb = NULL;
-    rpiv_status st = rpiv_pairs_load(b->pairs, i, &a, &bb);
+    rpiv_status st = load_pair(b, i, pv->w, pv->h, &a, &bb);
     *added = 0;
     if (!st && (st = rpiv_ensemble_add(e, a, bb))) {
         char msg[768];
@@ -773,6 +795,8 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
     for (size_t i = 0; i < N; i++)
         b->state[i] &= BAD;
     b->resumed = 0;
+    if (b->ckpt)
+        remove_stale(b->ckpt);
     if (b->ckpt && b->p.resume && (st = resume(b, pv, &id, user_path, &pass0, &pred, &e)))
         return st;
     size_t nmine = 0, done = 0;
@@ -796,7 +820,7 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
             int added;
             if (b->state[i] & (DONE | BAD))
                 continue;
-            if ((st = add_pair(b, e, i, &added)))
+            if ((st = add_pair(b, pv, e, i, &added)))
                 break;
             since += (size_t)added;
             if (b->ckpt && b->p.checkpoint_every && since >= b->p.checkpoint_every) {
@@ -838,7 +862,7 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
 static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **f)
 {
     rpiv_image *a = NULL, *bb = NULL;
-    rpiv_status st = rpiv_pairs_load(b->pairs, i, &a, &bb);
+    rpiv_status st = load_pair(b, i, pv->w, pv->h, &a, &bb);
     if (!st && (st = rpiv_piv_run(pv, a, bb, f))) {
         char msg[768];
         snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
