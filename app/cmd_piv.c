@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <time.h>
 
 rpiv_status cmd_piv(int argc, char **argv);
 
@@ -28,7 +29,8 @@ static void help(void)
         "summed before the peak is located (sum of correlation), pass by pass.\n\n"
         "PAIRS: two image files (one pair), one double-frame file, a .txt/.lst list of pairs,\n"
         "or a quoted glob matched and paired by --pairing.\n\n"
-        "OUT: the format follows the extension: .txt (columns x y u v flag peak_ratio\n"
+        "OUT: -o FILE, or --out DIR for DIR/piv.txt (DIR/ensemble.txt with --ensemble).\n"
+        "The format follows the extension: .txt (columns x y u v flag peak_ratio\n"
         "correlation, + x_mm y_mm u_ms v_ms with --scale and --dt), .nc (NetCDF-4; a series of\n"
         "pairs goes into one file along t), .dat (Tecplot), .vtk (legacy VTK). Several pairs\n"
         "and a non-.nc OUT give one file per pair, OUT with _0001, _0002, ... before the\n"
@@ -48,7 +50,8 @@ static void help(void)
         "  --dt S                pulse separation, s                            [dt_s]\n"
         "  --threads N           OpenMP threads (0 = all cores)                 [threads]\n"
         "other options:\n"
-        "  -o, --output OUT      output file (required)\n"
+        "  -o, --output OUT      output file (or --out DIR, below)\n"
+        "  --out DIR             output folder, made if needed: fields as text files there\n"
         "  --mean-rms            per-pair mode: also write OUT_mean and OUT_rms (mean and\n"
         "                        standard deviation of the valid vectors)\n"
         "  --plot FILE.png       quiver plot of the ensemble field, the mean field\n"
@@ -79,6 +82,20 @@ static rpiv_status out_name(const char *out, const char *tag, char *buf, size_t 
     if (snprintf(buf, n, "%.*s%s%s", len, out, tag, dot) >= (int)n)
         return rpiv_fail(RPIV_EINVAL, "%s: output path too long", out);
     return RPIV_OK;
+}
+
+/* Progress through cli_progress, but only once a run has lasted a second: short runs stay
+ * silent on stderr (one line there is then the error, if any). Interruption is checked at
+ * every call. */
+static int quiet_start(void *user, size_t done, size_t total)
+{
+    cli_progress *p = user;
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    double now = (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+    if (now - p->t0 < 1.0)
+        return cli_interrupted();
+    return cli_progress_fn(user, done, total);
 }
 
 typedef struct run_ctx {
@@ -165,7 +182,7 @@ static rpiv_status set_validate(cli_ctx *c, const char *v)
 rpiv_status cmd_piv(int argc, char **argv)
 {
     enum { O_WINDOW = 256, O_OVERLAP, O_STEP, O_ENSEMBLE, O_SUBPIXEL, O_VALIDATE, O_MASK, O_ROI,
-           O_BACKGROUND, O_SCALE, O_DT, O_PLOT, O_MEANRMS, O_PAIRING };
+           O_BACKGROUND, O_SCALE, O_DT, O_PLOT, O_MEANRMS, O_PAIRING, O_OUTDIR };
     static const struct option opts[] = {
         CLI_COMMON_LONGOPTS,
         {"window", required_argument, 0, O_WINDOW},
@@ -184,6 +201,7 @@ rpiv_status cmd_piv(int argc, char **argv)
         {"mean-rms", no_argument, 0, O_MEANRMS},
         {"pairing", required_argument, 0, O_PAIRING},
         {"output", required_argument, 0, 'o'},
+        {"out", required_argument, 0, O_OUTDIR},
         {0, 0, 0, 0}};
     /* option -> [piv] key, for the options that are keys */
     static const struct { int opt; const char *key, *name; } keyed[] = {
@@ -193,7 +211,8 @@ rpiv_status cmd_piv(int argc, char **argv)
         {O_BACKGROUND, "background", "--background"},
         {O_SCALE, "scale_mm_per_px", "--scale"}, {O_DT, "dt_s", "--dt"}};
     cli_ctx c;
-    const char *out = NULL, *plot = NULL;
+    const char *out = NULL, *plot = NULL, *outdir = NULL;
+    char outbuf[RPIV_PATH_MAX + 32];
     int meanrms = 0, o;
     rpiv_pairing pairing = RPIV_PAIR_AB;
     rpiv_status st = RPIV_OK;
@@ -219,6 +238,9 @@ rpiv_status cmd_piv(int argc, char **argv)
             return RPIV_OK;
         case 'o':
             out = optarg;
+            break;
+        case O_OUTDIR:
+            outdir = optarg;
             break;
         case O_ENSEMBLE:
             c.exp.piv.ensemble = 1;
@@ -249,10 +271,14 @@ rpiv_status cmd_piv(int argc, char **argv)
         }
     }
     rpiv_piv_params *p = &c.exp.piv;
+    if (!out && outdir) {
+        if (snprintf(outbuf, sizeof outbuf, "%s/%s", outdir,
+                     p->ensemble ? "ensemble.txt" : "piv.txt") >= (int)sizeof outbuf)
+            return cli_usage_error("piv", "--out %s: path too long", outdir);
+        out = outbuf;
+    }
     if (!out)
-        return cli_usage_error("piv", "no output given (-o OUT)");
-    if (!field_ext(out))
-        return cli_usage_error("piv", "-o %s: the extension must be .txt, .nc, .dat or .vtk", out);
+        return cli_usage_error("piv", "no output given (-o OUT or --out DIR)");
     if (optind >= argc)
         return cli_usage_error("piv", "no image pairs given");
     if (meanrms && p->ensemble)
@@ -268,7 +294,7 @@ rpiv_status cmd_piv(int argc, char **argv)
     rpiv_meta meta = {0};
     run_ctx r = {0};
     cli_progress prog;
-    rpiv_progress pr = cli_progress_of(&prog);
+    rpiv_progress pr = {quiet_start, &prog};
     if ((st = rpiv_pairs_from_args(argc - optind, argv + optind, pairing, &pairs)))
         goto out_free;
     /* the frame size, from the first pair */
@@ -280,11 +306,6 @@ rpiv_status cmd_piv(int argc, char **argv)
     a = b = NULL;
     if (p->mask[0] && (st = rpiv_image_load(p->mask, 0, &mask, NULL)))
         goto out_free;
-    if (p->background != RPIV_BACKGROUND_NONE) {
-        cli_progress_init(&prog, "background", c.quiet);
-        if ((st = rpiv_piv_background(pairs, p->background, &pr, &bga, &bgb)))
-            goto out_free;
-    }
     if ((st = rpiv_piv_new(p, w, h, mask, &pv))) {
         if (st == RPIV_ESIZE) { /* the parameters do not fit the images: a usage error */
             char msg[768];
@@ -292,6 +313,18 @@ rpiv_status cmd_piv(int argc, char **argv)
             st = rpiv_fail(RPIV_EINVAL, "%s", msg);
         }
         goto out_free;
+    }
+    /* the output's extension once the inputs are known good, before any long work */
+    if (!field_ext(out)) {
+        st = cli_usage_error("piv", "-o %s: the extension must be .txt, .nc, .dat or .vtk", out);
+        goto out_free;
+    }
+    if (outdir && out == outbuf && (st = cli_mkdirs(outdir)))
+        goto out_free;
+    if (p->background != RPIV_BACKGROUND_NONE) {
+        cli_progress_init(&prog, "background", c.quiet);
+        if ((st = rpiv_piv_background(pairs, p->background, &pr, &bga, &bgb)))
+            goto out_free;
     }
     if (bga && (st = rpiv_piv_set_background(pv, bga, bgb)))
         goto out_free;
