@@ -240,7 +240,7 @@ rpiv_status cmd_piv(int argc, char **argv)
 {
     enum { O_WINDOW = 256, O_OVERLAP, O_STEP, O_ENSEMBLE, O_SUBPIXEL, O_VALIDATE, O_MASK, O_ROI,
            O_BACKGROUND, O_SCALE, O_DT, O_PLOT, O_MEANRMS, O_PAIRING, O_CHECKPOINT, O_EVERY,
-           O_RESUME, O_SKIPBAD };
+           O_RESUME, O_SKIPBAD, O_OUTDIR };
     static const struct option opts[] = {
         CLI_COMMON_LONGOPTS,
         {"window", required_argument, 0, O_WINDOW},
@@ -263,6 +263,7 @@ rpiv_status cmd_piv(int argc, char **argv)
         {"resume", no_argument, 0, O_RESUME},
         {"skip-bad", no_argument, 0, O_SKIPBAD},
         {"output", required_argument, 0, 'o'},
+        {"out", required_argument, 0, O_OUTDIR},
         {0, 0, 0, 0}};
     /* option -> [piv] key, for the options that are keys */
     static const struct { int opt; const char *key, *name; } keyed[] = {
@@ -273,6 +274,8 @@ rpiv_status cmd_piv(int argc, char **argv)
         {O_SCALE, "scale_mm_per_px", "--scale"}, {O_DT, "dt_s", "--dt"}};
     cli_ctx c;
     run_opts ro = {.pairing = RPIV_PAIR_AB};
+    const char *outdir = NULL;
+    char outbuf[RPIV_PATH_MAX + 32];
     int o;
     rpiv_status st = RPIV_OK;
     cli_ctx_init(&c);
@@ -297,6 +300,9 @@ rpiv_status cmd_piv(int argc, char **argv)
             return RPIV_OK;
         case 'o':
             ro.out = optarg;
+            break;
+        case O_OUTDIR:
+            outdir = optarg;
             break;
         case O_ENSEMBLE:
             c.exp.piv.ensemble = 1;
@@ -339,8 +345,16 @@ rpiv_status cmd_piv(int argc, char **argv)
         }
     }
     rpiv_piv_params *p = &c.exp.piv;
+    if (!ro.out && outdir) { /* --out DIR: DIR/piv.txt or DIR/ensemble.txt */
+        if (snprintf(outbuf, sizeof outbuf, "%s/%s", outdir,
+                     p->ensemble ? "ensemble.txt" : "piv.txt") >= (int)sizeof outbuf)
+            return cli_usage_error("piv", "--out %s: path too long", outdir);
+        if ((st = cli_mkdirs(outdir)))
+            return st;
+        ro.out = outbuf;
+    }
     if (!ro.out)
-        return cli_usage_error("piv", "no output given (-o OUT)");
+        return cli_usage_error("piv", "no output given (-o OUT or --out DIR)");
     if (!field_ext(ro.out))
         return cli_usage_error("piv", "-o %s: the extension must be .txt, .nc, .dat or .vtk",
                                ro.out);
