@@ -60,6 +60,10 @@ static const expect table[] = {
      * 2000 x 2000 image (a mask, a background) packs into 260 bytes */
     {"tiff_zstd_uniform_loads.tif", IMAGE, 0, RPIV_OK, NULL},
     {"vectors_u_beyond_float.txt", VECTORS, 0, RPIV_EFORMAT, ":1: column 3"},
+    /* header "# scale_mm_per_px = 0.0065e9999" (infinite): the field loaded with an infinite
+     * scale, and its mm and m/s columns came out infinite when saved; now the header is
+     * ignored as a value <= 0 is (the field is left unscaled) */
+    {"vectors_scale_overflows.txt", VECTORS, 0, RPIV_OK, NULL},
     /* header "# zm1 1e3086" (infinite): the sheet loaded and I0 evaluated to NaN */
     {"sheet_header_not_finite.sheet", SHEET, 0, RPIV_EFORMAT, ":8: zm1 is inf"},
     /* rows -1e308 and 1.7e308: their step overflows and I0 evaluated to NaN (written by hand
@@ -91,7 +95,8 @@ static int image_ok(const rpiv_image *im)
 static int field_ok(const rpiv_field *f)
 {
     if (f->nx < 1 || f->ny < 1 || !(f->dx > 0) || !(f->dy > 0) || !isfinite(f->dx) ||
-        !isfinite(f->dy) || !isfinite(f->x0) || !isfinite(f->y0))
+        !isfinite(f->dy) || !isfinite(f->x0) || !isfinite(f->y0) ||
+        !isfinite(f->scale_mm_per_px) || !isfinite(f->dt_s))
         return 0;
     for (size_t k = 0; k < (size_t)f->nx * (size_t)f->ny; k++)
         if (!isfinite(f->u[k]) || !isfinite(f->v[k]))
