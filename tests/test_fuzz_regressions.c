@@ -52,6 +52,13 @@ static const expect table[] = {
     /* 365-byte JPEG whose frame header announces 30000 x 30000: stb_image decoded the short
      * scan and 900 Mpx of zeros (63 s, 4.4 GB) and the load succeeded */
     {"jpeg_scan_shorter_than_image.jpg", IMAGE, 0, RPIV_EFORMAT, "cannot be coded"},
+    /* a progressive scan whose AC Huffman table no DHT defined: stb_image decoded it from
+     * uninitialised memory (nothings/stb#1535) and crashed (SEGV under ASan, found by the
+     * 30-s make fuzz run) */
+    {"jpeg_undefined_huffman_table.jpg", IMAGE, 0, RPIV_EFORMAT, "Huffman table AC0"},
+    /* the 7 x 5 seed with its component pointed at quantisation table 1, never defined: the
+     * image "loaded" with levels computed from uninitialised memory (valgrind) */
+    {"jpeg_undefined_quant_table.jpg", IMAGE, 0, RPIV_EFORMAT, "quantisation table 1"},
     /* the size check must keep real files that compress well: a uniform 800 x 600 grey
      * JPEG (cjpeg -optimize, 2 bits per block, 1 byte per 256 pixels) loads */
     {"jpeg_uniform_800x600_loads.jpg", IMAGE, 0, RPIV_OK, NULL},
