@@ -66,6 +66,13 @@ static const expect table[] = {
     /* the TIFF size check (4096:1 for compressed data) refused a valid ZSTD TIFF: a uniform
      * 2000 x 2000 image (a mask, a background) packs into 260 bytes */
     {"tiff_zstd_uniform_loads.tif", IMAGE, 0, RPIV_OK, NULL},
+    /* compression code 65 (no codec) on a 32774 x 61441 16-bit header: the 8 GB image was
+     * reserved before libtiff said it cannot decode (found by fuzz_image, OOM; the size
+     * bound above no longer covered codes outside its list) */
+    {"tiff_unknown_compression.tif", IMAGE, 0, RPIV_EFORMAT, "compression 65 not supported"},
+    /* and a ZSTD header announcing 30000 x 30000 in 260 bytes (the bound for codecs outside
+     * that list, 65536:1) */
+    {"tiff_zstd_header_beyond_file.tif", IMAGE, 0, RPIV_EFORMAT, "cannot be stored"},
     {"vectors_u_beyond_float.txt", VECTORS, 0, RPIV_EFORMAT, ":1: column 3"},
     /* header "# scale_mm_per_px = 0.0065e9999" (infinite): the field loaded with an infinite
      * scale, and its mm and m/s columns came out infinite when saved; now the header is
