@@ -15,6 +15,7 @@
 typedef struct tctx {
     char msg[512]; /* first error libtiff reported for this handle */
     int nerr;
+    int corrupt; /* a decoder warned that coded rows were cut short or too long */
 } tctx;
 
 static int on_error(TIFF *t, void *user, const char *module, const char *fmt, va_list ap)
@@ -29,8 +30,18 @@ static int on_error(TIFF *t, void *user, const char *module, const char *fmt, va
 
 static int on_warning(TIFF *t, void *user, const char *module, const char *fmt, va_list ap)
 {
-    (void)t, (void)user, (void)module, (void)fmt, (void)ap;
-    return 1; /* silenced (unknown tags and the like) */
+    (void)t, (void)module;
+    tctx *c = user;
+    char m[sizeof c->msg];
+    vsnprintf(m, sizeof m, fmt, ap);
+    /* The fax decoders only warn when a row's codes end early or run long, and fill the
+     * row: a 260-byte file then "held" 30000 x 30000 blank pixels. That is corrupt data. */
+    if (strstr(m, "Premature EO") || strstr(m, "Line length mismatch")) {
+        if (!c->corrupt && c->nerr++ == 0)
+            snprintf(c->msg, sizeof c->msg, "%s", m);
+        c->corrupt = 1;
+    }
+    return 1; /* the others are silenced (unknown tags and the like) */
 }
 
 static TIFF *topen(const char *path, const char *mode, int fd, tctx *c)
@@ -55,8 +66,8 @@ static rpiv_status tfail(const char *path, const tctx *c, const char *what)
 {
     if (strstr(c->msg, "Read error") || strstr(c->msg, "Not enough data") ||
         strstr(c->msg, "Cannot read") || strstr(c->msg, "Can not read") ||
-        strstr(c->msg, "Incorrect count") ||
-        strstr(c->msg, "end of file"))
+        strstr(c->msg, "Incorrect count") || strstr(c->msg, "end of file") ||
+        strstr(c->msg, "Premature EO") || strstr(c->msg, "Line length mismatch"))
         return rpiv_fail(RPIV_EFORMAT, "%s: truncated or corrupt TIFF (%s: %s)", path, what,
                          c->msg);
     return rpiv_fail(RPIV_EFORMAT, "%s: %s: %s", path, what, c->msg[0] ? c->msg : "failed");
@@ -199,6 +210,15 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
     if (!TIFFIsCODECConfigured(comp))
         return rpiv_fail(RPIV_EFORMAT, "%s: TIFF compression %u not supported", path,
                          (unsigned)comp);
+    /* The decoding buffer holds one tile: a tile far larger than the image (a 469762064-px
+     * wide tile on a 1 x 5 image asked for 9.4 GB) is refused. Legitimate tiles larger than
+     * the image are small (a 256 x 256 tile on a thumbnail). */
+    uint64_t raw = ((uint64_t)ti->w * ti->spp * ti->bps + 7) / 8 * ti->h;
+    uint64_t tile = TIFFIsTiled(t) ? (uint64_t)TIFFTileSize64(t) : 0;
+    if (tile > 4 * raw && tile > ((uint64_t)64 << 20))
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: corrupt TIFF: tiles of %llu bytes for a %ux%u image", path,
+                         (unsigned long long)tile, ti->w, ti->h);
     if (ti->bps == 1 && comp != COMPRESSION_NONE)
         return RPIV_OK;
     /* Expansion bounds: LZW < 2560:1, Deflate 1032:1, PackBits 64:1, JPEG < 1536:1 (4096
@@ -210,7 +230,6 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
                 comp == COMPRESSION_DEFLATE || comp == COMPRESSION_ADOBE_DEFLATE ||
                 comp == COMPRESSION_PACKBITS || comp == COMPRESSION_JPEG;
     uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
-    uint64_t raw = ((uint64_t)ti->w * ti->spp * ti->bps + 7) / 8 * ti->h;
     uint64_t cap = comp == COMPRESSION_NONE ? fsize
                                             : (known ? 4096 : 65536) * fsize + (1u << 20);
     if (raw > cap)
@@ -264,8 +283,9 @@ static rpiv_status read_blocks(TIFF *t, tctx *c, const char *path, const tinfo *
                     idx = TIFFComputeStrip(t, y0, (uint16_t)p);
                     got = TIFFReadEncodedStrip(t, idx, buf, bsize);
                 }
-                if (got < 0 || (uint64_t)got < (uint64_t)(rows - 1) * rowbytes +
-                                                   ((uint64_t)cols * nsp * ti->bps + 7) / 8) {
+                if (got < 0 || c->corrupt ||
+                    (uint64_t)got < (uint64_t)(rows - 1) * rowbytes +
+                                        ((uint64_t)cols * nsp * ti->bps + 7) / 8) {
                     char what[96];
                     snprintf(what, sizeof what, "%s %u of %u, rows %u-%u", tiled ? "tile" : "strip",
                              idx + 1, tiled ? TIFFNumberOfTiles(t) : TIFFNumberOfStrips(t), y0,

@@ -73,6 +73,15 @@ static const expect table[] = {
     /* and a ZSTD header announcing 30000 x 30000 in 260 bytes (the bound for codecs outside
      * that list, 65536:1) */
     {"tiff_zstd_header_beyond_file.tif", IMAGE, 0, RPIV_EFORMAT, "cannot be stored"},
+    /* 260 bytes of CCITT RLE for a 30000 x 30000 1-bit image: libtiff's fax decoder only
+     * warned ("Premature EOL") and filled the rows, and 900 Mpx of blank "loaded" (9 s,
+     * 3.6 GB; a timeout in fuzz_tiff) */
+    {"tiff_fax_rows_cut_short.tif", IMAGE, 0, RPIV_EFORMAT, "strip 1 of 1, rows 0-29999"},
+    /* a 1 x 5 float image with tiles 469762064 pixels wide: the 9.4 GB tile buffer was
+     * allocated (fuzz_tiff, allocation above the readers' cap) */
+    {"tiff_tile_wider_than_image.tif", IMAGE, 0, RPIV_EFORMAT, "tiles of 9395241280 bytes"},
+    /* and a valid G4 mask (4000 x 3000, 632 bytes, 19000:1) still loads */
+    {"tiff_g4_mask_4000x3000_loads.tif", IMAGE, 0, RPIV_OK, NULL},
     {"vectors_u_beyond_float.txt", VECTORS, 0, RPIV_EFORMAT, ":1: column 3"},
     /* header "# scale_mm_per_px = 0.0065e9999" (infinite): the field loaded with an infinite
      * scale, and its mm and m/s columns came out infinite when saved; now the header is
