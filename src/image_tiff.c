@@ -219,6 +219,16 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: corrupt TIFF: tiles of %llu bytes for a %ux%u image", path,
                          (unsigned long long)tile, ti->w, ti->h);
+    uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
+    /* Fax codes (CCITT RLE, G3, G4) take at least one bit per row whatever the width (a blank
+     * G4 row is one V0 code), so only the height can be bounded; JBIG not even that. */
+    if (ti->bps == 1 && (comp == COMPRESSION_CCITTRLE || comp == COMPRESSION_CCITTRLEW ||
+                         comp == COMPRESSION_CCITTFAX3 || comp == COMPRESSION_CCITTFAX4) &&
+        ti->h > 8 * fsize + 4096)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: truncated or corrupt TIFF: %u fax-coded rows cannot be stored in "
+                         "a %llu-byte file",
+                         path, ti->h, (unsigned long long)fsize);
     if (ti->bps == 1 && comp != COMPRESSION_NONE)
         return RPIV_OK;
     /* Expansion bounds: LZW < 2560:1, Deflate 1032:1, PackBits 64:1, JPEG < 1536:1 (4096
@@ -229,7 +239,6 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
     int known = comp == COMPRESSION_NONE || comp == COMPRESSION_LZW ||
                 comp == COMPRESSION_DEFLATE || comp == COMPRESSION_ADOBE_DEFLATE ||
                 comp == COMPRESSION_PACKBITS || comp == COMPRESSION_JPEG;
-    uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
     uint64_t cap = comp == COMPRESSION_NONE ? fsize
                                             : (known ? 4096 : 65536) * fsize + (1u << 20);
     if (raw > cap)
