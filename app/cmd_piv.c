@@ -4,9 +4,10 @@
  * rpiv/ensemble.h); this file maps options onto [piv] keys and names the outputs. */
 #include "cli.h"
 
-#include "rpiv/ensemble.h"
+#include "rpiv/batch.h"
 #include "rpiv/field.h"
 #include "rpiv/image.h"
+#include "rpiv/mpi.h"
 #include "rpiv/piv.h"
 #include "rpiv/plot.h"
 #include "rpiv/version.h"
@@ -54,8 +55,25 @@ static void help(void)
         "  --plot FILE.png       quiver plot of the ensemble field, the mean field\n"
         "                        (--mean-rms) or the first pair's field\n"
         "  --pairing P           glob pairing: ab, consecutive or time-resolved (ab)\n"
-        "  --set SEC.KEY=VALUE   override a configuration key; --quiet: no progress\n\n"
-        "Algorithm, choices and measured accuracy: docs/piv.md.\n");
+        "  --skip-bad            skip a pair that cannot be read (warning on stderr,\n"
+        "                        listed in the output header) instead of stopping\n"
+        "  --set SEC.KEY=VALUE   override a configuration key; --quiet: no progress\n"
+        "long ensemble runs:\n"
+        "  --checkpoint FILE     save the summed correlation planes, the pass and the pairs\n"
+        "                        done to FILE (atomically) at every pass start, every\n"
+        "                        --checkpoint-every pairs and when stopped (SIGINT/SIGTERM,\n"
+        "                        an unreadable pair); removed when the run completes\n"
+        "  --checkpoint-every N  pairs between checkpoints (100)\n"
+        "  --resume              continue from --checkpoint FILE (same pairs and options;\n"
+        "                        the result is bit-identical to an uninterrupted run); no\n"
+        "                        FILE: start from the beginning\n\n"
+        "MPI: 'mpirun -np K rpiv piv ...' deals the pairs out to K ranks (pair i to rank\n"
+        "i mod K). Ensemble: the ranks' sums are added (in double) before every pass ends;\n"
+        "checkpoints are FILE.rank0 ... FILE.rank<K-1> and resume needs the same K. Per\n"
+        "pair: each rank writes the files of its pairs; a .nc series, --mean-rms and --plot\n"
+        "are written by rank 0. See docs/cluster.md. MPI support in this build: %s.\n\n"
+        "Algorithm, choices and measured accuracy: docs/piv.md.\n",
+        rpiv_mpi_built() ? "yes" : "no");
 }
 
 /* ".txt" etc. if path ends in a known field extension, else NULL. */
@@ -85,14 +103,31 @@ typedef struct run_ctx {
     const char *out;
     size_t npairs;
     int digits;
+    int nc_series;             /* several pairs into one .nc (rank 0)          */
     const rpiv_meta *meta;
-    rpiv_field_series *series; /* .nc with several pairs */
-    rpiv_piv_stats *stats;     /* --mean-rms             */
-    rpiv_field *first;         /* kept for --plot        */
+    rpiv_field_series *series; /* .nc with several pairs (rank 0)              */
+    rpiv_piv_stats *stats;     /* --mean-rms (rank 0)                          */
+    rpiv_field *first;         /* kept for --plot (rank 0)                     */
+    size_t first_index;
     size_t nvec, nreplaced;
 } run_ctx;
 
-static rpiv_status sink(void *user, size_t i, const rpiv_field *f)
+/* On the rank that made pair i's field: its own file, unless it goes into a .nc series. */
+static rpiv_status local_sink(void *user, size_t i, const rpiv_field *f)
+{
+    run_ctx *r = user;
+    if (r->nc_series)
+        return RPIV_OK;
+    if (r->npairs == 1)
+        return rpiv_field_save(f, r->meta, r->out);
+    char tag[32], path[RPIV_PATH_MAX + 32];
+    snprintf(tag, sizeof tag, "_%0*zu", r->digits, i + 1);
+    rpiv_status st = out_name(r->out, tag, path, sizeof path);
+    return st ? st : rpiv_field_save(f, r->meta, path);
+}
+
+/* On rank 0, every field in pair order: counts, the .nc series, statistics, the first. */
+static rpiv_status root_sink(void *user, size_t i, const rpiv_field *f)
 {
     run_ctx *r = user;
     rpiv_status st = RPIV_OK;
@@ -102,18 +137,47 @@ static rpiv_status sink(void *user, size_t i, const rpiv_field *f)
         r->nreplaced += f->flag[k] == RPIV_FLAG_REPLACED;
     if (r->series)
         st = rpiv_field_series_append(r->series, f, (double)i);
-    else if (r->npairs == 1)
-        st = rpiv_field_save(f, r->meta, r->out);
-    else {
-        char tag[32], path[RPIV_PATH_MAX + 32];
-        snprintf(tag, sizeof tag, "_%0*zu", r->digits, i + 1);
-        if (!(st = out_name(r->out, tag, path, sizeof path)))
-            st = rpiv_field_save(f, r->meta, path);
-    }
     if (!st && r->stats)
         st = rpiv_piv_stats_add(r->stats, f);
-    if (!st && i == 0)
+    if (!st && !r->first) {
+        r->first_index = i;
         st = rpiv_field_copy(f, &r->first);
+    }
+    return st;
+}
+
+/* --skip-bad: say which pair is left out, on the rank that found it. */
+static void warn_skip(void *user, size_t index, const char *msg)
+{
+    (void)user;
+    (void)index;
+    fprintf(stderr, "rpiv piv: warning: skipped: %s\n", msg);
+}
+
+/* The skipped pairs into the header: "I A B; ..." (1-based index, the pair's files). */
+static rpiv_status add_skipped(rpiv_meta *m, const rpiv_batch *b, const rpiv_pairs *pairs)
+{
+    size_t n = rpiv_batch_nskipped(b), len = 1;
+    if (!n)
+        return RPIV_OK;
+    for (size_t k = 0; k < n; k++) {
+        const rpiv_pair_src *q = &pairs->pair[rpiv_batch_skipped(b, k)];
+        len += strlen(q->path_a) + (q->path_b ? strlen(q->path_b) : 0) + 32;
+    }
+    char *list = malloc(len);
+    if (!list)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory");
+    list[0] = '\0';
+    for (size_t k = 0, at = 0; k < n; k++) {
+        size_t i = rpiv_batch_skipped(b, k);
+        const rpiv_pair_src *q = &pairs->pair[i];
+        at += (size_t)snprintf(list + at, len - at, "%s%zu %s%s%s", k ? "; " : "", i + 1,
+                               q->path_a, q->path_b ? " " : "", q->path_b ? q->path_b : "");
+    }
+    rpiv_status st = rpiv_meta_add(m, "skipped_pairs", "%zu", n);
+    if (!st)
+        st = rpiv_meta_add(m, "skipped", "%s", list);
+    free(list);
     return st;
 }
 
@@ -162,10 +226,21 @@ static rpiv_status set_validate(cli_ctx *c, const char *v)
     return rpiv_config_set(&c->exp, "piv", "median_threshold", thr, "--validate");
 }
 
+/* Options of a long run, besides the [piv] keys. */
+typedef struct run_opts {
+    const char *out, *plot, *checkpoint, *every;
+    int meanrms, resume, skip_bad;
+    rpiv_pairing pairing;
+} run_opts;
+
+/* The work after option parsing, on every rank of the team. */
+static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi);
+
 rpiv_status cmd_piv(int argc, char **argv)
 {
     enum { O_WINDOW = 256, O_OVERLAP, O_STEP, O_ENSEMBLE, O_SUBPIXEL, O_VALIDATE, O_MASK, O_ROI,
-           O_BACKGROUND, O_SCALE, O_DT, O_PLOT, O_MEANRMS, O_PAIRING };
+           O_BACKGROUND, O_SCALE, O_DT, O_PLOT, O_MEANRMS, O_PAIRING, O_CHECKPOINT, O_EVERY,
+           O_RESUME, O_SKIPBAD, O_OUTDIR };
     static const struct option opts[] = {
         CLI_COMMON_LONGOPTS,
         {"window", required_argument, 0, O_WINDOW},
@@ -183,7 +258,12 @@ rpiv_status cmd_piv(int argc, char **argv)
         {"plot", required_argument, 0, O_PLOT},
         {"mean-rms", no_argument, 0, O_MEANRMS},
         {"pairing", required_argument, 0, O_PAIRING},
+        {"checkpoint", required_argument, 0, O_CHECKPOINT},
+        {"checkpoint-every", required_argument, 0, O_EVERY},
+        {"resume", no_argument, 0, O_RESUME},
+        {"skip-bad", no_argument, 0, O_SKIPBAD},
         {"output", required_argument, 0, 'o'},
+        {"out", required_argument, 0, O_OUTDIR},
         {0, 0, 0, 0}};
     /* option -> [piv] key, for the options that are keys */
     static const struct { int opt; const char *key, *name; } keyed[] = {
@@ -193,9 +273,10 @@ rpiv_status cmd_piv(int argc, char **argv)
         {O_BACKGROUND, "background", "--background"},
         {O_SCALE, "scale_mm_per_px", "--scale"}, {O_DT, "dt_s", "--dt"}};
     cli_ctx c;
-    const char *out = NULL, *plot = NULL;
-    int meanrms = 0, o;
-    rpiv_pairing pairing = RPIV_PAIR_AB;
+    run_opts ro = {.pairing = RPIV_PAIR_AB};
+    const char *outdir = NULL;
+    char outbuf[RPIV_PATH_MAX + 32];
+    int o;
     rpiv_status st = RPIV_OK;
     cli_ctx_init(&c);
     while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS "o:", opts, NULL)) != -1) {
@@ -218,7 +299,10 @@ rpiv_status cmd_piv(int argc, char **argv)
             help();
             return RPIV_OK;
         case 'o':
-            out = optarg;
+            ro.out = optarg;
+            break;
+        case O_OUTDIR:
+            outdir = optarg;
             break;
         case O_ENSEMBLE:
             c.exp.piv.ensemble = 1;
@@ -228,18 +312,30 @@ rpiv_status cmd_piv(int argc, char **argv)
                 return st;
             break;
         case O_PLOT:
-            plot = optarg;
+            ro.plot = optarg;
             break;
         case O_MEANRMS:
-            meanrms = 1;
+            ro.meanrms = 1;
+            break;
+        case O_CHECKPOINT:
+            ro.checkpoint = optarg;
+            break;
+        case O_EVERY:
+            ro.every = optarg;
+            break;
+        case O_RESUME:
+            ro.resume = 1;
+            break;
+        case O_SKIPBAD:
+            ro.skip_bad = 1;
             break;
         case O_PAIRING:
             if (!strcmp(optarg, "ab"))
-                pairing = RPIV_PAIR_AB;
+                ro.pairing = RPIV_PAIR_AB;
             else if (!strcmp(optarg, "consecutive"))
-                pairing = RPIV_PAIR_CONSECUTIVE;
+                ro.pairing = RPIV_PAIR_CONSECUTIVE;
             else if (!strcmp(optarg, "time-resolved"))
-                pairing = RPIV_PAIR_TIME_RESOLVED;
+                ro.pairing = RPIV_PAIR_TIME_RESOLVED;
             else
                 return cli_usage_error("piv", "--pairing: '%s' is not ab, consecutive or "
                                        "time-resolved", optarg);
@@ -249,40 +345,83 @@ rpiv_status cmd_piv(int argc, char **argv)
         }
     }
     rpiv_piv_params *p = &c.exp.piv;
-    if (!out)
-        return cli_usage_error("piv", "no output given (-o OUT)");
-    if (!field_ext(out))
-        return cli_usage_error("piv", "-o %s: the extension must be .txt, .nc, .dat or .vtk", out);
+    if (!ro.out && outdir) { /* --out DIR: DIR/piv.txt or DIR/ensemble.txt */
+        if (snprintf(outbuf, sizeof outbuf, "%s/%s", outdir,
+                     p->ensemble ? "ensemble.txt" : "piv.txt") >= (int)sizeof outbuf)
+            return cli_usage_error("piv", "--out %s: path too long", outdir);
+        if ((st = cli_mkdirs(outdir)))
+            return st;
+        ro.out = outbuf;
+    }
+    if (!ro.out)
+        return cli_usage_error("piv", "no output given (-o OUT or --out DIR)");
+    if (!field_ext(ro.out))
+        return cli_usage_error("piv", "-o %s: the extension must be .txt, .nc, .dat or .vtk",
+                               ro.out);
     if (optind >= argc)
         return cli_usage_error("piv", "no image pairs given");
-    if (meanrms && p->ensemble)
+    if (ro.meanrms && p->ensemble)
         return cli_usage_error("piv", "--mean-rms averages per-pair fields; it does not go "
                                "with --ensemble");
+    if ((ro.checkpoint || ro.every || ro.resume) && !p->ensemble)
+        return cli_usage_error("piv", "--checkpoint, --checkpoint-every and --resume are for "
+                               "--ensemble runs (per-pair runs write each pair's file as it "
+                               "is done)");
+    if ((ro.every || ro.resume) && !ro.checkpoint)
+        return cli_usage_error("piv", "%s needs --checkpoint FILE",
+                               ro.resume ? "--resume" : "--checkpoint-every");
+    if (ro.checkpoint && !ro.checkpoint[0])
+        return cli_usage_error("piv", "--checkpoint: empty file name");
+    if (ro.every) {
+        long v;
+        if ((st = cli_parse_int("--checkpoint-every", ro.every, 1, 1000000000L, &v)))
+            return st;
+    }
     if ((st = rpiv_piv_params_check(p)))
         return st;
 
+    rpiv_mpi *mpi = NULL;
+    if ((st = rpiv_mpi_new(NULL, NULL, &mpi)))
+        return st;
+    st = run(&c, &ro, argc - optind, argv + optind, mpi);
+    rpiv_mpi_free(mpi);
+    return st;
+}
+
+static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi)
+{
+    rpiv_piv_params *p = &c->exp.piv;
+    const char *out = o->out;
+    int root = rpiv_mpi_rank(mpi) == 0, w = 0, h = 0;
     rpiv_pairs *pairs = NULL;
-    rpiv_image *a = NULL, *b = NULL, *mask = NULL, *bga = NULL, *bgb = NULL;
+    rpiv_batch *batch = NULL;
+    rpiv_image *mask = NULL, *bga = NULL, *bgb = NULL;
     rpiv_piv *pv = NULL;
     rpiv_field *field = NULL, *mean = NULL, *rms = NULL, *grid = NULL;
     rpiv_meta meta = {0};
     run_ctx r = {0};
     cli_progress prog;
     rpiv_progress pr = cli_progress_of(&prog);
-    if ((st = rpiv_pairs_from_args(argc - optind, argv + optind, pairing, &pairs)))
+    rpiv_batch_params bp = rpiv_batch_params_default();
+    bp.checkpoint = o->checkpoint;
+    bp.resume = o->resume;
+    bp.skip_bad = o->skip_bad;
+    bp.on_skip = warn_skip;
+    if (o->every)
+        bp.checkpoint_every = strtoul(o->every, NULL, 10);
+    /* each step that may fail on one rank alone is agreed on before the next collective */
+    rpiv_status st = rpiv_pairs_from_args(nargs, args, o->pairing, &pairs);
+    if (!st)
+        st = rpiv_batch_new(pairs, &bp, mpi, &batch);
+    if ((st = rpiv_mpi_agree(mpi, st)) || (st = rpiv_batch_size(batch, &w, &h)))
         goto out_free;
-    /* the frame size, from the first pair */
-    if ((st = rpiv_pairs_load(pairs, 0, &a, &b)))
-        goto out_free;
-    int w = a->w, h = a->h;
-    rpiv_image_free(a);
-    rpiv_image_free(b);
-    a = b = NULL;
-    if (p->mask[0] && (st = rpiv_image_load(p->mask, 0, &mask, NULL)))
+    if (p->mask[0])
+        st = rpiv_image_load(p->mask, 0, &mask, NULL);
+    if ((st = rpiv_mpi_agree(mpi, st)))
         goto out_free;
     if (p->background != RPIV_BACKGROUND_NONE) {
-        cli_progress_init(&prog, "background", c.quiet);
-        if ((st = rpiv_piv_background(pairs, p->background, &pr, &bga, &bgb)))
+        cli_progress_init(&prog, "background", c->quiet || !root);
+        if ((st = rpiv_batch_background(batch, p->background, w, h, &pr, &bga, &bgb)))
             goto out_free;
     }
     if ((st = rpiv_piv_new(p, w, h, mask, &pv))) {
@@ -291,40 +430,48 @@ rpiv_status cmd_piv(int argc, char **argv)
             snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
             st = rpiv_fail(RPIV_EINVAL, "%s", msg);
         }
-        goto out_free;
     }
-    if (bga && (st = rpiv_piv_set_background(pv, bga, bgb)))
-        goto out_free;
+    if (!st && bga)
+        st = rpiv_piv_set_background(pv, bga, bgb);
     rpiv_image_free(bga);
     rpiv_image_free(bgb);
     bga = bgb = NULL;
-    if ((st = add_meta(&meta, p, pairs, pv)))
+    if (!st)
+        st = add_meta(&meta, p, pairs, pv);
+    if (!st && rpiv_mpi_size(mpi) > 1)
+        st = rpiv_meta_add(&meta, "mpi_ranks", "%d", rpiv_mpi_size(mpi));
+    r.out = out;
+    r.npairs = pairs ? pairs->n : 0;
+    r.meta = &meta;
+    r.digits = 4;
+    for (size_t n = r.npairs; n >= 10000; n /= 10)
+        r.digits++;
+    r.nc_series = r.npairs > 1 && !strcasecmp(field_ext(out), ".nc");
+    if (!st && !p->ensemble && root) {
+        if ((st = rpiv_piv_grid(pv, rpiv_piv_npass(pv) - 1, &grid)))
+            goto out_agree;
+        if (r.nc_series && (st = rpiv_field_series_open(out, grid, &meta, &r.series)))
+            goto out_agree;
+        if (o->meanrms && (st = rpiv_piv_stats_new(grid, &r.stats)))
+            goto out_agree;
+    }
+out_agree:
+    if ((st = rpiv_mpi_agree(mpi, st)))
         goto out_free;
 
-    cli_progress_init(&prog, p->ensemble ? "ensemble" : "piv", c.quiet);
+    cli_progress_init(&prog, p->ensemble ? "ensemble" : "piv", c->quiet || !root);
     if (p->ensemble) {
-        if ((st = rpiv_ensemble_run(pv, pairs, &pr, &field)) ||
-            (st = rpiv_field_save(field, &meta, out)))
+        if ((st = rpiv_batch_ensemble(batch, pv, &pr, &field)))
+            goto out_free;
+        if (root && ((st = add_skipped(&meta, batch, pairs)) ||
+                     (st = rpiv_field_save(field, &meta, out))))
             goto out_free;
         size_t n = (size_t)field->nx * (size_t)field->ny;
         r.nvec = n;
         for (size_t k = 0; k < n; k++)
             r.nreplaced += field->flag[k] == RPIV_FLAG_REPLACED;
     } else {
-        r.out = out;
-        r.npairs = pairs->n;
-        r.meta = &meta;
-        r.digits = 4;
-        for (size_t n = pairs->n; n >= 10000; n /= 10)
-            r.digits++;
-        if ((st = rpiv_piv_grid(pv, rpiv_piv_npass(pv) - 1, &grid)))
-            goto out_free;
-        if (pairs->n > 1 && !strcasecmp(field_ext(out), ".nc") &&
-            (st = rpiv_field_series_open(out, grid, &meta, &r.series)))
-            goto out_free;
-        if (meanrms && (st = rpiv_piv_stats_new(grid, &r.stats)))
-            goto out_free;
-        st = rpiv_piv_series(pv, pairs, sink, &r, &pr);
+        st = rpiv_batch_series(batch, pv, local_sink, root_sink, &r, &pr);
         if (r.series) {
             /* an interruption publishes the fields done so far */
             rpiv_status cs = rpiv_field_series_close(r.series, st && st != RPIV_EINTR);
@@ -333,9 +480,10 @@ rpiv_status cmd_piv(int argc, char **argv)
         }
         if (st)
             goto out_free;
-        if (meanrms) {
+        if (o->meanrms && root) {
             char path[RPIV_PATH_MAX + 32];
-            if ((st = rpiv_piv_stats_finish(r.stats, &mean, &rms)) ||
+            if ((st = add_skipped(&meta, batch, pairs)) ||
+                (st = rpiv_piv_stats_finish(r.stats, &mean, &rms)) ||
                 (st = out_name(out, "_mean", path, sizeof path)) ||
                 (st = rpiv_field_save(mean, &meta, path)) ||
                 (st = out_name(out, "_rms", path, sizeof path)) ||
@@ -343,20 +491,39 @@ rpiv_status cmd_piv(int argc, char **argv)
                 goto out_free;
         }
     }
-    if (plot) {
+    if (!root)
+        goto out_free;
+    if (o->plot) {
         const rpiv_field *pf = field ? field : (mean ? mean : r.first);
-        char title[128];
-        snprintf(title, sizeof title, "%s, %zu pair%s", field ? "ensemble" : (mean ? "mean" : "pair 1"),
+        char title[128], what[48];
+        snprintf(what, sizeof what, "pair %zu", r.first_index + 1);
+        snprintf(title, sizeof title, "%s, %zu pair%s", field ? "ensemble" : (mean ? "mean" : what),
                  pairs->n, pairs->n == 1 ? "" : "s");
-        if ((st = rpiv_plot_quiver(pf, plot, title, NULL)))
+        if ((st = rpiv_plot_quiver(pf, o->plot, title, NULL)))
             goto out_free;
     }
-    if (!c.quiet)
-        printf("rpiv piv: %zu pair%s, %s, %zu vectors, %.2f %% replaced -> %s%s\n", pairs->n,
-               pairs->n == 1 ? "" : "s", p->ensemble ? "ensemble" : "instantaneous", r.nvec,
+    if (!c->quiet) {
+        int pass;
+        size_t done, nskip = rpiv_batch_nskipped(batch);
+        if (o->resume && rpiv_batch_resumed(batch, &pass, &done))
+            fprintf(stderr, "rpiv piv: resumed from %s: pass %d, %zu pair%s already summed\n",
+                    o->checkpoint, pass + 1, done, done == 1 ? "" : "s");
+        else if (o->resume)
+            fprintf(stderr, "rpiv piv: no checkpoint %s: started from the beginning\n",
+                    o->checkpoint);
+        char skipped[48] = "";
+        if (nskip)
+            snprintf(skipped, sizeof skipped, " (%zu skipped)", nskip);
+        printf("rpiv piv: %zu pair%s%s, %s, %zu vectors, %.2f %% replaced -> %s%s\n", pairs->n,
+               pairs->n == 1 ? "" : "s", skipped,
+               p->ensemble ? "ensemble" : "instantaneous", r.nvec,
                r.nvec ? 100.0 * (double)r.nreplaced / (double)r.nvec : 0.0, out,
                !p->ensemble && pairs->n > 1 && strcasecmp(field_ext(out), ".nc")
                    ? " (one file per pair)" : "");
+        if (nskip)
+            fprintf(stderr, "rpiv piv: %zu unreadable pair%s skipped (listed in the output "
+                    "header)\n", nskip, nskip == 1 ? "" : "s");
+    }
 out_free:
     if (r.series && rpiv_field_series_close(r.series, 1))
         st = st ? st : RPIV_EIO; /* not reached: abort only removes a temporary file */
@@ -371,8 +538,7 @@ out_free:
     rpiv_image_free(mask);
     rpiv_image_free(bga);
     rpiv_image_free(bgb);
-    rpiv_image_free(a);
-    rpiv_image_free(b);
+    rpiv_batch_free(batch);
     rpiv_pairs_free(pairs);
     return st;
 }

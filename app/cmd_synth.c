@@ -5,6 +5,7 @@
 
 #include "rpiv/field.h"
 #include "rpiv/image.h"
+#include "rpiv/mpi.h"
 #include "rpiv/piv.h"
 #include "rpiv/synth.h"
 
@@ -12,6 +13,7 @@
 #include <string.h>
 
 rpiv_status cmd_synth(int argc, char **argv);
+static rpiv_status run(const rpiv_experiment *e, int quiet, const rpiv_mpi *mpi);
 
 static void help(void)
 {
@@ -39,7 +41,9 @@ static void help(void)
         "  --set S.K=V        set one key, e.g. --set particles.density_ppp=0.02\n"
         "  --threads N        OpenMP threads (0 = all cores); results do not depend on it\n"
         "  --quiet            no progress and no summary\n"
-        "  --help             this text\n");
+        "  --help             this text\n\n"
+        "Under MPI ('mpirun -np K rpiv synth ...') pair i is made by rank i mod K; rank 0\n"
+        "writes truth.txt and synth.ini. The files are the same for any K (docs/cluster.md).\n");
 }
 
 /* Command-line values that override the configuration, applied after it is read. */
@@ -135,9 +139,9 @@ out:
     return st;
 }
 
-/* Generate and write the pairs, reporting progress. */
+/* Generate and write this rank's pairs (pair i is rank i mod K's), reporting progress. */
 static rpiv_status write_pairs(const rpiv_synth *s, const rpiv_experiment *e, const char *dir,
-                               int quiet)
+                               int quiet, const rpiv_mpi *mpi)
 {
     rpiv_synth_info in;
     rpiv_synth_get_info(s, &in);
@@ -150,8 +154,9 @@ static rpiv_status write_pairs(const rpiv_synth *s, const rpiv_experiment *e, co
     cli_progress_init(&pr, "synth", quiet);
     rpiv_progress prog = cli_progress_of(&pr);
     char path[RPIV_PATH_MAX + 64];
-    size_t n = (size_t)e->synth.pairs;
-    for (size_t i = 0; i < n && !st; i++) {
+    size_t n = (size_t)e->synth.pairs, K = (size_t)rpiv_mpi_size(mpi);
+    size_t first = (size_t)rpiv_mpi_rank(mpi), mine = n / K + (first < n % K), done = 0;
+    for (size_t i = first; i < n && !st; i += K) {
         if (dbl) {
             if (!(st = rpiv_synth_pair_double(s, (unsigned long)i, a))) {
                 snprintf(path, sizeof path, "%s/pair_%05zu.tif", dir, i + 1);
@@ -164,8 +169,8 @@ static rpiv_status write_pairs(const rpiv_synth *s, const rpiv_experiment *e, co
                 st = rpiv_image_save_tiff16(b, path);
             }
         }
-        if (!st && rpiv_progress_report(&prog, i + 1, n))
-            st = rpiv_fail(RPIV_EINTR, "synth: interrupted after %zu of %zu pairs", i + 1, n);
+        if (!st && rpiv_progress_report(&prog, ++done, mine))
+            st = rpiv_fail(RPIV_EINTR, "synth: interrupted after %zu of %zu pairs", done, mine);
     }
     rpiv_image_free(a);
     rpiv_image_free(b);
@@ -232,23 +237,38 @@ rpiv_status cmd_synth(int argc, char **argv)
     rpiv_experiment *e = &c.exp;
     if ((st = apply(&o, e)) || (st = rpiv_experiment_check(e)))
         return st;
+    rpiv_mpi *mpi = NULL;
+    if ((st = rpiv_mpi_new(NULL, NULL, &mpi)))
+        return st;
+    st = run(e, c.quiet, mpi);
+    rpiv_mpi_free(mpi);
+    return st;
+}
+
+/* The work after option parsing, on every rank of the team: each step that may fail on one
+ * rank alone is agreed on, so that all ranks stop together. */
+static rpiv_status run(const rpiv_experiment *e, int quiet, const rpiv_mpi *mpi)
+{
     const char *dir = e->output.dir;
+    int root = rpiv_mpi_rank(mpi) == 0;
     rpiv_synth *s = NULL;
     rpiv_field *grid = NULL;
     char path[RPIV_PATH_MAX + 64];
-    if ((st = rpiv_synth_new(e, NULL, &s)))
-        return st;
-    if ((st = piv_grid(s, e, &grid)) || (st = cli_mkdirs(dir)))
+    rpiv_status st = rpiv_synth_new(e, NULL, &s);
+    if (!st && !(st = piv_grid(s, e, &grid)))
+        st = cli_mkdirs(dir);
+    if (!st && root) {
+        snprintf(path, sizeof path, "%s/synth.ini", dir);
+        if (!(st = rpiv_synth_save_params(s, path))) {
+            snprintf(path, sizeof path, "%s/truth.txt", dir);
+            st = write_truth(s, e, grid, path);
+        }
+    }
+    if ((st = rpiv_mpi_agree(mpi, st)))
         goto out;
-    snprintf(path, sizeof path, "%s/synth.ini", dir);
-    if ((st = rpiv_synth_save_params(s, path)))
+    if ((st = rpiv_mpi_agree(mpi, write_pairs(s, e, dir, quiet || !root, mpi))))
         goto out;
-    snprintf(path, sizeof path, "%s/truth.txt", dir);
-    if ((st = write_truth(s, e, grid, path)))
-        goto out;
-    if ((st = write_pairs(s, e, dir, c.quiet)))
-        goto out;
-    if (!c.quiet) {
+    if (!quiet && root) {
         rpiv_synth_info in;
         rpiv_synth_get_info(s, &in);
         printf("rpiv synth: %d pair%s of %dx%d px, %zu particles each, flow %s, seed %lu -> %s\n",

@@ -445,8 +445,11 @@ rpiv_status rpiv_config_load(const char *path, rpiv_experiment *e)
     if (r < 0)
         return rpiv_fail(RPIV_EIO, "%s: cannot read", path);
     rpiv_status st = rpiv_experiment_check(e);
-    if (st)
-        return rpiv_fail(st, "%s: %s", path, rpiv_errmsg());
+    if (st) { /* the message buffer is both source and destination: copy it first */
+        char msg[768];
+        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+        return rpiv_fail(st, "%s: %s", path, msg);
+    }
     return RPIV_OK;
 }
 

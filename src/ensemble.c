@@ -2,6 +2,8 @@
 /* src/ensemble.c - sum-of-correlation accumulators, their files, and the ensemble run. */
 #include "rpiv/ensemble.h"
 
+#include "rpiv/batch.h"
+
 #include "piv_impl.h"
 
 #include <errno.h>
@@ -312,42 +314,14 @@ out_close:
 rpiv_status rpiv_ensemble_run(rpiv_piv *pv, const rpiv_pairs *pairs,
                               const rpiv_progress *progress, rpiv_field **out)
 {
+    /* the loop (with checkpoints, skipping and MPI dealing when asked) is rpiv_batch_ensemble */
     *out = NULL;
     if (!pairs->n)
         return rpiv_fail(RPIV_EINVAL, "ensemble: no image pairs");
-    rpiv_field *pred = NULL;
-    rpiv_status st = RPIV_OK;
-    size_t total = pairs->n * (size_t)pv->npass, done = 0;
-    for (int k = 0; k < pv->npass; k++) {
-        rpiv_ensemble *e = NULL;
-        rpiv_field *f = NULL;
-        if ((st = rpiv_ensemble_new(pv, k, pred, &e)))
-            break;
-        for (size_t i = 0; i < pairs->n && !st; i++) {
-            rpiv_image *a = NULL, *b = NULL;
-            if (!(st = rpiv_pairs_load(pairs, i, &a, &b)) && (st = rpiv_ensemble_add(e, a, b))) {
-                char msg[512];
-                snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-                st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, pairs->pair[i].path_a, msg);
-            }
-            rpiv_image_free(a);
-            rpiv_image_free(b);
-            if (!st && rpiv_progress_report(progress, ++done, total))
-                st = rpiv_fail(RPIV_EINTR, "ensemble: interrupted in pass %d after %zu of %zu "
-                               "pairs", k + 1, i + 1, pairs->n);
-        }
-        if (!st)
-            st = rpiv_ensemble_finish(e, &f);
-        rpiv_ensemble_free(e);
-        rpiv_field_free(pred);
-        pred = f;
-        if (st)
-            break;
-    }
-    if (st) {
-        rpiv_field_free(pred);
-        return st;
-    }
-    *out = pred;
-    return RPIV_OK;
+    rpiv_batch *b = NULL;
+    rpiv_status st = rpiv_batch_new(pairs, NULL, NULL, &b);
+    if (!st)
+        st = rpiv_batch_ensemble(b, pv, progress, out);
+    rpiv_batch_free(b);
+    return st;
 }

@@ -6,6 +6,7 @@
 #include "field_impl.h"
 
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -60,9 +61,10 @@ static void header_line(const char *s, int *is_rpiv, double *scale, double *dt)
     double val;
     char key[32];
     if (sscanf(s, "%31[A-Za-z0-9_] = %lf", key, &val) == 2) {
-        if (strcmp(key, "scale_mm_per_px") == 0 && val > 0)
+        /* an unusable value (<= 0, or infinite after an overflow) leaves the field unscaled */
+        if (strcmp(key, "scale_mm_per_px") == 0 && val > 0 && isfinite(val))
             *scale = val;
-        else if (strcmp(key, "dt_s") == 0 && val > 0)
+        else if (strcmp(key, "dt_s") == 0 && val > 0 && isfinite(val))
             *dt = val;
     }
 }
@@ -259,6 +261,15 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
             st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: flag %g is not an integer 0..255", path, lineno,
                            val[4]);
             goto out_free;
+        }
+        /* u, v (and rpiv's peak ratio and correlation) are stored as float */
+        for (int c = 2; c < (nc < MAXCOL ? nc : MAXCOL); c++) {
+            if ((c == 2 || c == 3 || (is_rpiv && c >= 5)) && fabs(val[c]) > (double)FLT_MAX) {
+                st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: column %d: %g is beyond the range of a "
+                                             "32-bit float",
+                               path, lineno, c + 1, val[c]);
+                goto out_free;
+            }
         }
         if (!rows_push(&r)) {
             st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory at line %ld", path, lineno);

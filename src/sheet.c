@@ -58,6 +58,12 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
             if (strstr(line, "rpiv-sheet"))
                 magic = 1;
             else if (sscanf(line, "# %31s %lf", key, &v) == 2) {
+                if (!isfinite(v) && (!strcmp(key, "e0") || !strcmp(key, "e1") ||
+                                     !strcmp(key, "zm0") || !strcmp(key, "zm1"))) {
+                    st = rpiv_fail(RPIV_EFORMAT, "%s:%d: %s is %g, not a finite number", path,
+                                   lineno, key, v);
+                    goto out;
+                }
                 if (!strcmp(key, "e0"))
                     s->p.e0 = v;
                 else if (!strcmp(key, "e1"))
@@ -78,6 +84,12 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
         }
         if (s->n && a <= s->zp[s->n - 1]) {
             st = rpiv_fail(RPIV_EFORMAT, "%s:%d: zplus not increasing", path, lineno);
+            goto out;
+        }
+        /* the interpolation divides by the step: it must be a finite number */
+        if (s->n && !isfinite(a - s->zp[s->n - 1])) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: zplus %g is too far from the previous row's %g",
+                           path, lineno, a, s->zp[s->n - 1]);
             goto out;
         }
         if (s->n == cap) {

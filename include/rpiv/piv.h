@@ -55,11 +55,15 @@ RPIV_NODISCARD rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p);
  *      the predictor at the window centre plus the residual shift;
  *   4. validates with the normalised median test and replaces rejected vectors by the median
  *      of their valid neighbours (rpiv/validate.h).
- * Window k of a pass covers pixels ox + i*sx .. ox + i*sx + W-1; its vector sits at the
- * window's centre, x = ox + i*sx + (W-1)/2 (pixel centres at integers, so a 32 px window
- * starting at 0 is centred at 15.5). Vectors whose window has more than half of its pixels
- * masked are flagged RPIV_FLAG_MASKED with u = v = 0. Windows whose plane has no usable peak
- * (a blank window, a flat plane) are rejected like outliers and replaced.
+ * Window (i, j) of a pass covers pixels ox + i*sx .. ox + i*sx + W-1 (likewise in y); its
+ * vector sits at the window's centre, x = ox + i*sx + (W-1)/2 (pixel centres at integers, so
+ * a 32 px window starting at 0 is centred at 15.5), plus RPIV_DEFORM_SHIFT (1/4 px) in x and y
+ * for the passes that deform, whose frames are resampled a quarter pixel off to cancel the
+ * interpolation bias (rpiv/deform.h); the grid of each field says where its vectors are.
+ * Vectors whose window has more than half of its pixels masked are flagged
+ * RPIV_FLAG_MASKED with u = v = 0. Windows whose plane has no usable peak (a blank window, a
+ * flat plane) are rejected like outliers and replaced. Deforming passes work strip by strip
+ * and never hold whole deformed frames: a plan's memory is two frames plus small buffers.
  *
  * Results are identical for any thread count: threads split windows, rows and columns, and
  * nothing is summed across threads. */
@@ -96,7 +100,11 @@ RPIV_NODISCARD rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a,
 
 /* Run pass `pass` on the loaded pair with `predictor` (any grid; NULL: none, windows
  * correlated where they are) into a new field on the pass's grid: measured, validated,
- * rejected vectors replaced. RPIV_EINVAL if nothing is loaded or pass is out of range. */
+ * rejected vectors replaced. Passes after the first deform the frames by the predictor
+ * (params deform = 1); pass 0 given a predictor, and every pass with deform = 0, shift the
+ * window pairs by the predictor rounded to whole pixels instead (window offset). RPIV_EINVAL
+ * if nothing is loaded, pass is out of range, or an offset pass follows a deforming one on the
+ * same load (the frames are prefiltered in place: load the pair again). */
 RPIV_NODISCARD rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor,
                                          rpiv_field **out);
 

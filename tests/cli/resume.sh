@@ -1,0 +1,103 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
+# Checkpoints of ensemble runs: a run killed with SIGKILL in its first pass, resumed and killed
+# again in a later pass, then resumed to the end, writes the same bytes as a run never
+# interrupted; SIGTERM saves the checkpoint and exits 1 with a message; a checkpoint of
+# another plan or series, a corrupt or truncated one, is refused with a message naming it;
+# --resume without a checkpoint starts from the beginning; option errors exit 2.
+set -u
+bin=${RPIV_BIN:?RPIV_BIN not set}
+export RPIV_PROGRESS_DELAY=0 # the test watches the progress lines
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail=0; pass=0
+ok() { pass=$((pass + 1)); }
+ko() { echo "FAIL: $*" >&2; fail=$((fail + 1)); }
+cd "$tmp" || exit 1
+
+# Run "$@" in the background, stderr to $1; send signal $3 once its progress line (one every
+# 10 %; a checkpoint is on disk before each) reaches decile $2. Returns the exit status.
+run_until() {
+    local log=$1 dec=$2 sig=$3 pid n=0
+    shift 3
+    "$@" 2>"$log" &
+    pid=$!
+    while kill -0 "$pid" 2>/dev/null && [ $n -lt 12000 ]; do
+        if awk -v d="$dec" '/^ensemble: [0-9]+\/[0-9]+ \(/ {split($2, a, "/");
+            if (10 * a[1] >= d * a[2]) f = 1} END {exit !f}' "$log"; then
+            kill "-$sig" "$pid"
+            break
+        fi
+        n=$((n + 1))
+        sleep 0.01
+    done
+    wait "$pid"
+}
+
+"$bin" synth --size 256x256 --pairs 8 --seed 6271 --flow oseen:3.7,45 --out s -q || ko "synth"
+pairs='s/pair_*_[ab].tif'
+"$bin" piv --ensemble -q "$pairs" -o ref.txt || ko "uninterrupted run"
+
+# ---- SIGKILL in pass 1, again in pass 2 or 3, then to the end ----------------------------------
+run_until err1 1 KILL "$bin" piv --ensemble "$pairs" -o out.txt --checkpoint ck --checkpoint-every 1
+[ $? -eq 137 ] && ok || ko "run 1 was not killed (it ended before the first progress line?)"
+[ -s ck ] && ok || ko "no checkpoint after SIGKILL"
+[ -e out.txt ] && ko "a killed run wrote its output"
+run_until err2 5 KILL "$bin" piv --ensemble "$pairs" -o out.txt --checkpoint ck --checkpoint-every 1 --resume
+[ $? -eq 137 ] && ok || ko "run 2 was not killed"
+"$bin" piv --ensemble "$pairs" -o out.txt --checkpoint ck --checkpoint-every 1 --resume 2>err3 \
+    && ok || ko "final resume: $(cat err3)"
+grep -Eq '^rpiv piv: resumed from ck: pass [23], [0-9]+ pairs? already summed$' err3 && ok \
+    || ko "the second resume did not start in pass 2 or 3: $(grep resumed err3)"
+cmp -s ref.txt out.txt && ok || ko "killed twice and resumed: the field differs from an uninterrupted run"
+[ -e ck ] && ko "checkpoint left after the run completed"
+ls | grep -q 'ck\.tmp' && ko "temporary checkpoint files of the killed runs left: $(ls | tr '\n' ' ')"
+
+# ---- SIGTERM: checkpoint saved, exit 1, a message; resumed to the same bytes ----------------
+run_until err4 2 TERM "$bin" piv --ensemble "$pairs" -o term.txt --checkpoint ck --checkpoint-every 1000
+[ $? -eq 1 ] && ok || ko "SIGTERM: exit status is not 1"
+grep -Eq '^rpiv: error: ensemble: interrupted in pass [0-9] after [0-9]+ of 8 pairs; checkpoint ck saved' err4 \
+    && ok || ko "SIGTERM message: $(grep error err4)"
+"$bin" piv --ensemble -q "$pairs" -o term.txt --checkpoint ck --resume && cmp -s ref.txt term.txt \
+    && ok || ko "resumed after SIGTERM: differs"
+
+# ---- checkpoints that do not belong to the run -------------------------------------------------
+run_until err5 1 TERM "$bin" piv --ensemble "$pairs" -o x.txt --checkpoint ck --checkpoint-every 1000
+[ -s ck ] || ko "no checkpoint for the refusal tests"
+cp ck ck.keep
+"$bin" piv --ensemble -q --window 48,24 "$pairs" -o x.txt --checkpoint ck --resume 2>err
+[ $? -eq 1 ] && grep -q "^rpiv: error: ck: checkpoint of another plan (.*windows 64x64,32x32,32x32.*); this run: .*windows 48x48,24x24" err \
+    && ok || ko "another plan: $(cat err)"
+"$bin" piv --ensemble -q 's/pair_0000[1-7]_[ab].tif' -o x.txt --checkpoint ck --resume 2>err
+[ $? -eq 1 ] && grep -q "^rpiv: error: ck: checkpoint of another series of pairs (8 pairs, .*); this run has 7 pairs" err \
+    && ok || ko "another series: $(cat err)"
+printf 'not a checkpoint\n' >junk
+"$bin" piv --ensemble -q "$pairs" -o x.txt --checkpoint junk --resume 2>err
+[ $? -eq 1 ] && grep -q '^rpiv: error: junk: not an rpiv checkpoint$' err && ok || ko "junk: $(cat err)"
+head -c 3000 ck >trunc
+"$bin" piv --ensemble -q "$pairs" -o x.txt --checkpoint trunc --resume 2>err
+[ $? -eq 1 ] && grep -q '^rpiv: error: trunc: truncated checkpoint$' err && ok || ko "truncated: $(cat err)"
+cp ck flipped
+size=$(stat -c %s flipped)
+printf '\x7f' | dd of=flipped bs=1 seek=$((size - 100)) conv=notrunc 2>/dev/null
+"$bin" piv --ensemble -q "$pairs" -o x.txt --checkpoint flipped --resume 2>err
+[ $? -eq 1 ] && grep -q '^rpiv: error: flipped: corrupt checkpoint (checksum mismatch)$' err && ok || ko "corrupt: $(cat err)"
+[ -e x.txt ] && ko "a refused resume wrote an output"
+cmp -s ck ck.keep && ok || ko "a refused resume changed the checkpoint"
+# no checkpoint: the run begins, says so, and ends with the same field
+"$bin" piv --ensemble "$pairs" -o fresh.txt --checkpoint none.ck --resume 2>err && cmp -s ref.txt fresh.txt \
+    && ok || ko "--resume without a checkpoint"
+grep -q '^rpiv piv: no checkpoint none.ck: started from the beginning$' err && ok || ko "no notice: $(cat err)"
+
+# ---- option errors: exit 2, one line naming the option -------------------------------------------
+for args in "--checkpoint c.ck" "--resume" "--ensemble --resume" "--ensemble --checkpoint-every 5" \
+    "--ensemble --checkpoint c.ck --checkpoint-every 0" "--ensemble --checkpoint="; do
+    # shellcheck disable=SC2086
+    "$bin" piv $args "$pairs" -o y.txt 2>err
+    st=$?
+    [ $st -eq 2 ] && [ "$(wc -l <err)" -eq 1 ] && grep -q -- '--checkpoint\|--resume' err && ok \
+        || ko "'$args': exit $st, $(cat err)"
+done
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]
