@@ -158,8 +158,9 @@ if has_cmd piv; then
     expect 1 "$b16" "$tif" "differ" -- piv --out "$tmp/o1" "$tif" "$b16"
     printf '%s %s\n%s %s\n' "$tif" "$data/Oseen_center_02.tif" "$tif" "$tmp/gone.tif" \
         >"$tmp/list.txt"
-    expect 1 "$tmp/gone.tif" "2" -- piv --out "$tmp/o2" "$tmp/list.txt"
-    expect 2 "window" -- piv --out "$tmp/o3" --set piv.windows=512,256 "$tif" \
+    expect 1 "$tmp/gone.tif" "pair 2 of 2" "cannot open" -- piv --out "$tmp/o2" "$tmp/list.txt"
+    expect 2 "piv.windows" "larger than the image" -- piv --out "$tmp/o3" \
+        --set piv.windows=512,256 "$tif" \
         "$data/Oseen_center_02.tif"
 else
     note_skip "mismatched pair, missing file in a list (with its index), window larger than" \
