@@ -53,8 +53,7 @@ static int team(const rpiv_mpi *m)
 /* Started by an MPI launcher (see rpiv/mpi.h), or told to join by RPIV_MPI. */
 static int launched(void)
 {
-    static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE",
-                                       "PMI_RANK"};
+    static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE", "PMI_RANK"};
     const char *force = getenv("RPIV_MPI");
     if (force && *force)
         return strcmp(force, "0") != 0;
@@ -201,8 +200,7 @@ rpiv_status mpi_min_floats(const rpiv_mpi *m, float *data, size_t n)
         return RPIV_OK;
 #ifdef RPIV_HAVE_MPI
     for (size_t off = 0; off < n; off += CHUNK)
-        MPI_Allreduce(MPI_IN_PLACE, data + off, chunk(n, off), MPI_FLOAT, MPI_MIN,
-                      MPI_COMM_WORLD);
+        MPI_Allreduce(MPI_IN_PLACE, data + off, chunk(n, off), MPI_FLOAT, MPI_MIN, MPI_COMM_WORLD);
 #else
     (void)data;
     (void)n;
