@@ -799,8 +799,17 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
     for (size_t i = 0; i < N; i++)
         b->state[i] &= BAD;
     b->resumed = 0;
-    if (b->ckpt)
+    if (b->ckpt) {
         remove_stale(b->ckpt);
+        /* an interrupted run's checkpoint is not overwritten by a new run by mistake */
+        if (!b->p.resume && exists(b->ckpt))
+            st = rpiv_fail(RPIV_EINVAL,
+                           "%s: a checkpoint is already there: continue it (rpiv piv "
+                           "--resume) or remove it to start again",
+                           b->ckpt);
+        if ((st = rpiv_mpi_agree(m, st)))
+            return st;
+    }
     if (b->ckpt && b->p.resume && (st = resume(b, pv, &id, user_path, &pass0, &pred, &e)))
         return st;
     size_t nmine = 0, done = 0;
