@@ -307,11 +307,12 @@ rpiv_status mpi_gather_fields(const rpiv_mpi *m, const rpiv_field *mine, const r
     }
 #ifdef RPIV_HAVE_MPI
     size_t n = (size_t)grid->nx * (size_t)grid->ny, rec = 1 + n * (4 * sizeof(float) + 1);
-    unsigned char *snd = malloc(rec), *rcv = m->rank == 0 ? malloc(rec * (size_t)m->size) : snd;
-    rpiv_status st = agree_alloc(m, snd && rcv ? snd : NULL);
+    unsigned char *snd = calloc(1, rec), *rcv = NULL; /* rcv: rank 0 only */
+    if (m->rank == 0)
+        rcv = malloc(rec * (size_t)m->size);
+    rpiv_status st = agree_alloc(m, snd && (rcv || m->rank) ? snd : NULL);
     if (st)
         goto out_free;
-    memset(snd, 0, rec);
     if (mine) {
         assert(mine->nx == grid->nx && mine->ny == grid->ny);
         const float *arr[4] = {mine->u, mine->v, mine->peak_ratio, mine->corr};
@@ -335,8 +336,7 @@ rpiv_status mpi_gather_fields(const rpiv_mpi *m, const rpiv_field *mine, const r
         }
     }
 out_free:
-    if (rcv != snd)
-        free(rcv);
+    free(rcv);
     free(snd);
     return st;
 #else
