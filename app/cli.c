@@ -144,13 +144,18 @@ void cli_progress_init(cli_progress *p, const char *label, int quiet)
     p->tty = isatty(STDERR_FILENO);
     p->t0 = now_s();
     p->last_decile = -1;
+    /* RPIV_PROGRESS_DELAY (seconds, default 1) lets a user or a test see progress at once */
+    const char *d = getenv("RPIV_PROGRESS_DELAY");
+    p->delay = d ? atof(d) : 1.0;
 }
 
 int cli_progress_fn(void *user, size_t done, size_t total)
 {
     cli_progress *p = user;
-    if (!p->quiet && total > 0) {
-        double el = now_s() - p->t0, rate = el > 0 ? (double)done / el : 0;
+    double el = now_s() - p->t0;
+    /* nothing for the first second: a short run (or one failing at once) prints no progress */
+    if (!p->quiet && total > 0 && el >= p->delay) {
+        double rate = (double)done / el;
         double eta = rate > 0 ? (double)(total - done) / rate : 0;
         if (p->tty) {
             int width = 30, fill = (int)((double)width * (double)done / (double)total);

@@ -56,11 +56,13 @@ RPIV_NODISCARD rpiv_status cli_parse_int(const char *opt, const char *s, long lo
 rpiv_status cli_usage_error(const char *cmd, const char *fmt, ...) RPIV_PRINTF(2, 3);
 
 /* Progress on stderr: a bar with count, rate and ETA on a terminal, a line every ~10 %
- * otherwise; nothing when quiet. Also the cancellation point for SIGINT/SIGTERM. */
+ * otherwise, from one second into the run; nothing when quiet. Also the cancellation point for
+ * SIGINT/SIGTERM. */
 typedef struct cli_progress {
     const char *label;
     int quiet, tty;
     double t0;
+    double delay; /* seconds before anything is printed (1; env RPIV_PROGRESS_DELAY) */
     int last_decile;
 } cli_progress;
 void cli_progress_init(cli_progress *p, const char *label, int quiet);

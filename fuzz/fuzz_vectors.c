@@ -15,6 +15,9 @@ static void check_field(const rpiv_field *f, const char *path)
     FUZZ_CHECK(isfinite(f->x0) && isfinite(f->y0) && f->dx > 0 && f->dy > 0 &&
                    isfinite(f->dx) && isfinite(f->dy),
                "%s: origin (%g, %g) step (%g, %g)", path, f->x0, f->y0, f->dx, f->dy);
+    FUZZ_CHECK(isfinite(f->scale_mm_per_px) && f->scale_mm_per_px >= 0 && isfinite(f->dt_s) &&
+                   f->dt_s >= 0,
+               "%s: scale %g mm/px, dt %g s", path, f->scale_mm_per_px, f->dt_s);
     size_t n = (size_t)f->nx * (size_t)f->ny;
     for (size_t k = 0; k < n; k++)
         FUZZ_CHECK(isfinite(f->u[k]) && isfinite(f->v[k]) && isfinite(f->peak_ratio[k]) &&

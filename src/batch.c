@@ -752,8 +752,11 @@ static rpiv_status stop_with_checkpoint(const rpiv_batch *b, const ck_ident *id,
     char msg[1024];
     snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
     rpiv_status cs = ck_save(b, id, npass, pass, pred, e);
-    if (cs)
-        return rpiv_fail(st, "%s (and the checkpoint: %s)", msg, rpiv_errmsg());
+    if (cs) {
+        char cmsg[512];
+        snprintf(cmsg, sizeof cmsg, "%s", rpiv_errmsg());
+        return rpiv_fail(st, "%s (and the checkpoint: %s)", msg, cmsg);
+    }
     return rpiv_fail(st,
                      "%s; checkpoint %s saved (pass %d, %zu pair%s summed there by this "
                      "process)",

@@ -123,7 +123,7 @@ static const key_spec keys[] = {
     {"sheet", "zb", KEY_DOUBLE, OFF(sheet.zb_star), -10, 10, 1, "h", "gauss: centre z*_B", 0},
     {"sheet", "thickness", KEY_DOUBLE, OFF(sheet.e_star), 1e-4, 100, 1, "h",
      "gauss: thickness e* at a quarter of the maximum", 0},
-    {"sheet", "e0", KEY_DOUBLE, OFF(sheet.e0), 0, 100, 1, "h", "selfsim: e*(x*) = e0 + e1 x*", 0},
+    {"sheet", "e0", KEY_DOUBLE, OFF(sheet.e0), -100, 100, 1, "h", "selfsim: e*(x*) = e0 + e1 x*", 0},
     {"sheet", "e1", KEY_DOUBLE, OFF(sheet.e1), -10, 10, 1, "-", "selfsim: thickness growth", 0},
     {"sheet", "zm0", KEY_DOUBLE, OFF(sheet.zm0), -10, 10, 1, "h",
      "selfsim: z*_max(x*) = zm0 + zm1 x*", 0},
@@ -445,8 +445,11 @@ rpiv_status rpiv_config_load(const char *path, rpiv_experiment *e)
     if (r < 0)
         return rpiv_fail(RPIV_EIO, "%s: cannot read", path);
     rpiv_status st = rpiv_experiment_check(e);
-    if (st)
-        return rpiv_fail(st, "%s: %s", path, rpiv_errmsg());
+    if (st) { /* the message buffer is both source and destination: copy it first */
+        char msg[768];
+        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+        return rpiv_fail(st, "%s: %s", path, msg);
+    }
     return RPIV_OK;
 }
 

@@ -61,9 +61,10 @@ static void header_line(const char *s, int *is_rpiv, double *scale, double *dt)
     double val;
     char key[32];
     if (sscanf(s, "%31[A-Za-z0-9_] = %lf", key, &val) == 2) {
-        if (strcmp(key, "scale_mm_per_px") == 0 && val > 0)
+        /* an unusable value (<= 0, or infinite after an overflow) leaves the field unscaled */
+        if (strcmp(key, "scale_mm_per_px") == 0 && val > 0 && isfinite(val))
             *scale = val;
-        else if (strcmp(key, "dt_s") == 0 && val > 0)
+        else if (strcmp(key, "dt_s") == 0 && val > 0 && isfinite(val))
             *dt = val;
     }
 }

@@ -14,6 +14,18 @@
 #include <time.h>
 #include <unistd.h>
 
+uint64_t img_max_pixels(void)
+{
+    const char *s = getenv("RPIV_MAX_IMAGE_PIXELS");
+    if (s && *s) {
+        char *end;
+        unsigned long long v = strtoull(s, &end, 10);
+        if (!*end && v >= 1)
+            return v < IMG_MAX_PIXELS ? (uint64_t)v : IMG_MAX_PIXELS;
+    }
+    return IMG_DEFAULT_MAX_PIXELS;
+}
+
 rpiv_status img_check_size(const char *path, uint64_t w, uint64_t h)
 {
     if (w < 1 || h < 1)
@@ -32,6 +44,15 @@ rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_i
     rpiv_status st = img_check_size(path, w, h);
     if (st)
         return st;
+    /* the configurable limit, after the readers' own checks that the file can hold the
+     * pixels its header claims (so a cut file is still reported as cut) */
+    uint64_t lim = img_max_pixels();
+    if (w * h > lim)
+        return rpiv_fail(RPIV_ELIMIT,
+                         "%s: image size %llux%llu exceeds the limit of %llu pixels "
+                         "(set RPIV_MAX_IMAGE_PIXELS to allow more)",
+                         path, (unsigned long long)w, (unsigned long long)h,
+                         (unsigned long long)lim);
     rpiv_image *im = malloc(sizeof *im);
     if (!im)
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory for the image header", path);
@@ -226,6 +247,8 @@ rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out, int *w
             break;
         if (fmt == RPIV_IMAGE_PGM)
             st = img_pgm_load(path, buf, size, out);
+        else if (fmt == RPIV_IMAGE_JPEG)
+            st = img_jpeg_load(path, buf, size, out, &warn);
         else
             st = img_stb_load(path, fmt, buf, size, out, &warn);
         free(buf);

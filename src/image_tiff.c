@@ -197,6 +197,13 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
     TIFFGetFieldDefaulted(t, TIFFTAG_COMPRESSION, &comp);
     if (ti->bps == 1 && comp != COMPRESSION_NONE)
         return RPIV_OK;
+    /* ZSTD, LZMA, WebP and the like have no such bound: a uniform image (a mask, a
+     * background) packs far beyond 4096:1, so only the codecs whose bound is known are
+     * checked (LZW < 2560:1, Deflate 1032:1, PackBits 64:1, JPEG < 1536:1) */
+    if (comp != COMPRESSION_NONE && comp != COMPRESSION_LZW && comp != COMPRESSION_DEFLATE &&
+        comp != COMPRESSION_ADOBE_DEFLATE && comp != COMPRESSION_PACKBITS &&
+        comp != COMPRESSION_JPEG)
+        return RPIV_OK;
     uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
     uint64_t raw = ((uint64_t)ti->w * ti->spp * ti->bps + 7) / 8 * ti->h;
     uint64_t cap = comp == COMPRESSION_NONE ? fsize : 4096 * fsize + (1u << 20);

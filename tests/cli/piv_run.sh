@@ -75,6 +75,12 @@ rows "$tmp/mask.txt" | awk '$5 == 2 {n++; if ($3 != 0 || $4 != 0 || $2 < 100 || 
 "$bin" piv --quiet --threads 2 "$a" "$b" -o "$tmp/t2.txt" || ko "--threads 2"
 cmp -s <(rows "$tmp/t1.txt") <(rows "$tmp/t2.txt") && ok || ko "1 and 2 threads differ"
 
+# --out DIR: the folder is made, the field written as DIR/piv.txt (DIR/ensemble.txt)
+"$bin" piv --quiet "$a" "$b" --out "$tmp/dir/sub" || ko "--out DIR"
+cmp -s <(rows "$tmp/dir/sub/piv.txt") <(rows "$tmp/one.txt") && ok || ko "--out DIR: piv.txt differs"
+"$bin" piv --quiet --ensemble "$a" "$b" --out "$tmp/dir/sub" && [ -s "$tmp/dir/sub/ensemble.txt" ] \
+    && ok || ko "--out DIR --ensemble"
+
 "$bin" piv --help | grep -q '^usage: rpiv piv' && ok || ko "--help"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

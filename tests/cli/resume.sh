@@ -8,6 +8,7 @@
 # from the beginning; option errors exit 2.
 set -u
 bin=${RPIV_BIN:?RPIV_BIN not set}
+export RPIV_PROGRESS_DELAY=0 # the test watches the progress lines
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail=0; pass=0

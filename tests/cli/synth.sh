@@ -42,7 +42,7 @@ cmp -s "$tmp/r1/pair_00001_a.tif" "$tmp/r4/pair_00001_a.tif" && ko "another seed
 cmp -s "$tmp/r1/truth.txt" "$tmp/r4/truth.txt" && ko "truth.txt records the seed: should differ" || ok
 
 # ---- double frame, another flow and sheet, progress --------------------------------------------
-"$bin" synth --size 128x96 --pairs 1 --double-frame --flow uniform:3.3187,-1.7421 --sheet volume \
+RPIV_PROGRESS_DELAY=0 "$bin" synth --size 128x96 --pairs 1 --double-frame --flow uniform:3.3187,-1.7421 --sheet volume \
     --set piv.windows=32 --out "$tmp/d" >"$tmp/out" 2>"$tmp/err" && ok || ko "double frame: $(cat "$tmp/err")"
 [ -s "$tmp/d/pair_00001.tif" ] && [ ! -e "$tmp/d/pair_00001_a.tif" ] && ok || ko "double-frame file names"
 "$bin" info "$tmp/d/pair_00001.tif" | grep -q "width 128 height 192 bits 16" && ok || ko "double frame is not 128x192"
