@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 #include "rpiv/sheet.h"
 
+#include "field_impl.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -204,23 +206,16 @@ rpiv_status rpiv_sheet_save_profile(const char *path, double e0, double e1, doub
                                     double zm1, const double *zplus, const double *inten,
                                     size_t n)
 {
-    char tmp[RPIV_PATH_MAX + 16];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *fp = fopen(tmp, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create: %s", path, strerror(errno));
-    fprintf(fp, "# rpiv-sheet 1\n# e0 %.17g\n# e1 %.17g\n# zm0 %.17g\n# zm1 %.17g\n"
-                "# columns: zplus = (z* - z*_max(x*)) / e*(x*), I0/I0max\n",
+    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&af, path, 1);
+    if (st)
+        return st;
+    fprintf(af.fp, "# rpiv-sheet 1\n# e0 %.17g\n# e1 %.17g\n# zm0 %.17g\n# zm1 %.17g\n"
+                   "# columns: zplus = (z* - z*_max(x*)) / e*(x*), I0/I0max\n",
             e0, e1, zm0, zm1);
     for (size_t i = 0; i < n; i++)
-        fprintf(fp, "%.10g %.10g\n", zplus[i], inten[i]);
-    int bad = ferror(fp);
-    bad |= fclose(fp) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        remove(tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    }
-    return RPIV_OK;
+        fprintf(af.fp, "%.10g %.10g\n", zplus[i], inten[i]);
+    return atomic_commit(&af);
 }
 
 rpiv_status rpiv_sheet_metrics_of(const double *z, const double *inten, size_t n,
