@@ -195,18 +195,24 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
 {
     uint16_t comp = COMPRESSION_NONE;
     TIFFGetFieldDefaulted(t, TIFFTAG_COMPRESSION, &comp);
+    /* an unknown codec cannot decode anything: say so before allocating */
+    if (!TIFFIsCODECConfigured(comp))
+        return rpiv_fail(RPIV_EFORMAT, "%s: TIFF compression %u not supported", path,
+                         (unsigned)comp);
     if (ti->bps == 1 && comp != COMPRESSION_NONE)
         return RPIV_OK;
-    /* ZSTD, LZMA, WebP and the like have no such bound: a uniform image (a mask, a
-     * background) packs far beyond 4096:1, so only the codecs whose bound is known are
-     * checked (LZW < 2560:1, Deflate 1032:1, PackBits 64:1, JPEG < 1536:1) */
-    if (comp != COMPRESSION_NONE && comp != COMPRESSION_LZW && comp != COMPRESSION_DEFLATE &&
-        comp != COMPRESSION_ADOBE_DEFLATE && comp != COMPRESSION_PACKBITS &&
-        comp != COMPRESSION_JPEG)
-        return RPIV_OK;
+    /* Expansion bounds: LZW < 2560:1, Deflate 1032:1, PackBits 64:1, JPEG < 1536:1 (4096
+     * covers them); ZSTD < 32768:1 (a block of at most 128 KiB takes at least 4 bytes; a
+     * uniform 8000 x 8000 image reaches 30592:1), LZMA about 10^4:1 (6698:1 there). Other
+     * codecs get 65536:1: only a constant image of tens of Mpx in a few hundred bytes (WebP,
+     * LERC) would be refused. */
+    int known = comp == COMPRESSION_NONE || comp == COMPRESSION_LZW ||
+                comp == COMPRESSION_DEFLATE || comp == COMPRESSION_ADOBE_DEFLATE ||
+                comp == COMPRESSION_PACKBITS || comp == COMPRESSION_JPEG;
     uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
     uint64_t raw = ((uint64_t)ti->w * ti->spp * ti->bps + 7) / 8 * ti->h;
-    uint64_t cap = comp == COMPRESSION_NONE ? fsize : 4096 * fsize + (1u << 20);
+    uint64_t cap = comp == COMPRESSION_NONE ? fsize
+                                            : (known ? 4096 : 65536) * fsize + (1u << 20);
     if (raw > cap)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: truncated or corrupt TIFF: %ux%u pixels (%llu bytes of samples) "

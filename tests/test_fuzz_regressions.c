@@ -52,6 +52,13 @@ static const expect table[] = {
     /* 365-byte JPEG whose frame header announces 30000 x 30000: stb_image decoded the short
      * scan and 900 Mpx of zeros (63 s, 4.4 GB) and the load succeeded */
     {"jpeg_scan_shorter_than_image.jpg", IMAGE, 0, RPIV_EFORMAT, "cannot be coded"},
+    /* a progressive scan whose AC Huffman table no DHT defined: stb_image decoded it from
+     * uninitialised memory (nothings/stb#1535) and crashed (SEGV under ASan, found by the
+     * 30-s make fuzz run) */
+    {"jpeg_undefined_huffman_table.jpg", IMAGE, 0, RPIV_EFORMAT, "Huffman table AC0"},
+    /* the 7 x 5 seed with its component pointed at quantisation table 1, never defined: the
+     * image "loaded" with levels computed from uninitialised memory (valgrind) */
+    {"jpeg_undefined_quant_table.jpg", IMAGE, 0, RPIV_EFORMAT, "quantisation table 1"},
     /* the size check must keep real files that compress well: a uniform 800 x 600 grey
      * JPEG (cjpeg -optimize, 2 bits per block, 1 byte per 256 pixels) loads */
     {"jpeg_uniform_800x600_loads.jpg", IMAGE, 0, RPIV_OK, NULL},
@@ -65,6 +72,13 @@ static const expect table[] = {
     /* the TIFF size check (4096:1 for compressed data) refused a valid ZSTD TIFF: a uniform
      * 2000 x 2000 image (a mask, a background) packs into 260 bytes */
     {"tiff_zstd_uniform_loads.tif", IMAGE, 0, RPIV_OK, NULL},
+    /* compression code 65 (no codec) on a 32774 x 61441 16-bit header: the 8 GB image was
+     * reserved before libtiff said it cannot decode (found by fuzz_image, OOM; the size
+     * bound above no longer covered codes outside its list) */
+    {"tiff_unknown_compression.tif", IMAGE, 0, RPIV_EFORMAT, "compression 65 not supported"},
+    /* and a ZSTD header announcing 30000 x 30000 in 260 bytes (the bound for codecs outside
+     * that list, 65536:1) */
+    {"tiff_zstd_header_beyond_file.tif", IMAGE, 0, RPIV_EFORMAT, "cannot be stored"},
     {"vectors_u_beyond_float.txt", VECTORS, 0, RPIV_EFORMAT, ":1: column 3"},
     /* header "# scale_mm_per_px = 0.0065e9999" (infinite): the field loaded with an infinite
      * scale, and its mm and m/s columns came out infinite when saved; now the header is
