@@ -1078,11 +1078,30 @@ static void corrupted_files_never_crash(void)
     printf("    (%d mutants: %d loaded, %d refused)\n", loaded + failed, loaded, failed);
 }
 
+/* Images above RPIV_MAX_IMAGE_PIXELS are refused before allocation, naming file and limit. */
+static void pixel_limit_refuses_large_images(void)
+{
+    rpiv_image *im = image16(37, 23), *back = NULL;
+    CHECK_OK(rpiv_image_save_tiff16(im, tu_path("limit.tif")));
+    CHECK_OK(rpiv_image_save_png16(im, tu_path("limit.png")));
+    setenv("RPIV_MAX_IMAGE_PIXELS", "850", 1); /* 37 x 23 = 851 */
+    CHECK_FAILS(rpiv_image_load(tu_path("limit.tif"), 0, &back, NULL), RPIV_ELIMIT);
+    CHECK(back == NULL && strstr(rpiv_errmsg(), "limit.tif") &&
+          strstr(rpiv_errmsg(), "RPIV_MAX_IMAGE_PIXELS"));
+    CHECK_FAILS(rpiv_image_load(tu_path("limit.png"), 0, &back, NULL), RPIV_ELIMIT);
+    setenv("RPIV_MAX_IMAGE_PIXELS", "851", 1);
+    CHECK_OK(rpiv_image_load(tu_path("limit.tif"), 0, &back, NULL));
+    unsetenv("RPIV_MAX_IMAGE_PIXELS");
+    rpiv_image_free(back);
+    rpiv_image_free(im);
+}
+
 int main(void)
 {
     if (!tu_init("test_image"))
         return 1;
     RUN_TEST(roundtrip_tiff16_exact);
+    RUN_TEST(pixel_limit_refuses_large_images);
     RUN_TEST(roundtrip_png16_exact);
     RUN_TEST(roundtrip_float_tiff_exact);
     RUN_TEST(writers_round_and_clamp);
