@@ -32,9 +32,8 @@ rpiv_status img_check_size(const char *path, uint64_t w, uint64_t h)
         return rpiv_fail(RPIV_EFORMAT, "%s: invalid image size %llux%llu", path,
                          (unsigned long long)w, (unsigned long long)h);
     if (w > INT_MAX || h > INT_MAX || w * h > IMG_MAX_PIXELS)
-        return rpiv_fail(RPIV_EFORMAT,
-                         "%s: image size %llux%llu is absurd (more than 2^31 pixels)", path,
-                         (unsigned long long)w, (unsigned long long)h);
+        return rpiv_fail(RPIV_EFORMAT, "%s: image size %llux%llu is absurd (more than 2^31 pixels)",
+                         path, (unsigned long long)w, (unsigned long long)h);
     return RPIV_OK;
 }
 
@@ -177,8 +176,8 @@ static rpiv_status read_magic(const char *path, rpiv_image_format *fmt, FILE **f
     *fmt = detect(m, n);
     if (*fmt == RPIV_IMAGE_UNKNOWN) {
         fclose(f);
-        return rpiv_fail(RPIV_EFORMAT,
-                         "%s: unknown image format (not TIFF, PNG, PGM, BMP or JPEG)", path);
+        return rpiv_fail(RPIV_EFORMAT, "%s: unknown image format (not TIFF, PNG, PGM, BMP or JPEG)",
+                         path);
     }
     *size = (size_t)sb.st_size;
     if (fp)
@@ -226,8 +225,8 @@ rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out, int *w
         return st;
     if (fmt != RPIV_IMAGE_TIFF && page != 0) {
         fclose(f);
-        return rpiv_fail(RPIV_EINVAL, "%s: page %d requested but a %s file has only page 0",
-                         path, page, rpiv_image_format_name(fmt));
+        return rpiv_fail(RPIV_EINVAL, "%s: page %d requested but a %s file has only page 0", path,
+                         page, rpiv_image_format_name(fmt));
     }
     switch (fmt) {
     case RPIV_IMAGE_TIFF:
@@ -301,8 +300,8 @@ rpiv_status img_tmp_open(const char *path, char *tmp, size_t cap, int *fd)
     clock_gettime(CLOCK_REALTIME, &ts);
     for (unsigned attempt = 0; attempt < 100; attempt++) {
         /* The name only has to be unlikely to collide; O_EXCL makes it safe when it does. */
-        unsigned long tag = (unsigned long)ts.tv_nsec * 2654435761UL + (unsigned long)getpid() +
-                            attempt * 7919UL;
+        unsigned long tag =
+            (unsigned long)ts.tv_nsec * 2654435761UL + (unsigned long)getpid() + attempt * 7919UL;
         int n = snprintf(tmp, cap, "%s.tmp%06lx", path, tag & 0xffffffUL);
         if (n < 0 || (size_t)n >= cap)
             return rpiv_fail(RPIV_EINVAL, "%s: path too long", path);
@@ -321,8 +320,8 @@ rpiv_status img_tmp_commit(const char *tmp, const char *path)
     if (rename(tmp, path) != 0) {
         int e = errno;
         unlink(tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot rename the temporary file into place: %s",
-                         path, strerror(e));
+        return rpiv_fail(RPIV_EIO, "%s: cannot rename the temporary file into place: %s", path,
+                         strerror(e));
     }
     /* Make the rename itself durable: sync the folder (best effort). */
     char dir[4096];

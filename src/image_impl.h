@@ -17,7 +17,7 @@
 /* Largest image accepted by default, in pixels: 2^28 (268 Mpx, 1 GiB as float), far above any
  * PIV camera; the environment variable RPIV_MAX_IMAGE_PIXELS changes it (up to 2^31). Readers
  * check it against the header before allocating. */
-#define IMG_MAX_PIXELS ((uint64_t)1 << 31)
+#define IMG_MAX_PIXELS         ((uint64_t)1 << 31)
 #define IMG_DEFAULT_MAX_PIXELS ((uint64_t)1 << 28)
 IMG_HIDDEN uint64_t img_max_pixels(void);
 

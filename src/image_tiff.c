@@ -55,8 +55,7 @@ static rpiv_status tfail(const char *path, const tctx *c, const char *what)
 {
     if (strstr(c->msg, "Read error") || strstr(c->msg, "Not enough data") ||
         strstr(c->msg, "Cannot read") || strstr(c->msg, "Can not read") ||
-        strstr(c->msg, "Incorrect count") ||
-        strstr(c->msg, "end of file"))
+        strstr(c->msg, "Incorrect count") || strstr(c->msg, "end of file"))
         return rpiv_fail(RPIV_EFORMAT, "%s: truncated or corrupt TIFF (%s: %s)", path, what,
                          c->msg);
     return rpiv_fail(RPIV_EFORMAT, "%s: %s: %s", path, what, c->msg[0] ? c->msg : "failed");
@@ -146,8 +145,8 @@ static rpiv_status check_layout(const char *path, tinfo *ti)
     int grey = ti->photo == PHOTOMETRIC_MINISBLACK || ti->photo == PHOTOMETRIC_MINISWHITE ||
                ti->photo == PHOTOMETRIC_PALETTE;
     if (!colour && !grey)
-        return rpiv_fail(RPIV_EFORMAT, "%s: TIFF photometric interpretation %u not supported",
-                         path, ti->photo);
+        return rpiv_fail(RPIV_EFORMAT, "%s: TIFF photometric interpretation %u not supported", path,
+                         ti->photo);
     if (ti->sf == SAMPLEFORMAT_INT)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: signed %u-bit integer TIFF samples not supported "
@@ -211,8 +210,7 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
                 comp == COMPRESSION_PACKBITS || comp == COMPRESSION_JPEG;
     uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
     uint64_t raw = ((uint64_t)ti->w * ti->spp * ti->bps + 7) / 8 * ti->h;
-    uint64_t cap = comp == COMPRESSION_NONE ? fsize
-                                            : (known ? 4096 : 65536) * fsize + (1u << 20);
+    uint64_t cap = comp == COMPRESSION_NONE ? fsize : (known ? 4096 : 65536) * fsize + (1u << 20);
     if (raw > cap)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: truncated or corrupt TIFF: %ux%u pixels (%llu bytes of samples) "
@@ -286,8 +284,8 @@ static rpiv_status read_blocks(TIFF *t, tctx *c, const char *path, const tinfo *
                                 (float)sample(row, col, ti->bps, isfloat);
                         } else {
                             for (int ch = 0; ch < 3; ch++)
-                                rgb[(size_t)ch * npx + o + col] = (float)sample(
-                                    row, col * nsp + (uint64_t)ch, ti->bps, isfloat);
+                                rgb[(size_t)ch * npx + o + col] =
+                                    (float)sample(row, col * nsp + (uint64_t)ch, ti->bps, isfloat);
                         }
                     }
                 }
@@ -337,11 +335,11 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     /* the page must be one rpiv_image_count_pages counts (libtiff can open the directory of
      * a page whose "next directory" link is cut, which TIFFNumberOfDirectories does not
      * count) */
-    if (page > 0 && ((tdir_t)page >= TIFFNumberOfDirectories(t) ||
-                     !TIFFSetDirectory(t, (tdir_t)page))) {
+    if (page > 0 &&
+        ((tdir_t)page >= TIFFNumberOfDirectories(t) || !TIFFSetDirectory(t, (tdir_t)page))) {
         tdir_t n = TIFFNumberOfDirectories(t);
-        st = rpiv_fail(RPIV_EINVAL, "%s: page %d requested but the file has %u page%s", path,
-                       page, (unsigned)n, n == 1 ? "" : "s");
+        st = rpiv_fail(RPIV_EINVAL, "%s: page %d requested but the file has %u page%s", path, page,
+                       (unsigned)n, n == 1 ? "" : "s");
         goto out_close;
     }
     st = read_info(t, path, page, &ti);
@@ -376,10 +374,9 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
         const float *v = ti.nch == 3 ? rgb : im->px;
         for (size_t i = 0; i < (size_t)ti.nch * npx; i++) {
             if (!isfinite(v[i])) {
-                st = rpiv_fail(RPIV_EFORMAT,
-                               "%s: pixel (%zu, %zu) is %s: float TIFF samples must be finite",
-                               path, i % npx % ti.w, i % npx / ti.w,
-                               isnan(v[i]) ? "NaN" : "infinite");
+                st = rpiv_fail(
+                    RPIV_EFORMAT, "%s: pixel (%zu, %zu) is %s: float TIFF samples must be finite",
+                    path, i % npx % ti.w, i % npx / ti.w, isnan(v[i]) ? "NaN" : "infinite");
                 goto out_free;
             }
         }

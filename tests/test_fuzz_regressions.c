@@ -13,8 +13,8 @@
 #include "rpiv/sheet.h"
 
 #include <dirent.h>
-#include <png.h>
 #include <math.h>
+#include <png.h>
 #include <setjmp.h>
 #include <stdint.h>
 #include <string.h>
@@ -116,8 +116,8 @@ static int image_ok(const rpiv_image *im)
 static int field_ok(const rpiv_field *f)
 {
     if (f->nx < 1 || f->ny < 1 || !(f->dx > 0) || !(f->dy > 0) || !isfinite(f->dx) ||
-        !isfinite(f->dy) || !isfinite(f->x0) || !isfinite(f->y0) ||
-        !isfinite(f->scale_mm_per_px) || !isfinite(f->dt_s))
+        !isfinite(f->dy) || !isfinite(f->x0) || !isfinite(f->y0) || !isfinite(f->scale_mm_per_px) ||
+        !isfinite(f->dt_s))
         return 0;
     for (size_t k = 0; k < (size_t)f->nx * (size_t)f->ny; k++)
         if (!isfinite(f->u[k]) || !isfinite(f->v[k]))
@@ -219,8 +219,7 @@ static void every_file_has_an_expectation(void)
         for (size_t i = 0; i < NTABLE; i++)
             listed |= strcmp(table[i].file, de->d_name) == 0;
         if (!listed)
-            fprintf(stderr, "%s/%s: no expectation in test_fuzz_regressions.c\n", dir,
-                    de->d_name);
+            fprintf(stderr, "%s/%s: no expectation in test_fuzz_regressions.c\n", dir, de->d_name);
         CHECK(listed);
     }
     closedir(d);
@@ -238,8 +237,7 @@ static void each_regression_ends_cleanly(void)
         const char *m = rpiv_errmsg();
         if (st != e->status || !sane)
             fprintf(stderr, "%s (call %d, page %d): status %d (expected %d), sane %d: %s\n",
-                    e->file, (int)e->k, e->page, (int)st, (int)e->status, sane,
-                    st ? m : "");
+                    e->file, (int)e->k, e->page, (int)st, (int)e->status, sane, st ? m : "");
         CHECK(st == e->status);
         CHECK(sane);
         if (st != RPIV_OK) {

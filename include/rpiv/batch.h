@@ -27,7 +27,7 @@
  * interrupted (the pairs are added in the same order); a checkpoint of another series, plan
  * or number of ranks is refused, naming what differs. No checkpoint at all: the run starts
  * from the beginning (rpiv_batch_resumed says so). Without resume, an existing checkpoint
- * file is not overwritten: RPIV_EINVAL. Temporary files of a killed save are removed. 
+ * file is not overwritten: RPIV_EINVAL. Temporary files of a killed save are removed.
  *
  * Unreadable pairs. A pair whose images cannot be read or do not have the series' size is
  * reported with its index and file. With params.skip_bad it is left out of every step and
