@@ -40,8 +40,7 @@ rpiv_status cli_parse_double(const char *opt, const char *s, double lo, double h
     if (end == s || *end || errno || !isfinite(v))
         return rpiv_fail(RPIV_EINVAL, "%s: '%s' is not a number", opt, s);
     if (v < lo || v > hi)
-        return rpiv_fail(RPIV_EINVAL, "%s: %g outside the accepted range %g..%g", opt, v, lo,
-                         hi);
+        return rpiv_fail(RPIV_EINVAL, "%s: %g outside the accepted range %g..%g", opt, v, lo, hi);
     *out = v;
     return RPIV_OK;
 }
@@ -191,8 +190,7 @@ rpiv_status cli_mkdirs(const char *path)
             char keep = *s;
             *s = '\0';
             if (mkdir(buf, 0777) != 0 && errno != EEXIST)
-                return rpiv_fail(RPIV_EIO, "%s: cannot create directory: %s", buf,
-                                 strerror(errno));
+                return rpiv_fail(RPIV_EIO, "%s: cannot create directory: %s", buf, strerror(errno));
             *s = keep;
             if (!keep)
                 break;

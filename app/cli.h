@@ -25,18 +25,20 @@ typedef struct cli_cmd {
 typedef struct cli_ctx {
     rpiv_experiment exp; /* starts from rpiv_experiment_default() */
     int quiet;
-    int threads;         /* 0 = default */
-    const char *config;  /* --config path or NULL */
+    int threads;        /* 0 = default */
+    const char *config; /* --config path or NULL */
 } cli_ctx;
 
 void cli_ctx_init(cli_ctx *c);
 
 /* Long options shared by all commands (--config, --set, --quiet, --threads, --help). Commands
  * append their own after these; see cli_options_merge. */
-#define CLI_COMMON_LONGOPTS                                                                    \
-    {"config", required_argument, 0, 'c'}, {"set", required_argument, 0, 'S'},                \
-        {"quiet", no_argument, 0, 'q'}, {"threads", required_argument, 0, 'j'},               \
-        {"help", no_argument, 0, 'h'}
+#define CLI_COMMON_LONGOPTS                                                                        \
+    {"config", required_argument, 0, 'c'}, {"set", required_argument, 0, 'S'},                     \
+        {"quiet", no_argument, 0, 'q'}, {"threads", required_argument, 0, 'j'},                    \
+    {                                                                                              \
+        "help", no_argument, 0, 'h'                                                                \
+    }
 #define CLI_COMMON_SHORTOPTS "c:S:qj:h"
 
 /* Handle a common option. Returns 1 if handled (st set on error), 0 if not a common option.

@@ -689,8 +689,10 @@ rpiv_status cmd_calib(int argc, char **argv)
             return RPIV_OK;
         }
         if (argc >= 2)
-            return cli_usage_error("calib", "unknown option '%s' before the SUBCOMMAND (sheet, "
-                                   "dof, render-sheet, render-dots)", argv[1]);
+            return cli_usage_error("calib",
+                                   "unknown option '%s' before the SUBCOMMAND (sheet, "
+                                   "dof, render-sheet, render-dots)",
+                                   argv[1]);
         return cli_usage_error("calib", "missing SUBCOMMAND (sheet, dof, render-sheet, "
                                         "render-dots)");
     }

@@ -17,8 +17,8 @@ static void help(void)
 
 rpiv_status cmd_config(int argc, char **argv)
 {
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS, {"doc", no_argument, 0, 'D'},
-                                         {0, 0, 0, 0}};
+    static const struct option opts[] = {
+        CLI_COMMON_LONGOPTS, {"doc", no_argument, 0, 'D'}, {0, 0, 0, 0}};
     cli_ctx c;
     int doc = 0, o;
     rpiv_status st;

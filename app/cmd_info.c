@@ -33,8 +33,8 @@ static rpiv_status describe(const char *path)
         return st;
     rpiv_image_stats s = rpiv_image_stats_of(im);
     printf("%s: format %s width %d height %d bits %d pages %d min %.9g max %.9g mean %.6f%s\n",
-           path, rpiv_image_format_name(fmt), im->w, im->h, im->bits, pages, s.min, s.max,
-           s.mean, warned ? " (colour converted to luminance)" : "");
+           path, rpiv_image_format_name(fmt), im->w, im->h, im->bits, pages, s.min, s.max, s.mean,
+           warned ? " (colour converted to luminance)" : "");
     rpiv_image_free(im);
     return RPIV_OK;
 }

@@ -41,7 +41,8 @@ static void help(void)
         "  --step N              grid step in px, instead of --overlap          [step_px]\n"
         "  --ensemble            sum of correlation over all pairs              [ensemble]\n"
         "  --subpixel M          gauss, parabola or centroid (gauss)            [subpixel]\n"
-        "  --validate V          median:T (threshold T, default 2) or none      [median_threshold]\n"
+        "  --validate V          median:T (threshold T, default 2) or none      "
+        "[median_threshold]\n"
         "  --mask FILE           mask image, 0 = masked pixel                   [mask]\n"
         "  --roi X0,Y0,X1,Y1     region of interest, px (X1, Y1 excluded)       [roi]\n"
         "  --background B        subtract the series' min or mean image, or none [background]\n"
@@ -103,7 +104,7 @@ typedef struct run_ctx {
     const char *out;
     size_t npairs;
     int digits;
-    int nc_series;             /* several pairs into one .nc (rank 0)          */
+    int nc_series; /* several pairs into one .nc (rank 0)          */
     const rpiv_meta *meta;
     rpiv_field_series *series; /* .nc with several pairs (rank 0)              */
     rpiv_piv_stats *stats;     /* --mean-rms (rank 0)                          */
@@ -171,8 +172,8 @@ static rpiv_status add_skipped(rpiv_meta *m, const rpiv_batch *b, const rpiv_pai
     for (size_t k = 0, at = 0; k < n; k++) {
         size_t i = rpiv_batch_skipped(b, k);
         const rpiv_pair_src *q = &pairs->pair[i];
-        at += (size_t)snprintf(list + at, len - at, "%s%zu %s%s%s", k ? "; " : "", i + 1,
-                               q->path_a, q->path_b ? " " : "", q->path_b ? q->path_b : "");
+        at += (size_t)snprintf(list + at, len - at, "%s%zu %s%s%s", k ? "; " : "", i + 1, q->path_a,
+                               q->path_b ? " " : "", q->path_b ? q->path_b : "");
     }
     rpiv_status st = rpiv_meta_add(m, "skipped_pairs", "%zu", n);
     if (!st)
@@ -188,8 +189,8 @@ static rpiv_status add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_p
     static const char *const bg[] = {"none", "min", "mean"};
     char win[256] = "";
     for (int k = 0; k < p->npass; k++)
-        snprintf(win + strlen(win), sizeof win - strlen(win), "%s%dx%d", k ? "," : "",
-                 p->win_w[k], p->win_h[k]);
+        snprintf(win + strlen(win), sizeof win - strlen(win), "%s%dx%d", k ? "," : "", p->win_w[k],
+                 p->win_h[k]);
     rpiv_status st;
     if ((st = rpiv_meta_add(m, "software", "rpiv %s", RPIV_VERSION_STRING)) ||
         (st = rpiv_meta_add(m, "mode", "%s", p->ensemble ? "ensemble" : "instantaneous")) ||
@@ -238,40 +239,63 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
 
 rpiv_status cmd_piv(int argc, char **argv)
 {
-    enum { O_WINDOW = 256, O_OVERLAP, O_STEP, O_ENSEMBLE, O_SUBPIXEL, O_VALIDATE, O_MASK, O_ROI,
-           O_BACKGROUND, O_SCALE, O_DT, O_PLOT, O_MEANRMS, O_PAIRING, O_CHECKPOINT, O_EVERY,
-           O_RESUME, O_SKIPBAD, O_OUTDIR };
-    static const struct option opts[] = {
-        CLI_COMMON_LONGOPTS,
-        {"window", required_argument, 0, O_WINDOW},
-        {"windows", required_argument, 0, O_WINDOW},
-        {"overlap", required_argument, 0, O_OVERLAP},
-        {"step", required_argument, 0, O_STEP},
-        {"ensemble", no_argument, 0, O_ENSEMBLE},
-        {"subpixel", required_argument, 0, O_SUBPIXEL},
-        {"validate", required_argument, 0, O_VALIDATE},
-        {"mask", required_argument, 0, O_MASK},
-        {"roi", required_argument, 0, O_ROI},
-        {"background", required_argument, 0, O_BACKGROUND},
-        {"scale", required_argument, 0, O_SCALE},
-        {"dt", required_argument, 0, O_DT},
-        {"plot", required_argument, 0, O_PLOT},
-        {"mean-rms", no_argument, 0, O_MEANRMS},
-        {"pairing", required_argument, 0, O_PAIRING},
-        {"checkpoint", required_argument, 0, O_CHECKPOINT},
-        {"checkpoint-every", required_argument, 0, O_EVERY},
-        {"resume", no_argument, 0, O_RESUME},
-        {"skip-bad", no_argument, 0, O_SKIPBAD},
-        {"output", required_argument, 0, 'o'},
-        {"out", required_argument, 0, O_OUTDIR},
-        {0, 0, 0, 0}};
+    enum {
+        O_WINDOW = 256,
+        O_OVERLAP,
+        O_STEP,
+        O_ENSEMBLE,
+        O_SUBPIXEL,
+        O_VALIDATE,
+        O_MASK,
+        O_ROI,
+        O_BACKGROUND,
+        O_SCALE,
+        O_DT,
+        O_PLOT,
+        O_MEANRMS,
+        O_PAIRING,
+        O_CHECKPOINT,
+        O_EVERY,
+        O_RESUME,
+        O_SKIPBAD,
+        O_OUTDIR
+    };
+    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
+                                         {"window", required_argument, 0, O_WINDOW},
+                                         {"windows", required_argument, 0, O_WINDOW},
+                                         {"overlap", required_argument, 0, O_OVERLAP},
+                                         {"step", required_argument, 0, O_STEP},
+                                         {"ensemble", no_argument, 0, O_ENSEMBLE},
+                                         {"subpixel", required_argument, 0, O_SUBPIXEL},
+                                         {"validate", required_argument, 0, O_VALIDATE},
+                                         {"mask", required_argument, 0, O_MASK},
+                                         {"roi", required_argument, 0, O_ROI},
+                                         {"background", required_argument, 0, O_BACKGROUND},
+                                         {"scale", required_argument, 0, O_SCALE},
+                                         {"dt", required_argument, 0, O_DT},
+                                         {"plot", required_argument, 0, O_PLOT},
+                                         {"mean-rms", no_argument, 0, O_MEANRMS},
+                                         {"pairing", required_argument, 0, O_PAIRING},
+                                         {"checkpoint", required_argument, 0, O_CHECKPOINT},
+                                         {"checkpoint-every", required_argument, 0, O_EVERY},
+                                         {"resume", no_argument, 0, O_RESUME},
+                                         {"skip-bad", no_argument, 0, O_SKIPBAD},
+                                         {"output", required_argument, 0, 'o'},
+                                         {"out", required_argument, 0, O_OUTDIR},
+                                         {0, 0, 0, 0}};
     /* option -> [piv] key, for the options that are keys */
-    static const struct { int opt; const char *key, *name; } keyed[] = {
-        {O_WINDOW, "windows", "--window"},       {O_OVERLAP, "overlap", "--overlap"},
-        {O_STEP, "step_px", "--step"},           {O_SUBPIXEL, "subpixel", "--subpixel"},
-        {O_MASK, "mask", "--mask"},              {O_ROI, "roi", "--roi"},
-        {O_BACKGROUND, "background", "--background"},
-        {O_SCALE, "scale_mm_per_px", "--scale"}, {O_DT, "dt_s", "--dt"}};
+    static const struct {
+        int opt;
+        const char *key, *name;
+    } keyed[] = {{O_WINDOW, "windows", "--window"},
+                 {O_OVERLAP, "overlap", "--overlap"},
+                 {O_STEP, "step_px", "--step"},
+                 {O_SUBPIXEL, "subpixel", "--subpixel"},
+                 {O_MASK, "mask", "--mask"},
+                 {O_ROI, "roi", "--roi"},
+                 {O_BACKGROUND, "background", "--background"},
+                 {O_SCALE, "scale_mm_per_px", "--scale"},
+                 {O_DT, "dt_s", "--dt"}};
     cli_ctx c;
     run_opts ro = {.pairing = RPIV_PAIR_AB};
     const char *outdir = NULL;
@@ -337,8 +361,10 @@ rpiv_status cmd_piv(int argc, char **argv)
             else if (!strcmp(optarg, "time-resolved"))
                 ro.pairing = RPIV_PAIR_TIME_RESOLVED;
             else
-                return cli_usage_error("piv", "--pairing: '%s' is not ab, consecutive or "
-                                       "time-resolved", optarg);
+                return cli_usage_error("piv",
+                                       "--pairing: '%s' is not ab, consecutive or "
+                                       "time-resolved",
+                                       optarg);
             break;
         default:
             return cli_usage_error("piv", "unknown option '%s'", argv[optind - 1]);
@@ -362,11 +388,11 @@ rpiv_status cmd_piv(int argc, char **argv)
         return cli_usage_error("piv", "no image pairs given");
     if (ro.meanrms && p->ensemble)
         return cli_usage_error("piv", "--mean-rms averages per-pair fields; it does not go "
-                               "with --ensemble");
+                                      "with --ensemble");
     if ((ro.checkpoint || ro.every || ro.resume) && !p->ensemble)
         return cli_usage_error("piv", "--checkpoint, --checkpoint-every and --resume are for "
-                               "--ensemble runs (per-pair runs write each pair's file as it "
-                               "is done)");
+                                      "--ensemble runs (per-pair runs write each pair's file as it "
+                                      "is done)");
     if ((ro.every || ro.resume) && !ro.checkpoint)
         return cli_usage_error("piv", "%s needs --checkpoint FILE",
                                ro.resume ? "--resume" : "--checkpoint-every");
@@ -463,8 +489,8 @@ out_agree:
     if (p->ensemble) {
         if ((st = rpiv_batch_ensemble(batch, pv, &pr, &field)))
             goto out_free;
-        if (root && ((st = add_skipped(&meta, batch, pairs)) ||
-                     (st = rpiv_field_save(field, &meta, out))))
+        if (root &&
+            ((st = add_skipped(&meta, batch, pairs)) || (st = rpiv_field_save(field, &meta, out))))
             goto out_free;
         size_t n = (size_t)field->nx * (size_t)field->ny;
         r.nvec = n;
@@ -515,14 +541,16 @@ out_agree:
         if (nskip)
             snprintf(skipped, sizeof skipped, " (%zu skipped)", nskip);
         printf("rpiv piv: %zu pair%s%s, %s, %zu vectors, %.2f %% replaced -> %s%s\n", pairs->n,
-               pairs->n == 1 ? "" : "s", skipped,
-               p->ensemble ? "ensemble" : "instantaneous", r.nvec,
-               r.nvec ? 100.0 * (double)r.nreplaced / (double)r.nvec : 0.0, out,
+               pairs->n == 1 ? "" : "s", skipped, p->ensemble ? "ensemble" : "instantaneous",
+               r.nvec, r.nvec ? 100.0 * (double)r.nreplaced / (double)r.nvec : 0.0, out,
                !p->ensemble && pairs->n > 1 && strcasecmp(field_ext(out), ".nc")
-                   ? " (one file per pair)" : "");
+                   ? " (one file per pair)"
+                   : "");
         if (nskip)
-            fprintf(stderr, "rpiv piv: %zu unreadable pair%s skipped (listed in the output "
-                    "header)\n", nskip, nskip == 1 ? "" : "s");
+            fprintf(stderr,
+                    "rpiv piv: %zu unreadable pair%s skipped (listed in the output "
+                    "header)\n",
+                    nskip, nskip == 1 ? "" : "s");
     }
 out_free:
     if (r.series && rpiv_field_series_close(r.series, 1))

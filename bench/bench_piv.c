@@ -209,8 +209,8 @@ static int case_run(int threads)
     printf("#   CPU time (all threads): run %.1f ms, bare FFTs %.1f ms, ratio %.2f\n", run_cpu,
            fft_cpu, run_cpu / fft_cpu);
     printf("#   phases (median ms): load %.1f, pass 1 (64 px) %.1f, pass 2 (32 px, deform) %.1f, "
-           "pass 3 %.1f; RMS error %.4f px (limit 0.012)%s\n", bench_median(ph[0], repeats),
-           bench_median(ph[1], repeats), bench_median(ph[2], repeats),
+           "pass 3 %.1f; RMS error %.4f px (limit 0.012)%s\n",
+           bench_median(ph[0], repeats), bench_median(ph[1], repeats), bench_median(ph[2], repeats),
            bench_median(ph[3], repeats), err, err <= 0.012 ? "" : " FAILED");
     rpiv_piv_free(pv);
     rpiv_image_free(a);
@@ -238,14 +238,16 @@ static int case_one_pair(int threads)
     prm.threads = threads;
     sink_ctx s = {1e9};
     double t0 = bench_now();
-    if (!pairs || rpiv_piv_new(&prm, W, H, NULL, &pv) || rpiv_piv_series(pv, pairs, sink, &s, NULL)) {
+    if (!pairs || rpiv_piv_new(&prm, W, H, NULL, &pv) ||
+        rpiv_piv_series(pv, pairs, sink, &s, NULL)) {
         fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
         return 1;
     }
     double ms = 1e3 * (bench_now() - t0);
     printf("#   one pair read from 16-bit TIFF files and processed, %d threads: %.0f ms, RMS "
-           "error %.4f px, peak RSS %.0f MB (target < 150 MB)%s\n", threads, ms, s.err,
-           bench_maxrss_mb(), s.err <= 0.012 && bench_maxrss_mb() < 150 ? "" : " FAILED");
+           "error %.4f px, peak RSS %.0f MB (target < 150 MB)%s\n",
+           threads, ms, s.err, bench_maxrss_mb(),
+           s.err <= 0.012 && bench_maxrss_mb() < 150 ? "" : " FAILED");
     rpiv_piv_free(pv);
     rpiv_pairs_free(pairs);
     return s.err <= 0.012 ? 0 : 1;
@@ -269,8 +271,9 @@ static int case_ensemble(int threads, int n)
     snprintf(name, sizeof name, "ensemble_%d", n);
     bench_line(name, W, H, threads, ms, n * fft_bound(pv, threads, 1, NULL), field_sum(f));
     printf("#   %.2f pairs/s (each pair read and correlated once per pass, 3 passes); RMS "
-           "error %.4f px; peak RSS %.0f MB (target < 300 MB)%s\n", 1e3 * n / ms, err,
-           bench_maxrss_mb(), err <= 0.012 && bench_maxrss_mb() < 300 ? "" : " FAILED");
+           "error %.4f px; peak RSS %.0f MB (target < 300 MB)%s\n",
+           1e3 * n / ms, err, bench_maxrss_mb(),
+           err <= 0.012 && bench_maxrss_mb() < 300 ? "" : " FAILED");
     rpiv_field_free(f);
     rpiv_piv_free(pv);
     rpiv_pairs_free(pairs);
@@ -322,7 +325,8 @@ int main(void)
             return 1;
         }
     printf("# %d synthetic 16-bit %dx%d pairs written in %.1f s; reference = bare FFTs of the "
-           "run (same FFTW plans, same count)\n", NDISTINCT, W, H, bench_now() - t0);
+           "run (same FFTW plans, same count)\n",
+           NDISTINCT, W, H, bench_now() - t0);
     bench_columns();
     bad |= in_child(run1, 1, 0);
     if (maxt >= 2)

@@ -190,7 +190,8 @@ int main(void)
         }
         bench_line("vs_gpiv_1pass_32", W, H, t, rms_, gms, rsum);
         printf("#   speed-up %.1f x; RMS error rpiv %.4f px, libgpiv %.4f px (%u vectors, "
-               "checksum %016llx)%s\n", gms / rms_, rerr, gerr, gn, (unsigned long long)gsum,
+               "checksum %016llx)%s\n",
+               gms / rms_, rerr, gerr, gn, (unsigned long long)gsum,
                rerr <= 0.012 ? "" : " FAILED");
         bad |= rerr > 0.012;
     }

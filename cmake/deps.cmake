@@ -9,6 +9,7 @@ pkg_check_modules(INIH REQUIRED IMPORTED_TARGET inih)
 pkg_check_modules(NETCDF REQUIRED IMPORTED_TARGET netcdf)
 pkg_check_modules(PLPLOT REQUIRED IMPORTED_TARGET plplot)
 pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb)
+pkg_check_modules(JPEG REQUIRED IMPORTED_TARGET libjpeg)
 find_package(OpenMP REQUIRED COMPONENTS C)
 find_library(FFTW3F_OMP fftw3f_omp)
 find_library(MATH_LIB m)
@@ -22,7 +23,7 @@ endif()
 
 add_library(rpiv_deps INTERFACE)
 target_link_libraries(rpiv_deps INTERFACE PkgConfig::FFTW3F PkgConfig::GSL PkgConfig::TIFF
-  PkgConfig::PNG PkgConfig::INIH PkgConfig::NETCDF PkgConfig::PLPLOT PkgConfig::STB
+  PkgConfig::PNG PkgConfig::INIH PkgConfig::NETCDF PkgConfig::PLPLOT PkgConfig::STB PkgConfig::JPEG
   OpenMP::OpenMP_C ${MATH_LIB})
 if(RPIV_MPI)
   target_link_libraries(rpiv_deps INTERFACE MPI::MPI_C)

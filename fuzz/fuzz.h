@@ -20,14 +20,14 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-#define FUZZ_CHECK(cond, ...)                                                                  \
-    do {                                                                                       \
-        if (!(cond)) {                                                                         \
-            fprintf(stderr, "fuzz invariant failed: %s (%s:%d): ", #cond, __FILE__, __LINE__); \
-            fprintf(stderr, __VA_ARGS__);                                                      \
-            fprintf(stderr, "\n");                                                             \
-            abort();                                                                           \
-        }                                                                                      \
+#define FUZZ_CHECK(cond, ...)                                                                      \
+    do {                                                                                           \
+        if (!(cond)) {                                                                             \
+            fprintf(stderr, "fuzz invariant failed: %s (%s:%d): ", #cond, __FILE__, __LINE__);     \
+            fprintf(stderr, __VA_ARGS__);                                                          \
+            fprintf(stderr, "\n");                                                                 \
+            abort();                                                                               \
+        }                                                                                          \
     } while (0)
 
 static char fuzz_scratch[96];
@@ -93,10 +93,9 @@ static inline void fuzz_check_image(const rpiv_image *im, const char *path)
 {
     FUZZ_CHECK(im && im->px, "%s: OK without an image", path);
     FUZZ_CHECK(im->w >= 1 && im->h >= 1, "%s: size %dx%d", path, im->w, im->h);
-    FUZZ_CHECK((uint64_t)im->w * (uint64_t)im->h <= ((uint64_t)1 << 31), "%s: %dx%d", path,
-               im->w, im->h);
-    FUZZ_CHECK((im->bits >= 1 && im->bits <= 16) || im->bits == 32, "%s: bits %d", path,
-               im->bits);
+    FUZZ_CHECK((uint64_t)im->w * (uint64_t)im->h <= ((uint64_t)1 << 31), "%s: %dx%d", path, im->w,
+               im->h);
+    FUZZ_CHECK((im->bits >= 1 && im->bits <= 16) || im->bits == 32, "%s: bits %d", path, im->bits);
     /* integer sources keep their levels: 0 .. 2^bits - 1 (luminance may round up a hair) */
     double top = im->bits <= 16 ? ldexp(1.0, im->bits) - 1.0 : (double)3.4e38f;
     size_t n = (size_t)im->w * (size_t)im->h;
@@ -104,8 +103,8 @@ static inline void fuzz_check_image(const rpiv_image *im, const char *path)
         double v = (double)im->px[i];
         FUZZ_CHECK(isfinite(v), "%s: pixel %zu is %g", path, i, v);
         if (im->bits <= 16)
-            FUZZ_CHECK(v >= 0 && v <= top * (1 + 1e-6), "%s: pixel %zu = %g outside 0..%g",
-                       path, i, v, top);
+            FUZZ_CHECK(v >= 0 && v <= top * (1 + 1e-6), "%s: pixel %zu = %g outside 0..%g", path, i,
+                       v, top);
     }
 }
 

@@ -37,8 +37,8 @@ static inline void fuzz_load_page(const char *path, int page)
         fuzz_check_image(im, path);
         FUZZ_CHECK(warned == 0 || warned == 1, "%s: warned = %d", path, warned);
         rpiv_image_stats s = rpiv_image_stats_of(im);
-        FUZZ_CHECK(isfinite(s.mean) && s.min <= s.mean && s.mean <= s.max,
-                   "%s: stats %g %g %g", path, s.min, s.mean, s.max);
+        FUZZ_CHECK(isfinite(s.mean) && s.min <= s.mean && s.mean <= s.max, "%s: stats %g %g %g",
+                   path, s.min, s.mean, s.max);
     } else {
         FUZZ_CHECK(im == NULL, "%s: failure left an image", path);
         fuzz_check_failure(st, path);
@@ -75,8 +75,8 @@ static inline int fuzz_image_input(const uint8_t *data, size_t size, rpiv_image_
             fuzz_load_page(path, np - 1);
         rpiv_image *im = NULL;
         st = rpiv_image_load(path, np, &im, NULL);
-        FUZZ_CHECK(st == RPIV_EINVAL && im == NULL, "%s: page %d of %d: status %d", path, np,
-                   np, (int)st);
+        FUZZ_CHECK(st == RPIV_EINVAL && im == NULL, "%s: page %d of %d: status %d", path, np, np,
+                   (int)st);
         fuzz_check_failure(st, path);
     }
     return 0;

@@ -58,8 +58,8 @@ static void load(const rpiv_pairs *p, size_t i)
     if (st == RPIV_OK) {
         fuzz_check_image(a, s->path_a);
         fuzz_check_image(b, s->path_b ? s->path_b : s->path_a);
-        FUZZ_CHECK(a->w == b->w && a->h == b->h, "pair %zu: %dx%d vs %dx%d", i, a->w, a->h,
-                   b->w, b->h);
+        FUZZ_CHECK(a->w == b->w && a->h == b->h, "pair %zu: %dx%d vs %dx%d", i, a->w, a->h, b->w,
+                   b->h);
     } else {
         FUZZ_CHECK(a == NULL && b == NULL, "pair %zu: failure left an image", i);
         const char *m = rpiv_errmsg();

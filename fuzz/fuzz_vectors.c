@@ -12,8 +12,8 @@
 static void check_field(const rpiv_field *f, const char *path)
 {
     FUZZ_CHECK(f->nx >= 1 && f->ny >= 1, "%s: grid %dx%d", path, f->nx, f->ny);
-    FUZZ_CHECK(isfinite(f->x0) && isfinite(f->y0) && f->dx > 0 && f->dy > 0 &&
-                   isfinite(f->dx) && isfinite(f->dy),
+    FUZZ_CHECK(isfinite(f->x0) && isfinite(f->y0) && f->dx > 0 && f->dy > 0 && isfinite(f->dx) &&
+                   isfinite(f->dy),
                "%s: origin (%g, %g) step (%g, %g)", path, f->x0, f->y0, f->dx, f->dy);
     FUZZ_CHECK(isfinite(f->scale_mm_per_px) && f->scale_mm_per_px >= 0 && isfinite(f->dt_s) &&
                    f->dt_s >= 0,
@@ -38,8 +38,8 @@ static void round_trip(const rpiv_field *f)
     rpiv_field *g = NULL;
     st = rpiv_field_load_txt(path, &g);
     FUZZ_CHECK(st == RPIV_OK, "reload: %s", rpiv_errmsg());
-    FUZZ_CHECK(g->nx == f->nx && g->ny == f->ny, "grid %dx%d back as %dx%d", f->nx, f->ny,
-               g->nx, g->ny);
+    FUZZ_CHECK(g->nx == f->nx && g->ny == f->ny, "grid %dx%d back as %dx%d", f->nx, f->ny, g->nx,
+               g->ny);
     FUZZ_CHECK(fabs(g->x0 - f->x0) <= 1e-9 * ext && fabs(g->y0 - f->y0) <= 1e-9 * ext,
                "origin (%.17g, %.17g) back as (%.17g, %.17g)", f->x0, f->y0, g->x0, g->y0);
     size_t n = (size_t)f->nx * (size_t)f->ny;
@@ -89,8 +89,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FUZZ_CHECK(p->n >= 2, "%zu points", p->n);
         for (size_t i = 0; i < p->n; i++) {
             FUZZ_CHECK(isfinite(p->alpha[i]) && isfinite(p->value[i]), "point %zu", i);
-            FUZZ_CHECK(i == 0 || p->alpha[i] > p->alpha[i - 1], "alpha not increasing at %zu",
-                       i);
+            FUZZ_CHECK(i == 0 || p->alpha[i] > p->alpha[i - 1], "alpha not increasing at %zu", i);
         }
         /* compared with itself: every sample is used, the difference is rounding at most */
         double vmax = 0;
@@ -100,8 +99,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (rpiv_profile_compare(p, p, &r) == RPIV_OK)
             FUZZ_CHECK(r.n == p->n && isfinite(r.e1) && r.e1 >= 0 && r.rms <= 1e-12 * vmax &&
                            r.max_abs <= 1e-12 * vmax,
-                       "self-comparison: n %zu of %zu, E1 %g RMS %g max %g (values up to %g)",
-                       r.n, p->n, r.e1, r.rms, r.max_abs, vmax);
+                       "self-comparison: n %zu of %zu, E1 %g RMS %g max %g (values up to %g)", r.n,
+                       p->n, r.e1, r.rms, r.max_abs, vmax);
         rpiv_profile_free(p);
     } else {
         FUZZ_CHECK(p == NULL, "failure left a profile");

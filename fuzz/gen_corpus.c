@@ -91,9 +91,9 @@ static void tiff_page(TIFF *t, const tspec *s, int page)
                                 else
                                     ((uint16_t *)buf)[k] = (uint16_t)v;
                             }
-                    if (TIFFWriteEncodedTile(t, TIFFComputeTile(t, (uint32_t)x0, (uint32_t)y0, 0,
-                                                                (uint16_t)p),
-                                             buf, ts) < 0)
+                    if (TIFFWriteEncodedTile(
+                            t, TIFFComputeTile(t, (uint32_t)x0, (uint32_t)y0, 0, (uint16_t)p), buf,
+                            ts) < 0)
                         die("tile write");
                 }
         free(buf);
@@ -162,8 +162,8 @@ static void pngw(const pspec *s)
     if (!f || !png || !info || setjmp(png_jmpbuf(png)))
         die(s->name);
     png_init_io(png, f);
-    png_set_IHDR(png, info, (png_uint_32)s->w, (png_uint_32)s->h, s->depth, s->ctype,
-                 s->interlace, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_IHDR(png, info, (png_uint_32)s->w, (png_uint_32)s->h, s->depth, s->ctype, s->interlace,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_color pal[256];
     if (s->ctype == PNG_COLOR_TYPE_PALETTE) {
         for (int i = 0; i < s->npal; i++)
@@ -181,9 +181,10 @@ static void pngw(const pspec *s)
     int nch = png_get_channels(png, info);
     size_t rowbytes = png_get_rowbytes(png, info);
     unsigned char *row = calloc(1, rowbytes);
-    unsigned maxv = s->ctype == PNG_COLOR_TYPE_PALETTE ? (s->npal == 3 ? 7u : (unsigned)s->npal - 1u)
-                    : s->depth == 16                  ? 65535u
-                                                      : (1u << s->depth) - 1u;
+    unsigned maxv = s->ctype == PNG_COLOR_TYPE_PALETTE
+                        ? (s->npal == 3 ? 7u : (unsigned)s->npal - 1u)
+                    : s->depth == 16 ? 65535u
+                                     : (1u << s->depth) - 1u;
     int passes = s->interlace ? png_set_interlace_handling(png) : 1;
     for (int pass = 0; pass < passes; pass++)
         for (int y = 0; y < s->h; y++) {
@@ -295,8 +296,8 @@ static void bmp(const char *name, int w, int h, int bpp, int rle)
 {
     int ah = h < 0 ? -h : h, npal = bpp <= 8 ? 1 << bpp : 0;
     size_t rowbytes = ((size_t)w * bpp + 31) / 32 * 4;
-    size_t off = 54 + 4 * (size_t)npal, datasz = rle ? (size_t)ah * ((size_t)w * 2 + 2) + 2
-                                                     : rowbytes * (size_t)ah;
+    size_t off = 54 + 4 * (size_t)npal,
+           datasz = rle ? (size_t)ah * ((size_t)w * 2 + 2) + 2 : rowbytes * (size_t)ah;
     unsigned char *b = calloc(1, off + datasz);
     b[0] = 'B';
     b[1] = 'M';
@@ -363,13 +364,13 @@ int main(int argc, char **argv)
         {"g8_deflate.tif", "w", 16, 8, 8, 1, U, MB, C, COMPRESSION_ADOBE_DEFLATE, 3, 0, 0, 0, 0},
         {"g8_packbits.tif", "w", 16, 8, 8, 1, U, MB, C, COMPRESSION_PACKBITS, 8, 0, 0, 0, 0},
         {"g16_tiled.tif", "w", 20, 18, 16, 1, U, MB, C, N, 0, 16, 0, 0, 0},
-        {"rgb8_tiled_lzw.tif", "w", 17, 17, 8, 3, U, PHOTOMETRIC_RGB, C, COMPRESSION_LZW, 0, 16,
-         0, 0, 0},
+        {"rgb8_tiled_lzw.tif", "w", 17, 17, 8, 3, U, PHOTOMETRIC_RGB, C, COMPRESSION_LZW, 0, 16, 0,
+         0, 0},
         {"pal8.tif", "w", 12, 6, 8, 1, U, PHOTOMETRIC_PALETTE, C, N, 6, 0, 0, 0, 0},
         {"pal4.tif", "w", 9, 4, 4, 1, U, PHOTOMETRIC_PALETTE, C, N, 4, 0, 0, 0, 0},
         {"rgb8.tif", "w", 7, 5, 8, 3, U, PHOTOMETRIC_RGB, C, N, 5, 0, 0, 0, 0},
-        {"rgb16_planar.tif", "w", 6, 4, 16, 3, U, PHOTOMETRIC_RGB, PLANARCONFIG_SEPARATE, N, 2,
-         0, 0, 0, 0},
+        {"rgb16_planar.tif", "w", 6, 4, 16, 3, U, PHOTOMETRIC_RGB, PLANARCONFIG_SEPARATE, N, 2, 0,
+         0, 0, 0},
         {"rgba8.tif", "w", 6, 3, 8, 4, U, PHOTOMETRIC_RGB, C, N, 3, 0, 0, 1, 0},
         {"ga8.tif", "w", 6, 3, 8, 2, U, MB, C, N, 3, 0, 0, 1, 0},
         {"gx8_unspecified.tif", "w", 6, 3, 8, 3, U, MB, C, N, 3, 0, 0, 2, 0},

@@ -26,8 +26,8 @@ struct rpiv_batch {
     const rpiv_pairs *pairs;
     const rpiv_mpi *mpi;
     rpiv_batch_params p;
-    char *ckpt;             /* this rank's checkpoint path, NULL = none         */
-    unsigned char *state;   /* pairs->n entries                                 */
+    char *ckpt;           /* this rank's checkpoint path, NULL = none         */
+    unsigned char *state; /* pairs->n entries                                 */
     size_t *skipped, nskipped;
     int resumed, resume_pass;
     size_t resume_done, npairs_last;
@@ -57,8 +57,8 @@ void rpiv_batch_free(rpiv_batch *b)
     free(b);
 }
 
-rpiv_status rpiv_batch_new(const rpiv_pairs *pairs, const rpiv_batch_params *p,
-                           const rpiv_mpi *mpi, rpiv_batch **out)
+rpiv_status rpiv_batch_new(const rpiv_pairs *pairs, const rpiv_batch_params *p, const rpiv_mpi *mpi,
+                           rpiv_batch **out)
 {
     *out = NULL;
     rpiv_batch_params def = rpiv_batch_params_default();
@@ -154,8 +154,8 @@ static rpiv_status sync_bad(rpiv_batch *b)
 {
     size_t n = b->pairs->n, k = 0;
     unsigned char *bad = malloc(n);
-    rpiv_status st = rpiv_mpi_agree(b->mpi, bad ? RPIV_OK
-                                                : rpiv_fail(RPIV_ENOMEM, "batch: out of memory"));
+    rpiv_status st =
+        rpiv_mpi_agree(b->mpi, bad ? RPIV_OK : rpiv_fail(RPIV_ENOMEM, "batch: out of memory"));
     if (st)
         goto out_free;
     for (size_t i = 0; i < n; i++)
@@ -168,7 +168,7 @@ static rpiv_status sync_bad(rpiv_batch *b)
     }
     size_t *list = k ? malloc(k * sizeof *list) : NULL;
     if ((st = rpiv_mpi_agree(b->mpi, k && !list ? rpiv_fail(RPIV_ENOMEM, "batch: out of memory")
-                                                 : RPIV_OK))) {
+                                                : RPIV_OK))) {
         free(list);
         goto out_free;
     }
@@ -226,8 +226,8 @@ static rpiv_status share_of(const rpiv_batch *b, rpiv_pairs *view, size_t *idx)
 /* After rpiv_piv_background failed on a view with `st` (message current): find the first pair
  * of the view that cannot be read. Returns its position, or view->n if every pair reads (then
  * the original failure stands); *err is the pair's own failure (message current). */
-static size_t find_bad(const rpiv_batch *b, const rpiv_pairs *view, const size_t *idx, int w,
-                       int h, rpiv_status *err)
+static size_t find_bad(const rpiv_batch *b, const rpiv_pairs *view, const size_t *idx, int w, int h,
+                       rpiv_status *err)
 {
     char keep[1024];
     rpiv_status orig = *err;
@@ -247,14 +247,13 @@ static size_t find_bad(const rpiv_batch *b, const rpiv_pairs *view, const size_t
 }
 
 /* Combine the ranks' backgrounds of n_r pairs each (ga, gb: this rank's, NULL if n_r = 0). */
-static rpiv_status combine_background(rpiv_batch *b, rpiv_background kind, int w, int h,
-                                      size_t nr, rpiv_image **ga, rpiv_image **gb)
+static rpiv_status combine_background(rpiv_batch *b, rpiv_background kind, int w, int h, size_t nr,
+                                      rpiv_image **ga, rpiv_image **gb)
 {
     size_t total = nr, n = (size_t)w * (size_t)h;
     rpiv_status st = mpi_sum_size(b->mpi, &total);
     if (!st && !total)
-        st = rpiv_fail(RPIV_EIO, "piv.background: none of the %zu pairs can be read",
-                       b->pairs->n);
+        st = rpiv_fail(RPIV_EIO, "piv.background: none of the %zu pairs can be read", b->pairs->n);
     if (st)
         return st;
     rpiv_image **g[2] = {ga, gb};
@@ -313,8 +312,7 @@ rpiv_status rpiv_batch_background(rpiv_batch *b, rpiv_background kind, int w, in
         st = RPIV_OK;
     }
     if (!st && rpiv_mpi_size(b->mpi) == 1 && !view.n)
-        st = rpiv_fail(RPIV_EIO, "piv.background: none of the %zu pairs can be read",
-                       b->pairs->n);
+        st = rpiv_fail(RPIV_EIO, "piv.background: none of the %zu pairs can be read", b->pairs->n);
 out_agree:
     st = rpiv_mpi_agree(b->mpi, st);
     if (!st)
@@ -383,8 +381,8 @@ static void ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
              pp->pair[pp->n - 1].path_a);
     char win[256] = "";
     for (int k = 0; k < p->npass; k++)
-        snprintf(win + strlen(win), sizeof win - strlen(win), "%s%dx%d", k ? "," : "",
-                 p->win_w[k], p->win_h[k]);
+        snprintf(win + strlen(win), sizeof win - strlen(win), "%s%dx%d", k ? "," : "", p->win_w[k],
+                 p->win_h[k]);
     snprintf(id->plan, sizeof id->plan,
              "%dx%d frames, windows %.100s, overlap %.15g, step %d px, subpixel %s, median %.15g "
              "(eps %.15g px), deform %d, background %s, roi %d,%d,%d,%d, mask %.300s",
@@ -482,8 +480,7 @@ static rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, i
     if (pred) {
         size_t n = (size_t)pred->nx * (size_t)pred->ny;
         int32_t dims[2] = {pred->nx, pred->ny};
-        double g[6] = {pred->x0, pred->y0, pred->dx, pred->dy, pred->scale_mm_per_px,
-                       pred->dt_s};
+        double g[6] = {pred->x0, pred->y0, pred->dx, pred->dy, pred->scale_mm_per_px, pred->dt_s};
         put(&io, dims, sizeof dims);
         put(&io, g, sizeof g);
         put(&io, pred->u, n * sizeof *pred->u);
@@ -543,24 +540,25 @@ static rpiv_status ck_missing(const rpiv_batch *b, const char *user_path)
     char other[4200];
     if (rpiv_mpi_size(b->mpi) > 1) {
         if (exists(user_path))
-            return rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of a one-process run; this run has "
-                             "%d ranks (resume it without mpirun)", user_path,
-                             rpiv_mpi_size(b->mpi));
+            return rpiv_fail(RPIV_EFORMAT,
+                             "%s: checkpoint of a one-process run; this run has "
+                             "%d ranks (resume it without mpirun)",
+                             user_path, rpiv_mpi_size(b->mpi));
         return RPIV_OK;
     }
     snprintf(other, sizeof other, "%s.rank0", user_path);
     if (exists(other))
-        return rpiv_fail(RPIV_EFORMAT, "%s: no such checkpoint, but %s is one of a run with "
-                         "several MPI ranks (resume it with the same mpirun -np)", user_path,
-                         other);
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: no such checkpoint, but %s is one of a run with "
+                         "several MPI ranks (resume it with the same mpirun -np)",
+                         user_path, other);
     return RPIV_OK;
 }
 
 /* Read this rank's checkpoint: *found = 0 if there is none; else its pass, predictor (NULL in
  * pass 0), an accumulator holding its sums, and the pair states. */
-static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
-                           const char *user_path, int *found, int *pass, rpiv_field **pred,
-                           rpiv_ensemble **e)
+static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id, const char *user_path,
+                           int *found, int *pass, rpiv_field **pred, rpiv_ensemble **e)
 {
     *found = 0;
     *pred = NULL;
@@ -583,20 +581,23 @@ static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
         goto out_fail;
     }
     if (hd.nranks != K || hd.rank != r) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of rank %d of a %d-rank run; this is rank "
-                       "%d of %d (resume with mpirun -np %d)", path, hd.rank, hd.nranks, r, K,
-                       hd.nranks);
+        st = rpiv_fail(RPIV_EFORMAT,
+                       "%s: checkpoint of rank %d of a %d-rank run; this is rank "
+                       "%d of %d (resume with mpirun -np %d)",
+                       path, hd.rank, hd.nranks, r, K, hd.nranks);
         goto out_fail;
     }
     if (hd.npairs != b->pairs->n || hd.series_hash != id->series_hash) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of another series of pairs (%s); this "
-                       "run has %s", path, hd.series, id->series);
+        st = rpiv_fail(RPIV_EFORMAT,
+                       "%s: checkpoint of another series of pairs (%s); this "
+                       "run has %s",
+                       path, hd.series, id->series);
         goto out_fail;
     }
     if (hd.plan_hash != id->plan_hash || hd.npass != rpiv_piv_npass(pv)) {
         st = rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of another plan (%s); this run: %s%s", path,
-                       hd.plan, id->plan, strcmp(hd.plan, id->plan) ? ""
-                       : " (the mask or background frames differ)");
+                       hd.plan, id->plan,
+                       strcmp(hd.plan, id->plan) ? "" : " (the mask or background frames differ)");
         goto out_fail;
     }
     if (hd.pass < 0 || hd.pass >= hd.npass || hd.has_pred != (hd.pass > 0)) {
@@ -629,8 +630,8 @@ static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
     size_t nsums;
     float *sums = rpiv_ensemble_data(*e, &nsums);
     if (nsums != hd.nsums) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (%llu sums, the plan has %zu)",
-                       path, (unsigned long long)hd.nsums, nsums);
+        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (%llu sums, the plan has %zu)", path,
+                       (unsigned long long)hd.nsums, nsums);
         goto out_fail;
     }
     if (!get(&io, sums, nsums * sizeof *sums))
@@ -663,9 +664,8 @@ out_fail:
 
 /* Resume from the ranks' checkpoints (collective): *pass0 the pass to continue, *pred its
  * predictor and *e this rank's sums (NULL if this rank starts the pass afresh). */
-static rpiv_status resume(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
-                          const char *user_path, int *pass0, rpiv_field **pred,
-                          rpiv_ensemble **e)
+static rpiv_status resume(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id, const char *user_path,
+                          int *pass0, rpiv_field **pred, rpiv_ensemble **e)
 {
     const rpiv_mpi *m = b->mpi;
     int found = 0, pass = -1, r = rpiv_mpi_rank(m), K = rpiv_mpi_size(m);
@@ -678,8 +678,10 @@ static rpiv_status resume(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
     if (top < 0)
         return RPIV_OK; /* no checkpoint anywhere: begin */
     if (!found && top > 0)
-        st = rpiv_fail(RPIV_EFORMAT, "%s: missing, while the other ranks' checkpoints are in "
-                       "pass %ld", b->ckpt, top + 1);
+        st = rpiv_fail(RPIV_EFORMAT,
+                       "%s: missing, while the other ranks' checkpoints are in "
+                       "pass %ld",
+                       b->ckpt, top + 1);
     if ((st = rpiv_mpi_agree(m, st)))
         goto out_fail;
     /* a rank one pass behind (killed before it saved the new pass) starts that pass afresh
@@ -755,8 +757,10 @@ static rpiv_status stop_with_checkpoint(const rpiv_batch *b, const ck_ident *id,
         snprintf(cmsg, sizeof cmsg, "%s", rpiv_errmsg());
         return rpiv_fail(st, "%s (and the checkpoint: %s)", msg, cmsg);
     }
-    return rpiv_fail(st, "%s; checkpoint %s saved (pass %d, %zu pair%s summed there by this "
-                     "process)", msg, b->ckpt, pass + 1, rpiv_ensemble_npairs(e),
+    return rpiv_fail(st,
+                     "%s; checkpoint %s saved (pass %d, %zu pair%s summed there by this "
+                     "process)",
+                     msg, b->ckpt, pass + 1, rpiv_ensemble_npairs(e),
                      rpiv_ensemble_npairs(e) == 1 ? "" : "s");
 }
 
@@ -798,8 +802,17 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
     for (size_t i = 0; i < N; i++)
         b->state[i] &= BAD;
     b->resumed = 0;
-    if (b->ckpt)
+    if (b->ckpt) {
         remove_stale(b->ckpt);
+        /* an interrupted run's checkpoint is not overwritten by a new run by mistake */
+        if (!b->p.resume && exists(b->ckpt))
+            st = rpiv_fail(RPIV_EINVAL,
+                           "%s: a checkpoint is already there: continue it (rpiv piv "
+                           "--resume) or remove it to start again",
+                           b->ckpt);
+        if ((st = rpiv_mpi_agree(m, st)))
+            return st;
+    }
     if (b->ckpt && b->p.resume && (st = resume(b, pv, &id, user_path, &pass0, &pred, &e)))
         return st;
     size_t nmine = 0, done = 0;
@@ -831,8 +844,10 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
                 since = 0;
             }
             if (!st && rpiv_progress_report(progress, ++done, total))
-                st = rpiv_fail(RPIV_EINTR, "ensemble: interrupted in pass %d after %zu of "
-                               "%zu pairs", k + 1, i / K + 1, nmine);
+                st = rpiv_fail(RPIV_EINTR,
+                               "ensemble: interrupted in pass %d after %zu of "
+                               "%zu pairs",
+                               k + 1, i / K + 1, nmine);
         }
         if ((st = rpiv_mpi_agree(m, st))) {
             if (b->ckpt && saved_ok)
@@ -880,8 +895,8 @@ static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **
     return st;
 }
 
-rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_piv_sink local,
-                              rpiv_piv_sink root, void *user, const rpiv_progress *progress)
+rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_piv_sink local, rpiv_piv_sink root,
+                              void *user, const rpiv_progress *progress)
 {
     const rpiv_mpi *m = b->mpi;
     size_t N = b->pairs->n, K = (size_t)rpiv_mpi_size(m), r = (size_t)rpiv_mpi_rank(m);

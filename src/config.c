@@ -68,8 +68,8 @@ static const key_spec keys[] = {
     /* [particles] */
     {"particles", "diameter_um", KEY_DOUBLE, OFF(particles.dp_m), 0.01, 10000, 1e-6, "um",
      "mean particle diameter d_p", 0},
-    {"particles", "diameter_spread_um", KEY_DOUBLE, OFF(particles.dp_sigma_m), 0, 10000, 1e-6,
-     "um", "half-range of the uniform diameter distribution (d_p +- spread)", 0},
+    {"particles", "diameter_spread_um", KEY_DOUBLE, OFF(particles.dp_sigma_m), 0, 10000, 1e-6, "um",
+     "half-range of the uniform diameter distribution (d_p +- spread)", 0},
     {"particles", "density_ppp", KEY_DOUBLE, OFF(particles.density_ppp), 0, 1, 1, "1/px",
      "particle images per pixel (all heights)", 0},
     /* [channel] */
@@ -112,8 +112,7 @@ static const key_spec keys[] = {
      "inclination theta_p of the inclined face", 0},
     {"prism", "thickness_mm", KEY_DOUBLE, OFF(prism.thickness_m), 0.1, 10000, 1e-3, "mm",
      "block thickness: beam entry point to floor along the face normal", 0},
-    {"prism", "n_pmma", KEY_DOUBLE, OFF(prism.n_pmma), 1, 4, 1, "-", "refractive index of PMMA",
-     0},
+    {"prism", "n_pmma", KEY_DOUBLE, OFF(prism.n_pmma), 1, 4, 1, "-", "refractive index of PMMA", 0},
     {"prism", "n_water", KEY_DOUBLE, OFF(prism.n_water), 1, 4, 1, "-",
      "refractive index of the fluid", 0},
     {"prism", "n_air", KEY_DOUBLE, OFF(prism.n_air), 1, 4, 1, "-", "refractive index of air", 0},
@@ -123,7 +122,8 @@ static const key_spec keys[] = {
     {"sheet", "zb", KEY_DOUBLE, OFF(sheet.zb_star), -10, 10, 1, "h", "gauss: centre z*_B", 0},
     {"sheet", "thickness", KEY_DOUBLE, OFF(sheet.e_star), 1e-4, 100, 1, "h",
      "gauss: thickness e* at a quarter of the maximum", 0},
-    {"sheet", "e0", KEY_DOUBLE, OFF(sheet.e0), 0, 100, 1, "h", "selfsim: e*(x*) = e0 + e1 x*", 0},
+    {"sheet", "e0", KEY_DOUBLE, OFF(sheet.e0), -100, 100, 1, "h", "selfsim: e*(x*) = e0 + e1 x*",
+     0},
     {"sheet", "e1", KEY_DOUBLE, OFF(sheet.e1), -10, 10, 1, "-", "selfsim: thickness growth", 0},
     {"sheet", "zm0", KEY_DOUBLE, OFF(sheet.zm0), -10, 10, 1, "h",
      "selfsim: z*_max(x*) = zm0 + zm1 x*", 0},
@@ -136,10 +136,9 @@ static const key_spec keys[] = {
     /* [piv] */
     {"piv", "windows", KEY_WINDOWS, OFF(piv), 0, 0, 1, "px",
      "window size per pass, e.g. 64,32,32 or 64x48,32", 0},
-    {"piv", "overlap", KEY_DOUBLE, OFF(piv.overlap), 0, 0.95, 1, "-", "window overlap fraction",
+    {"piv", "overlap", KEY_DOUBLE, OFF(piv.overlap), 0, 0.95, 1, "-", "window overlap fraction", 0},
+    {"piv", "step_px", KEY_INT, OFF(piv.step_px), 0, 1024, 1, "px", "grid step (0 = from overlap)",
      0},
-    {"piv", "step_px", KEY_INT, OFF(piv.step_px), 0, 1024, 1, "px",
-     "grid step (0 = from overlap)", 0},
     {"piv", "ensemble", KEY_BOOL, OFF(piv.ensemble), 0, 1, 1, "-",
      "sum of correlation over all pairs", 0},
     {"piv", "subpixel", KEY_ENUM, OFF(piv.subpixel), 0, 0, 1, "-",
@@ -177,8 +176,7 @@ static const key_spec keys[] = {
      "constant background", 0},
     {"synth", "read_noise", KEY_DOUBLE, OFF(synth.read_noise), 0, 1e9, 1, "counts",
      "Gaussian read noise (sigma)", 0},
-    {"synth", "shot_noise", KEY_BOOL, OFF(synth.shot_noise), 0, 1, 1, "-", "Poisson shot noise",
-     0},
+    {"synth", "shot_noise", KEY_BOOL, OFF(synth.shot_noise), 0, 1, 1, "-", "Poisson shot noise", 0},
     {"synth", "margin_px", KEY_DOUBLE, OFF(synth.margin_px), 0, 1024, 1, "px",
      "particles placed this far outside the image too", 0},
     {"synth", "w", KEY_DOUBLE, OFF(synth.w_star), -1, 1, 1, "h",
@@ -187,7 +185,8 @@ static const key_spec keys[] = {
      "write frame A above frame B in one file", 0},
     {"synth", "flow", KEY_STRING, OFF(synth.flow), 0, 0, 1, "spec",
      "flow in px: uniform:U,V; duct[:A]; poiseuille[:A]; poiseuille-y:A; oseen:A,RC[,CX,CY]; "
-     "sine:A,L (rpiv synth --help)", 0},
+     "sine:A,L (rpiv synth --help)",
+     0},
     {"synth", "truth_z", KEY_DOUBLE, OFF(synth.truth_z), -1, 1, 1, "h",
      "z* of the ground truth of z-dependent flows (< 0: the sheet's peak)", 0},
     {"synth", "pz_profile", KEY_STRING, OFF(synth.pz_profile), 0, 0, 1, "path",
@@ -531,8 +530,9 @@ rpiv_status rpiv_config_write_doc(FILE *fp)
         const key_spec *k = &keys[i];
         if (strcmp(sec, k->section)) {
             sec = k->section;
-            fprintf(fp, "\n### [%s]\n\n| key | unit | default | accepted | meaning |\n"
-                        "|---|---|---|---|---|\n",
+            fprintf(fp,
+                    "\n### [%s]\n\n| key | unit | default | accepted | meaning |\n"
+                    "|---|---|---|---|---|\n",
                     sec);
         }
         range_text(k, range, sizeof range);

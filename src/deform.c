@@ -114,7 +114,8 @@ static void prefilter_cols(float *img, int w, int h, int i0, int i1)
     }
     float *last = img + (size_t)(h - 1) * sw + i0, *before = last - sw;
     for (int i = 0; i < nb; i++)
-        cn[i] = (float)((POLE / (POLE * POLE - 1.0)) * ((double)last[i] + POLE * (double)before[i]));
+        cn[i] =
+            (float)((POLE / (POLE * POLE - 1.0)) * ((double)last[i] + POLE * (double)before[i]));
     for (int i = 0; i < nb; i++)
         last[i] = cn[i];
     for (int k = h - 2; k >= 0; k--) {
@@ -247,14 +248,14 @@ float rpiv_deform_sample(const float *coef, int w, int h, double x, double y, fl
 /* ---- predictor ----------------------------------------------------------------------------- */
 
 struct rpiv_deform_pred {
-    int nx, ny;         /* padded grid size (field + 2 * PAD) */
+    int nx, ny; /* padded grid size (field + 2 * PAD) */
     double x0, y0, dx, dy;
-    float *cu, *cv;     /* spline coefficients, ny x nx */
-    int w, h;           /* image size */
-    double shift;       /* rows and columns evaluated at pixel + shift */
-    float maxabs;       /* largest |coefficient|: the interpolant's bound (convex weights) */
-    int *ix, *iy;       /* first tap per pixel column / row */
-    float *wx, *wy;     /* 4 weights per pixel column / row */
+    float *cu, *cv; /* spline coefficients, ny x nx */
+    int w, h;       /* image size */
+    double shift;   /* rows and columns evaluated at pixel + shift */
+    float maxabs;   /* largest |coefficient|: the interpolant's bound (convex weights) */
+    int *ix, *iy;   /* first tap per pixel column / row */
+    float *wx, *wy; /* 4 weights per pixel column / row */
 };
 
 void rpiv_deform_pred_free(rpiv_deform_pred *p)
@@ -403,10 +404,10 @@ void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, floa
     const float *wy = p->wy + 4 * (size_t)y;
     const float *ru = p->cu + (size_t)p->iy[y] * snx, *rv = p->cv + (size_t)p->iy[y] * snx;
     for (size_t k = 0; k < snx; k++) {
-        tu[k] = wy[0] * ru[k] + wy[1] * ru[k + snx] + wy[2] * ru[k + 2 * snx] +
-                wy[3] * ru[k + 3 * snx];
-        tv[k] = wy[0] * rv[k] + wy[1] * rv[k + snx] + wy[2] * rv[k + 2 * snx] +
-                wy[3] * rv[k + 3 * snx];
+        tu[k] =
+            wy[0] * ru[k] + wy[1] * ru[k + snx] + wy[2] * ru[k + 2 * snx] + wy[3] * ru[k + 3 * snx];
+        tv[k] =
+            wy[0] * rv[k] + wy[1] * rv[k + snx] + wy[2] * rv[k + 2 * snx] + wy[3] * rv[k + 3 * snx];
     }
     for (int x = x0; x < x1; x++) {
         const float *wx = p->wx + 4 * (size_t)x, *a = tu + p->ix[x], *b = tv + p->ix[x];
@@ -431,9 +432,9 @@ static inline float sample_inner(const float *c, size_t sw, const spos *p)
     return (acc[0] + acc[1]) + (acc[2] + acc[3]);
 }
 
-void deform_row(const float *coef_a, const float *coef_b, int w, int h,
-                const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
-                float *ra, float *rb, float *scratch)
+void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rpiv_deform_pred *p,
+                int x0, int x1, int y, float fill_a, float fill_b, float *ra, float *rb,
+                float *scratch)
 {
     const size_t nw = (size_t)(x1 - x0);
     const float c = (float)p->shift;
@@ -474,8 +475,8 @@ rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int
 {
     int x0 = rect[0], y0 = rect[1], x1 = rect[2], y1 = rect[3];
     if (x0 < 0 || y0 < 0 || x1 > w || y1 > h || x0 >= x1 || y0 >= y1 || p->w != w || p->h != h)
-        return rpiv_fail(RPIV_EINVAL, "deform: rectangle %d,%d,%d,%d outside the %dx%d image",
-                         x0, y0, x1, y1, w, h);
+        return rpiv_fail(RPIV_EINVAL, "deform: rectangle %d,%d,%d,%d outside the %dx%d image", x0,
+                         y0, x1, y1, w, h);
     int nt = nthr(nthreads);
     size_t per = deform_row_scratch(p, x0, x1);
     float *scr = malloc((size_t)nt * per * sizeof *scr);

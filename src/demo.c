@@ -240,6 +240,13 @@ static void ctx_free(demo_ctx *c)
         free(arrays[k]);
 }
 
+/* The steps in their order; the image band is set up first and counted with step 2 (flow,
+ * mask, grid). */
+typedef rpiv_status (*step_fn)(demo_ctx *);
+static const step_fn steps[] = {demo_geometry, demo_optics,  demo_flow,  demo_ppiv,
+                                demo_rpiv,     demo_compare, demo_report};
+static const int step_of[] = {1, 0, 1, 2, 3, 4, 5};
+
 /* The snapshots: p->snap below N, then N itself. */
 static void snapshots(demo_ctx *c)
 {
@@ -284,10 +291,6 @@ rpiv_status rpiv_demo_run(const rpiv_experiment *e, const rpiv_demo_params *p, c
         goto out_free;
 
     double t0 = now_s(), t;
-    rpiv_status (*const steps[])(demo_ctx *) = {demo_geometry, demo_optics,  demo_flow,  demo_ppiv,
-                                                demo_rpiv,     demo_compare, demo_report};
-    /* the image band is set up first, counted with step 2 (flow, mask, grid) */
-    const int step_of[] = {1, 0, 1, 2, 3, 4, 5};
     for (size_t k = 0; k < sizeof steps / sizeof steps[0]; k++) {
         t = now_s();
         if ((st = steps[k](c)))

@@ -17,13 +17,13 @@
 struct rpiv_ensemble {
     rpiv_piv *pv;
     int pass;
-    rpiv_field *predictor;   /* copy, NULL for none */
-    rpiv_deform_pred *pred;  /* its interpolant     */
+    rpiv_field *predictor;  /* copy, NULL for none */
+    rpiv_deform_pred *pred; /* its interpolant     */
     uint64_t pred_hash;
-    size_t plane;            /* floats per plane    */
+    size_t plane; /* floats per plane    */
     size_t nwin;
-    size_t n;                /* floats in data      */
-    float *data;             /* planes, then energies */
+    size_t n;    /* floats in data      */
+    float *data; /* planes, then energies */
     size_t npairs;
 };
 
@@ -71,9 +71,10 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
     size_t plane = (size_t)ps->ww * (size_t)ps->wh, n = ps->nwin * (plane + 2);
     double mb = ((double)pv->bytes + (double)n * sizeof(float)) / 1048576.0;
     if (mb > pv->p.max_mem_mb)
-        return rpiv_fail(RPIV_ELIMIT, "ensemble: pass %d needs %.0f MB (%zu correlation planes of "
-                         "%dx%d and the frames), above piv.max_mem_mb = %g", pass + 1, mb,
-                         ps->nwin, ps->ww, ps->wh, pv->p.max_mem_mb);
+        return rpiv_fail(RPIV_ELIMIT,
+                         "ensemble: pass %d needs %.0f MB (%zu correlation planes of "
+                         "%dx%d and the frames), above piv.max_mem_mb = %g",
+                         pass + 1, mb, ps->nwin, ps->ww, ps->wh, pv->p.max_mem_mb);
     rpiv_ensemble *e = calloc(1, sizeof *e);
     if (!e)
         return rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory");
@@ -118,7 +119,8 @@ static void add_plane(void *ctx, const rpiv_xcorr_work *ws, size_t win, double e
 rpiv_status rpiv_ensemble_add(rpiv_ensemble *e, const rpiv_image *a, const rpiv_image *b)
 {
     rpiv_status st;
-    if ((st = rpiv_piv_load(e->pv, a, b)) || (st = piv_pass_run(e->pv, e->pass, e->pred, add_plane, e)))
+    if ((st = rpiv_piv_load(e->pv, a, b)) ||
+        (st = piv_pass_run(e->pv, e->pass, e->pred, add_plane, e)))
         return st;
     e->npairs++;
     return RPIV_OK;
@@ -136,7 +138,7 @@ rpiv_status rpiv_ensemble_merge(rpiv_ensemble *dst, const rpiv_ensemble *src)
 {
     if (!same_layout(dst, src))
         return rpiv_fail(RPIV_EINVAL, "ensemble: cannot merge sums of different plans, passes "
-                         "or predictors");
+                                      "or predictors");
     for (size_t i = 0; i < dst->n; i++)
         dst->data[i] += src->data[i];
     dst->npairs += src->npairs;
@@ -186,8 +188,8 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
         }
         double pu, pv_;
         piv_window_shift(ps, &src, win, &pu, &pv_);
-        piv_vector(pv, ps, e->data + win * e->plane, energy[2 * win], energy[2 * win + 1], pu,
-                   pv_, f, win);
+        piv_vector(pv, ps, e->data + win * e->plane, energy[2 * win], energy[2 * win + 1], pu, pv_,
+                   f, win);
     }
     if ((st = piv_validate(pv, f))) {
         rpiv_field_free(f);
@@ -203,7 +205,7 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
 
 typedef struct file_header {
     char magic[8];
-    uint32_t endian;  /* 0x01020304 as written */
+    uint32_t endian; /* 0x01020304 as written */
     int32_t pass, ww, wh, nx, ny, ox, oy, w, h;
     uint64_t npairs, n, pred_hash, data_hash;
 } file_header;
@@ -244,8 +246,8 @@ rpiv_status rpiv_ensemble_save(const rpiv_ensemble *e, const char *path)
         st = rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(errno));
         goto out_free;
     }
-    int bad = fwrite(&hd, sizeof hd, 1, fp) != 1 ||
-              fwrite(e->data, sizeof *e->data, e->n, fp) != e->n;
+    int bad =
+        fwrite(&hd, sizeof hd, 1, fp) != 1 || fwrite(e->data, sizeof *e->data, e->n, fp) != e->n;
     bad |= fflush(fp) != 0 || fsync(fileno(fp)) != 0;
     bad |= fclose(fp) != 0;
     if (bad || rename(tmp, path) != 0) {
@@ -277,7 +279,8 @@ rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path)
     if (hd.w != want.w || hd.h != want.h || hd.pass != want.pass || hd.ww != want.ww ||
         hd.wh != want.wh || hd.nx != want.nx || hd.ny != want.ny || hd.ox != want.ox ||
         hd.oy != want.oy || hd.n != want.n) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: sums of pass %d with %dx%d windows on a %dx%d grid of "
+        st = rpiv_fail(RPIV_EFORMAT,
+                       "%s: sums of pass %d with %dx%d windows on a %dx%d grid of "
                        "%dx%d images; this run's pass %d has %dx%d windows on %dx%d of %dx%d",
                        path, hd.pass + 1, hd.ww, hd.wh, hd.nx, hd.ny, hd.w, hd.h, want.pass + 1,
                        want.ww, want.wh, want.nx, want.ny, want.w, want.h);
@@ -311,8 +314,8 @@ out_close:
 
 /* ---- the run --------------------------------------------------------------------------------- */
 
-rpiv_status rpiv_ensemble_run(rpiv_piv *pv, const rpiv_pairs *pairs,
-                              const rpiv_progress *progress, rpiv_field **out)
+rpiv_status rpiv_ensemble_run(rpiv_piv *pv, const rpiv_pairs *pairs, const rpiv_progress *progress,
+                              rpiv_field **out)
 {
     /* the loop (with checkpoints, skipping and MPI dealing when asked) is rpiv_batch_ensemble */
     *out = NULL;

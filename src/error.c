@@ -32,10 +32,9 @@ rpiv_status rpiv_fail(rpiv_status code, const char *fmt, ...)
 const char *rpiv_strerror(rpiv_status st)
 {
     static const char *const text[] = {
-        "success",         "out of memory",         "invalid argument",
-        "input/output error", "bad file format",    "size mismatch",
-        "configuration error", "numerical failure", "interrupted",
-        "resource limit exceeded",
+        "success",         "out of memory",           "invalid argument",    "input/output error",
+        "bad file format", "size mismatch",           "configuration error", "numerical failure",
+        "interrupted",     "resource limit exceeded",
     };
     if ((unsigned)st < sizeof text / sizeof text[0])
         return text[st];

@@ -265,8 +265,9 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
         /* u, v (and rpiv's peak ratio and correlation) are stored as float */
         for (int c = 2; c < (nc < MAXCOL ? nc : MAXCOL); c++) {
             if ((c == 2 || c == 3 || (is_rpiv && c >= 5)) && fabs(val[c]) > (double)FLT_MAX) {
-                st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: column %d: %g is beyond the range of a "
-                                             "32-bit float",
+                st = rpiv_fail(RPIV_EFORMAT,
+                               "%s:%ld: column %d: %g is beyond the range of a "
+                               "32-bit float",
                                path, lineno, c + 1, val[c]);
                 goto out_free;
             }

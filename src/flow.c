@@ -120,8 +120,7 @@ void rpiv_flow_eval(const rpiv_flow *f, double x, double y, double zstar, double
     }
 }
 
-rpiv_status rpiv_e1(const double *alpha, const double *ref, const double *cmp, size_t n,
-                    double *e1)
+rpiv_status rpiv_e1(const double *alpha, const double *ref, const double *cmp, size_t n, double *e1)
 {
     if (n < 2)
         return rpiv_fail(RPIV_EINVAL, "E1: need at least 2 samples, got %zu", n);

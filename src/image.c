@@ -14,15 +14,26 @@
 #include <time.h>
 #include <unistd.h>
 
+uint64_t img_max_pixels(void)
+{
+    const char *s = getenv("RPIV_MAX_IMAGE_PIXELS");
+    if (s && *s) {
+        char *end;
+        unsigned long long v = strtoull(s, &end, 10);
+        if (!*end && v >= 1)
+            return v < IMG_MAX_PIXELS ? (uint64_t)v : IMG_MAX_PIXELS;
+    }
+    return IMG_DEFAULT_MAX_PIXELS;
+}
+
 rpiv_status img_check_size(const char *path, uint64_t w, uint64_t h)
 {
     if (w < 1 || h < 1)
         return rpiv_fail(RPIV_EFORMAT, "%s: invalid image size %llux%llu", path,
                          (unsigned long long)w, (unsigned long long)h);
     if (w > INT_MAX || h > INT_MAX || w * h > IMG_MAX_PIXELS)
-        return rpiv_fail(RPIV_EFORMAT,
-                         "%s: image size %llux%llu is absurd (more than 2^31 pixels)", path,
-                         (unsigned long long)w, (unsigned long long)h);
+        return rpiv_fail(RPIV_EFORMAT, "%s: image size %llux%llu is absurd (more than 2^31 pixels)",
+                         path, (unsigned long long)w, (unsigned long long)h);
     return RPIV_OK;
 }
 
@@ -32,6 +43,15 @@ rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_i
     rpiv_status st = img_check_size(path, w, h);
     if (st)
         return st;
+    /* the configurable limit, after the readers' own checks that the file can hold the
+     * pixels its header claims (so a cut file is still reported as cut) */
+    uint64_t lim = img_max_pixels();
+    if (w * h > lim)
+        return rpiv_fail(RPIV_ELIMIT,
+                         "%s: image size %llux%llu exceeds the limit of %llu pixels "
+                         "(set RPIV_MAX_IMAGE_PIXELS to allow more)",
+                         path, (unsigned long long)w, (unsigned long long)h,
+                         (unsigned long long)lim);
     rpiv_image *im = malloc(sizeof *im);
     if (!im)
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory for the image header", path);
@@ -156,8 +176,8 @@ static rpiv_status read_magic(const char *path, rpiv_image_format *fmt, FILE **f
     *fmt = detect(m, n);
     if (*fmt == RPIV_IMAGE_UNKNOWN) {
         fclose(f);
-        return rpiv_fail(RPIV_EFORMAT,
-                         "%s: unknown image format (not TIFF, PNG, PGM, BMP or JPEG)", path);
+        return rpiv_fail(RPIV_EFORMAT, "%s: unknown image format (not TIFF, PNG, PGM, BMP or JPEG)",
+                         path);
     }
     *size = (size_t)sb.st_size;
     if (fp)
@@ -205,8 +225,8 @@ rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out, int *w
         return st;
     if (fmt != RPIV_IMAGE_TIFF && page != 0) {
         fclose(f);
-        return rpiv_fail(RPIV_EINVAL, "%s: page %d requested but a %s file has only page 0",
-                         path, page, rpiv_image_format_name(fmt));
+        return rpiv_fail(RPIV_EINVAL, "%s: page %d requested but a %s file has only page 0", path,
+                         page, rpiv_image_format_name(fmt));
     }
     switch (fmt) {
     case RPIV_IMAGE_TIFF:
@@ -226,6 +246,8 @@ rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out, int *w
             break;
         if (fmt == RPIV_IMAGE_PGM)
             st = img_pgm_load(path, buf, size, out);
+        else if (fmt == RPIV_IMAGE_JPEG)
+            st = img_jpeg_load(path, buf, size, out, &warn);
         else
             st = img_stb_load(path, fmt, buf, size, out, &warn);
         free(buf);
@@ -278,8 +300,8 @@ rpiv_status img_tmp_open(const char *path, char *tmp, size_t cap, int *fd)
     clock_gettime(CLOCK_REALTIME, &ts);
     for (unsigned attempt = 0; attempt < 100; attempt++) {
         /* The name only has to be unlikely to collide; O_EXCL makes it safe when it does. */
-        unsigned long tag = (unsigned long)ts.tv_nsec * 2654435761UL + (unsigned long)getpid() +
-                            attempt * 7919UL;
+        unsigned long tag =
+            (unsigned long)ts.tv_nsec * 2654435761UL + (unsigned long)getpid() + attempt * 7919UL;
         int n = snprintf(tmp, cap, "%s.tmp%06lx", path, tag & 0xffffffUL);
         if (n < 0 || (size_t)n >= cap)
             return rpiv_fail(RPIV_EINVAL, "%s: path too long", path);
@@ -298,8 +320,8 @@ rpiv_status img_tmp_commit(const char *tmp, const char *path)
     if (rename(tmp, path) != 0) {
         int e = errno;
         unlink(tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot rename the temporary file into place: %s",
-                         path, strerror(e));
+        return rpiv_fail(RPIV_EIO, "%s: cannot rename the temporary file into place: %s", path,
+                         strerror(e));
     }
     /* Make the rename itself durable: sync the folder (best effort). */
     char dir[4096];

@@ -14,8 +14,12 @@
 #define IMG_HIDDEN
 #endif
 
-/* Largest image accepted, in pixels (2^31). */
-#define IMG_MAX_PIXELS ((uint64_t)1 << 31)
+/* Largest image accepted by default, in pixels: 2^28 (268 Mpx, 1 GiB as float), far above any
+ * PIV camera; the environment variable RPIV_MAX_IMAGE_PIXELS changes it (up to 2^31). Readers
+ * check it against the header before allocating. */
+#define IMG_MAX_PIXELS         ((uint64_t)1 << 31)
+#define IMG_DEFAULT_MAX_PIXELS ((uint64_t)1 << 28)
+IMG_HIDDEN uint64_t img_max_pixels(void);
 
 /* Luminance of an RGB triple, ITU-R BT.601 weights; a grey triple keeps its exact level. */
 static inline float img_luma(double r, double g, double b)
@@ -40,6 +44,8 @@ IMG_HIDDEN rpiv_status img_tiff_pages(const char *path, int *npages);
 IMG_HIDDEN rpiv_status img_png_load(const char *path, rpiv_image **out, int *warned);
 IMG_HIDDEN rpiv_status img_pgm_load(const char *path, const unsigned char *buf, size_t n,
                                     rpiv_image **out);
+IMG_HIDDEN rpiv_status img_jpeg_load(const char *path, const unsigned char *buf, size_t n,
+                                     rpiv_image **out, int *warned);
 IMG_HIDDEN rpiv_status img_stb_load(const char *path, rpiv_image_format fmt,
                                     const unsigned char *buf, size_t n, rpiv_image **out,
                                     int *warned);

@@ -176,8 +176,8 @@ static rpiv_status pair_files(char **files, size_t n, rpiv_pairing rule, const c
     }
     if (rule == RPIV_PAIR_TIME_RESOLVED) {
         if (n < 2)
-            return rpiv_fail(RPIV_EINVAL, "%s: %zu file, time-resolved pairs need at least 2",
-                             what, n);
+            return rpiv_fail(RPIV_EINVAL, "%s: %zu file, time-resolved pairs need at least 2", what,
+                             n);
         for (size_t i = 0; i + 1 < n && !st; i++)
             st = add_pair(p, cap, files[i], files[i + 1]);
         return st;
@@ -199,8 +199,8 @@ static rpiv_status pair_files(char **files, size_t n, rpiv_pairing rule, const c
     if (!st)
         qsort(e, n, sizeof *e, abent_cmp);
     for (size_t i = 0; i < n && !st;) {
-        int pair_ok = i + 1 < n && !strcmp(e[i].key, e[i + 1].key) && e[i].ab == 'A' &&
-                      e[i + 1].ab == 'B';
+        int pair_ok =
+            i + 1 < n && !strcmp(e[i].key, e[i + 1].key) && e[i].ab == 'A' && e[i + 1].ab == 'B';
         if (pair_ok) {
             st = add_pair(p, cap, e[i].path, e[i + 1].path);
             i += 2;
@@ -216,8 +216,7 @@ static rpiv_status pair_files(char **files, size_t n, rpiv_pairing rule, const c
     return st;
 }
 
-static rpiv_status from_glob(const char *pattern, rpiv_pairing rule, rpiv_pairs *p,
-                             size_t *cap)
+static rpiv_status from_glob(const char *pattern, rpiv_pairing rule, rpiv_pairs *p, size_t *cap)
 {
     glob_t g;
     memset(&g, 0, sizeof g);
@@ -264,8 +263,7 @@ static char *token(char **s)
     return t;
 }
 
-static rpiv_status join(const char *dir, const char *name, char *out, size_t cap,
-                        const char *where)
+static rpiv_status join(const char *dir, const char *name, char *out, size_t cap, const char *where)
 {
     int n = name[0] == '/' || !dir[0] ? snprintf(out, cap, "%s", name)
                                       : snprintf(out, cap, "%s/%s", dir, name);
@@ -322,8 +320,7 @@ static rpiv_status from_list(const char *list, rpiv_pairs *p, size_t *cap)
 
 /* ---- public ---------------------------------------------------------------------------- */
 
-rpiv_status rpiv_pairs_from_args(int nargs, char *const *args, rpiv_pairing rule,
-                                 rpiv_pairs **out)
+rpiv_status rpiv_pairs_from_args(int nargs, char *const *args, rpiv_pairing rule, rpiv_pairs **out)
 {
     *out = NULL;
     if (nargs < 1)
@@ -454,8 +451,7 @@ rpiv_status rpiv_pairs_load(const rpiv_pairs *p, size_t i, rpiv_image **a, rpiv_
 {
     *a = *b = NULL;
     if (i >= p->n)
-        return rpiv_fail(RPIV_EINVAL, "pair %zu requested but there are %zu pairs", i + 1,
-                         p->n);
+        return rpiv_fail(RPIV_EINVAL, "pair %zu requested but there are %zu pairs", i + 1, p->n);
     rpiv_status st = load_pair(&p->pair[i], a, b);
     if (st) {
         rpiv_image_free(*a);

@@ -13,8 +13,8 @@ static size_t skip_space(const unsigned char *b, size_t n, size_t i)
         if (b[i] == '#') {
             while (i < n && b[i] != '\n' && b[i] != '\r')
                 i++;
-        } else if (b[i] == ' ' || b[i] == '\t' || b[i] == '\n' || b[i] == '\r' ||
-                   b[i] == '\v' || b[i] == '\f') {
+        } else if (b[i] == ' ' || b[i] == '\t' || b[i] == '\n' || b[i] == '\r' || b[i] == '\v' ||
+                   b[i] == '\f') {
             i++;
         } else {
             break;
@@ -54,8 +54,9 @@ rpiv_status img_pgm_load(const char *path, const unsigned char *b, size_t n, rpi
     int ascii = b[1] == '2';
     *out = NULL;
     if (!number(b, n, &i, &w) || !number(b, n, &i, &h) || !number(b, n, &i, &maxval))
-        return rpiv_fail(RPIV_EFORMAT, "%s: PGM header is truncated or malformed "
-                                       "(expected width, height and maxval)",
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: PGM header is truncated or malformed "
+                         "(expected width, height and maxval)",
                          path);
     if (maxval < 1 || maxval > 65535)
         return rpiv_fail(RPIV_EFORMAT, "%s: PGM maxval %llu outside 1..65535", path,
@@ -69,11 +70,12 @@ rpiv_status img_pgm_load(const char *path, const unsigned char *b, size_t n, rpi
     uint64_t bps = maxval > 255 ? 2 : 1, npx = w * h;
     if (!ascii && n - i < npx * bps)
         return rpiv_fail(RPIV_EFORMAT,
-                         "%s: truncated PGM: %llu bytes of pixel data expected, %zu found",
-                         path, (unsigned long long)(npx * bps), n - i);
+                         "%s: truncated PGM: %llu bytes of pixel data expected, %zu found", path,
+                         (unsigned long long)(npx * bps), n - i);
     if (ascii && (n - i + 1) / 2 < npx) /* each value takes a digit and a separator */
-        return rpiv_fail(RPIV_EFORMAT, "%s: truncated PGM: %llu values expected, at most %zu "
-                                       "present",
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: truncated PGM: %llu values expected, at most %zu "
+                         "present",
                          path, (unsigned long long)npx, (n - i + 1) / 2);
     rpiv_image *im;
     st = img_alloc(path, w, h, bits_for(maxval), &im);
@@ -85,8 +87,8 @@ rpiv_status img_pgm_load(const char *path, const unsigned char *b, size_t n, rpi
             if (!number(b, n, &i, &v)) {
                 rpiv_image_free(im);
                 return rpiv_fail(RPIV_EFORMAT,
-                                 "%s: truncated or malformed PGM: value %llu of %llu missing",
-                                 path, (unsigned long long)k + 1, (unsigned long long)npx);
+                                 "%s: truncated or malformed PGM: value %llu of %llu missing", path,
+                                 (unsigned long long)k + 1, (unsigned long long)npx);
             }
         } else if (bps == 2) {
             v = (uint64_t)b[i + 2 * k] << 8 | b[i + 2 * k + 1];

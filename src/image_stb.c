@@ -80,8 +80,9 @@ static rpiv_status jpeg_check(const char *path, const unsigned char *b, size_t n
     if (last_sos == 0)
         return rpiv_fail(RPIV_EFORMAT, "%s: truncated JPEG: no image scan", path);
     if (last_eoi < last_sos)
-        return rpiv_fail(RPIV_EFORMAT, "%s: truncated JPEG: no end-of-image marker after the "
-                                       "last scan",
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: truncated JPEG: no end-of-image marker after the "
+                         "last scan",
                          path);
     return RPIV_OK;
 }

@@ -157,8 +157,8 @@ static rpiv_status check_layout(const char *path, tinfo *ti)
     int grey = ti->photo == PHOTOMETRIC_MINISBLACK || ti->photo == PHOTOMETRIC_MINISWHITE ||
                ti->photo == PHOTOMETRIC_PALETTE;
     if (!colour && !grey)
-        return rpiv_fail(RPIV_EFORMAT, "%s: TIFF photometric interpretation %u not supported",
-                         path, ti->photo);
+        return rpiv_fail(RPIV_EFORMAT, "%s: TIFF photometric interpretation %u not supported", path,
+                         ti->photo);
     if (ti->sf == SAMPLEFORMAT_INT)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: signed %u-bit integer TIFF samples not supported "
@@ -216,14 +216,14 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
     uint64_t raw = ((uint64_t)ti->w * ti->spp * ti->bps + 7) / 8 * ti->h;
     uint64_t tile = TIFFIsTiled(t) ? (uint64_t)TIFFTileSize64(t) : 0;
     if (tile > 4 * raw && tile > ((uint64_t)64 << 20))
-        return rpiv_fail(RPIV_EFORMAT,
-                         "%s: corrupt TIFF: tiles of %llu bytes for a %ux%u image", path,
-                         (unsigned long long)tile, ti->w, ti->h);
+        return rpiv_fail(RPIV_EFORMAT, "%s: corrupt TIFF: tiles of %llu bytes for a %ux%u image",
+                         path, (unsigned long long)tile, ti->w, ti->h);
     uint64_t fsize = (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t));
     /* Fax codes (CCITT RLE, G3, G4) take at least one bit per row whatever the width (a blank
      * G4 row is one V0 code), so only the height can be bounded; JBIG not even that. */
-    if (ti->bps == 1 && (comp == COMPRESSION_CCITTRLE || comp == COMPRESSION_CCITTRLEW ||
-                         comp == COMPRESSION_CCITTFAX3 || comp == COMPRESSION_CCITTFAX4) &&
+    if (ti->bps == 1 &&
+        (comp == COMPRESSION_CCITTRLE || comp == COMPRESSION_CCITTRLEW ||
+         comp == COMPRESSION_CCITTFAX3 || comp == COMPRESSION_CCITTFAX4) &&
         ti->h > 8 * fsize + 4096)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: truncated or corrupt TIFF: %u fax-coded rows cannot be stored in "
@@ -239,8 +239,7 @@ static rpiv_status check_plausible(TIFF *t, const char *path, const tinfo *ti)
     int known = comp == COMPRESSION_NONE || comp == COMPRESSION_LZW ||
                 comp == COMPRESSION_DEFLATE || comp == COMPRESSION_ADOBE_DEFLATE ||
                 comp == COMPRESSION_PACKBITS || comp == COMPRESSION_JPEG;
-    uint64_t cap = comp == COMPRESSION_NONE ? fsize
-                                            : (known ? 4096 : 65536) * fsize + (1u << 20);
+    uint64_t cap = comp == COMPRESSION_NONE ? fsize : (known ? 4096 : 65536) * fsize + (1u << 20);
     if (raw > cap)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: truncated or corrupt TIFF: %ux%u pixels (%llu bytes of samples) "
@@ -315,8 +314,8 @@ static rpiv_status read_blocks(TIFF *t, tctx *c, const char *path, const tinfo *
                                 (float)sample(row, col, ti->bps, isfloat);
                         } else {
                             for (int ch = 0; ch < 3; ch++)
-                                rgb[(size_t)ch * npx + o + col] = (float)sample(
-                                    row, col * nsp + (uint64_t)ch, ti->bps, isfloat);
+                                rgb[(size_t)ch * npx + o + col] =
+                                    (float)sample(row, col * nsp + (uint64_t)ch, ti->bps, isfloat);
                         }
                     }
                 }
@@ -366,11 +365,11 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     /* the page must be one rpiv_image_count_pages counts (libtiff can open the directory of
      * a page whose "next directory" link is cut, which TIFFNumberOfDirectories does not
      * count) */
-    if (page > 0 && ((tdir_t)page >= TIFFNumberOfDirectories(t) ||
-                     !TIFFSetDirectory(t, (tdir_t)page))) {
+    if (page > 0 &&
+        ((tdir_t)page >= TIFFNumberOfDirectories(t) || !TIFFSetDirectory(t, (tdir_t)page))) {
         tdir_t n = TIFFNumberOfDirectories(t);
-        st = rpiv_fail(RPIV_EINVAL, "%s: page %d requested but the file has %u page%s", path,
-                       page, (unsigned)n, n == 1 ? "" : "s");
+        st = rpiv_fail(RPIV_EINVAL, "%s: page %d requested but the file has %u page%s", path, page,
+                       (unsigned)n, n == 1 ? "" : "s");
         goto out_close;
     }
     st = read_info(t, path, page, &ti);
@@ -405,10 +404,9 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
         const float *v = ti.nch == 3 ? rgb : im->px;
         for (size_t i = 0; i < (size_t)ti.nch * npx; i++) {
             if (!isfinite(v[i])) {
-                st = rpiv_fail(RPIV_EFORMAT,
-                               "%s: pixel (%zu, %zu) is %s: float TIFF samples must be finite",
-                               path, i % npx % ti.w, i % npx / ti.w,
-                               isnan(v[i]) ? "NaN" : "infinite");
+                st = rpiv_fail(
+                    RPIV_EFORMAT, "%s: pixel (%zu, %zu) is %s: float TIFF samples must be finite",
+                    path, i % npx % ti.w, i % npx / ti.w, isnan(v[i]) ? "NaN" : "infinite");
                 goto out_free;
             }
         }

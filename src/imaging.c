@@ -32,8 +32,8 @@ static int bad(double v, double lo, double hi)
 rpiv_status rpiv_camera_check(const rpiv_camera *c)
 {
     if (c->width_px < 8 || c->width_px > 65536 || c->height_px < 8 || c->height_px > 65536)
-        return rpiv_fail(RPIV_EINVAL, "camera: sensor size %dx%d px outside 8..65536",
-                         c->width_px, c->height_px);
+        return rpiv_fail(RPIV_EINVAL, "camera: sensor size %dx%d px outside 8..65536", c->width_px,
+                         c->height_px);
     if (bad(c->sensor_w_m, 1e-4, 1) || bad(c->sensor_h_m, 1e-4, 1))
         return rpiv_fail(RPIV_EINVAL, "camera: sensor size must be in 1e-4..1 m");
     if (bad(c->focal_m, 1e-3, 10))
@@ -46,11 +46,9 @@ rpiv_status rpiv_camera_check(const rpiv_camera *c)
     if (bad(c->s0_m, 1e-3, 100))
         return rpiv_fail(RPIV_EINVAL, "camera: working distance %g m outside 1e-3..100", c->s0_m);
     if (bad(c->zop_star, -10, 10))
-        return rpiv_fail(RPIV_EINVAL, "camera: object plane z*_OP %g outside -10..10",
-                         c->zop_star);
+        return rpiv_fail(RPIV_EINVAL, "camera: object plane z*_OP %g outside -10..10", c->zop_star);
     if (bad(c->lambda_p_m, 1e-7, 2e-6))
-        return rpiv_fail(RPIV_EINVAL, "camera: wavelength %g m outside 1e-7..2e-6",
-                         c->lambda_p_m);
+        return rpiv_fail(RPIV_EINVAL, "camera: wavelength %g m outside 1e-7..2e-6", c->lambda_p_m);
     if (bad(c->n_medium, 1, 4))
         return rpiv_fail(RPIV_EINVAL, "camera: medium index %g outside 1..4", c->n_medium);
     if (bad(c->beta2, 0.1, 100))

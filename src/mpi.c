@@ -53,8 +53,7 @@ static int team(const rpiv_mpi *m)
 /* Started by an MPI launcher (see rpiv/mpi.h), or told to join by RPIV_MPI. */
 static int launched(void)
 {
-    static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE",
-                                       "PMI_RANK"};
+    static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE", "PMI_RANK"};
     const char *force = getenv("RPIV_MPI");
     if (force && *force)
         return strcmp(force, "0") != 0;
@@ -201,8 +200,7 @@ rpiv_status mpi_min_floats(const rpiv_mpi *m, float *data, size_t n)
         return RPIV_OK;
 #ifdef RPIV_HAVE_MPI
     for (size_t off = 0; off < n; off += CHUNK)
-        MPI_Allreduce(MPI_IN_PLACE, data + off, chunk(n, off), MPI_FLOAT, MPI_MIN,
-                      MPI_COMM_WORLD);
+        MPI_Allreduce(MPI_IN_PLACE, data + off, chunk(n, off), MPI_FLOAT, MPI_MIN, MPI_COMM_WORLD);
 #else
     (void)data;
     (void)n;
@@ -309,11 +307,12 @@ rpiv_status mpi_gather_fields(const rpiv_mpi *m, const rpiv_field *mine, const r
     }
 #ifdef RPIV_HAVE_MPI
     size_t n = (size_t)grid->nx * (size_t)grid->ny, rec = 1 + n * (4 * sizeof(float) + 1);
-    unsigned char *snd = malloc(rec), *rcv = m->rank == 0 ? malloc(rec * (size_t)m->size) : snd;
-    rpiv_status st = agree_alloc(m, snd && rcv ? snd : NULL);
+    unsigned char *snd = calloc(1, rec), *rcv = NULL; /* rcv: rank 0 only */
+    if (m->rank == 0)
+        rcv = malloc(rec * (size_t)m->size);
+    rpiv_status st = agree_alloc(m, snd && (rcv || m->rank) ? snd : NULL);
     if (st)
         goto out_free;
-    memset(snd, 0, rec);
     if (mine) {
         assert(mine->nx == grid->nx && mine->ny == grid->ny);
         const float *arr[4] = {mine->u, mine->v, mine->peak_ratio, mine->corr};
@@ -337,8 +336,7 @@ rpiv_status mpi_gather_fields(const rpiv_mpi *m, const rpiv_field *mine, const r
         }
     }
 out_free:
-    if (rcv != snd)
-        free(rcv);
+    free(rcv);
     free(snd);
     return st;
 #else

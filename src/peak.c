@@ -68,8 +68,7 @@ static int local_max(const float *p, int w, int h, int i, int j)
     return 1;
 }
 
-static void centroid3x3(const float *p, int w, int h, int i, int j, double *dx, double *dy,
-                        int *ok)
+static void centroid3x3(const float *p, int w, int h, int i, int j, double *dx, double *dy, int *ok)
 {
     double s = 0, sx = 0, sy = 0;
     for (int dj = -1; dj <= 1; dj++)
@@ -182,8 +181,7 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
         const float *row = plane + (size_t)bj * (size_t)w;
         fx = rpiv_peak_fit3(row[wrap(bi - 1, w)], best, row[wrap(bi + 1, w)], method, &okx);
         fy = rpiv_peak_fit3(plane[(size_t)wrap(bj - 1, h) * (size_t)w + (size_t)bi], best,
-                            plane[(size_t)wrap(bj + 1, h) * (size_t)w + (size_t)bi], method,
-                            &oky);
+                            plane[(size_t)wrap(bj + 1, h) * (size_t)w + (size_t)bi], method, &oky);
     }
     out->fit_ok = okx && oky;
     out->dx = out->ix + (out->fit_ok ? fx : 0);

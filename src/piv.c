@@ -47,9 +47,11 @@ static rpiv_status pass_grid(rpiv_piv *pv, int k)
     ps->ww = p->win_w[k];
     ps->wh = p->win_h[k];
     if (ps->ww > rw || ps->wh > rh)
-        return rpiv_fail(RPIV_ESIZE, "piv.windows: window %dx%d of pass %d is larger than the %s "
-                         "(%dx%d px)", ps->ww, ps->wh, k + 1,
-                         rw == pv->w && rh == pv->h ? "image" : "ROI", rw, rh);
+        return rpiv_fail(RPIV_ESIZE,
+                         "piv.windows: window %dx%d of pass %d is larger than the %s "
+                         "(%dx%d px)",
+                         ps->ww, ps->wh, k + 1, rw == pv->w && rh == pv->h ? "image" : "ROI", rw,
+                         rh);
     ps->sx = p->step_px > 0 ? p->step_px : (int)lround(ps->ww * (1 - p->overlap));
     ps->sy = p->step_px > 0 ? p->step_px : (int)lround(ps->wh * (1 - p->overlap));
     ps->sx = ps->sx < 1 ? 1 : ps->sx;
@@ -107,12 +109,13 @@ rpiv_status rpiv_piv_new(const rpiv_piv_params *p, int w, int h, const rpiv_imag
     if (w < 1 || h < 1)
         return rpiv_fail(RPIV_EINVAL, "piv: image size %dx%d", w, h);
     if (mask && (mask->w != w || mask->h != h))
-        return rpiv_fail(RPIV_ESIZE, "piv.mask: mask is %dx%d, the images %dx%d", mask->w,
-                         mask->h, w, h);
+        return rpiv_fail(RPIV_ESIZE, "piv.mask: mask is %dx%d, the images %dx%d", mask->w, mask->h,
+                         w, h);
     const int *r = p->roi;
     int whole = !r[0] && !r[1] && !r[2] && !r[3];
     if (!whole && (r[0] < 0 || r[1] < 0 || r[2] > w || r[3] > h || r[0] >= r[2] || r[1] >= r[3]))
-        return rpiv_fail(RPIV_ESIZE, "piv.roi: %d,%d,%d,%d is not a region of the %dx%d image "
+        return rpiv_fail(RPIV_ESIZE,
+                         "piv.roi: %d,%d,%d,%d is not a region of the %dx%d image "
                          "(x0,y0,x1,y1 with 0 <= x0 < x1 <= width, 0 <= y0 < y1 <= height)",
                          r[0], r[1], r[2], r[3], w, h);
     /* memory first, so that a refused run allocates nothing large */
@@ -214,8 +217,7 @@ rpiv_status rpiv_piv_grid(const rpiv_piv *pv, int pass, rpiv_field **out)
     return RPIV_OK;
 }
 
-rpiv_status rpiv_piv_set_background(rpiv_piv *pv, const rpiv_image *bg_a,
-                                    const rpiv_image *bg_b)
+rpiv_status rpiv_piv_set_background(rpiv_piv *pv, const rpiv_image *bg_a, const rpiv_image *bg_b)
 {
     size_t n = (size_t)pv->w * (size_t)pv->h;
     if (pv->bga) {
@@ -336,8 +338,10 @@ rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_s
     if (!src->deform) {
         /* windows straight from the loaded frames */
         if (pv->state != PIV_RAW)
-            return rpiv_fail(RPIV_EINVAL, "piv: pass %d reads the loaded frames, which a "
-                             "deforming pass has prefiltered: load the pair again", k + 1);
+            return rpiv_fail(RPIV_EINVAL,
+                             "piv: pass %d reads the loaded frames, which a "
+                             "deforming pass has prefiltered: load the pair again",
+                             k + 1);
         return RPIV_OK;
     }
     if (pv->state == PIV_RAW) {
@@ -400,8 +404,8 @@ void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, dou
     window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
 }
 
-void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src,
-                rpiv_xcorr_work *ws, size_t win, double *ea, double *eb, double *pu, double *pv_)
+void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, rpiv_xcorr_work *ws,
+                size_t win, double *ea, double *eb, double *pu, double *pv_)
 {
     int ax, ay, bx, by;
     window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
@@ -517,8 +521,8 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, doub
 rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f)
 {
     rpiv_status st;
-    if (pv->p.median_thr > 0 && (st = rpiv_validate_median(f, pv->p.median_thr, pv->p.median_eps,
-                                                           NULL)))
+    if (pv->p.median_thr > 0 &&
+        (st = rpiv_validate_median(f, pv->p.median_thr, pv->p.median_eps, NULL)))
         return st;
     return rpiv_validate_replace(f, 0, NULL);
 }

@@ -10,15 +10,15 @@
 #include <stddef.h>
 
 typedef struct piv_pass {
-    int ww, wh;              /* window size, px                                    */
-    int sx, sy;              /* grid step, px                                      */
-    int nx, ny;              /* grid size                                          */
-    int ox, oy;              /* first pixel of window (0, 0)                       */
-    int rect[4];             /* pixels covered by the windows: x0, y0, x1, y1      */
+    int ww, wh;  /* window size, px                                    */
+    int sx, sy;  /* grid step, px                                      */
+    int nx, ny;  /* grid size                                          */
+    int ox, oy;  /* first pixel of window (0, 0)                       */
+    int rect[4]; /* pixels covered by the windows: x0, y0, x1, y1      */
     size_t nwin;
     rpiv_xcorr *xc;
-    rpiv_xcorr_work **ws;    /* one per thread                                     */
-    unsigned char *masked;   /* nwin flags (1 = masked window), NULL without mask   */
+    rpiv_xcorr_work **ws;  /* one per thread                                     */
+    unsigned char *masked; /* nwin flags (1 = masked window), NULL without mask   */
 } piv_pass;
 
 enum { PIV_EMPTY = 0, PIV_RAW = 1, PIV_COEF = 2 };
@@ -28,13 +28,13 @@ struct rpiv_piv {
     int w, h, nthreads, npass;
     int roi[4];
     piv_pass pass[RPIV_PIV_MAX_PASSES];
-    unsigned char *mask;     /* w*h, 1 = masked pixel; NULL = no mask                */
-    float *bga, *bgb;        /* backgrounds, NULL = none                             */
-    float *ia, *ib;          /* loaded frames, then their B-spline coefficients      */
-    int deforms;             /* passes after the first deform the frames             */
-    float fill_a, fill_b;    /* mean grey level of the loaded frames                 */
-    int state;               /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
-    size_t bytes;            /* memory held                                          */
+    unsigned char *mask;  /* w*h, 1 = masked pixel; NULL = no mask                */
+    float *bga, *bgb;     /* backgrounds, NULL = none                             */
+    float *ia, *ib;       /* loaded frames, then their B-spline coefficients      */
+    int deforms;          /* passes after the first deform the frames             */
+    float fill_a, fill_b; /* mean grey level of the loaded frames                 */
+    int state;            /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
+    size_t bytes;         /* memory held                                          */
 };
 
 /* What a pass correlates: frames (stride w) whose first row is image row row0, and the
@@ -50,8 +50,8 @@ typedef struct piv_source {
 
 /* Called from the worker threads with each correlated window (distinct windows at once):
  * the raw plane in ws->plane, the energies, and the shift of the window pair. */
-typedef void (*piv_win_fn)(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea,
-                           double eb, double pu, double pv_);
+typedef void (*piv_win_fn)(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea, double eb,
+                           double pu, double pv_);
 
 /* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
  * NULL), calling fn for each. A deforming pass works strip by strip: the rows under one row
@@ -81,17 +81,16 @@ RPIV_NODISCARD rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pr
 /* Correlate window `win` of pass ps from src with the workspace ws (raw plane, energies);
  * *pu, *pv get the displacement the window pair was shifted by (the predictor at the centre,
  * or the integer offset). */
-void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src,
-                rpiv_xcorr_work *ws, size_t win, double *ea, double *eb, double *pu,
-                double *pv_);
+void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, rpiv_xcorr_work *ws,
+                size_t win, double *ea, double *eb, double *pu, double *pv_);
 
 /* Just the displacement window `win` is shifted by (as piv_window gives it). */
 void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, double *pu,
                       double *pv_);
 
 /* The vector of window `win` from its (raw or summed) plane and energies: into f at win. */
-void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, double ea,
-                double eb, double pu, double pv_, rpiv_field *f, size_t win);
+void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, double ea, double eb,
+                double pu, double pv_, rpiv_field *f, size_t win);
 
 /* Validate (median test if enabled) and replace rejected vectors. */
 RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);

@@ -17,8 +17,7 @@ static rpiv_status pair_fail(rpiv_status st, const rpiv_pairs *pairs, size_t i)
 }
 
 rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
-                                const rpiv_progress *progress, rpiv_image **bg_a,
-                                rpiv_image **bg_b)
+                                const rpiv_progress *progress, rpiv_image **bg_a, rpiv_image **bg_b)
 {
     *bg_a = *bg_b = NULL;
     if (kind != RPIV_BACKGROUND_MIN && kind != RPIV_BACKGROUND_MEAN)
@@ -45,8 +44,10 @@ rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
                 }
             }
         } else if (a->w != ga->w || a->h != ga->h) {
-            st = rpiv_fail(RPIV_ESIZE, "pair %zu (%s): %dx%d frames, the series' first pair "
-                           "has %dx%d", i + 1, pairs->pair[i].path_a, a->w, a->h, ga->w, ga->h);
+            st = rpiv_fail(RPIV_ESIZE,
+                           "pair %zu (%s): %dx%d frames, the series' first pair "
+                           "has %dx%d",
+                           i + 1, pairs->pair[i].path_a, a->w, a->h, ga->w, ga->h);
             goto next;
         }
         if (kind == RPIV_BACKGROUND_MEAN) {
@@ -61,8 +62,8 @@ rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
             }
         }
         if (rpiv_progress_report(progress, i + 1, pairs->n))
-            st = rpiv_fail(RPIV_EINTR, "piv.background: interrupted after %zu of %zu pairs",
-                           i + 1, pairs->n);
+            st = rpiv_fail(RPIV_EINTR, "piv.background: interrupted after %zu of %zu pairs", i + 1,
+                           pairs->n);
     next:
         rpiv_image_free(a);
         rpiv_image_free(b);
@@ -83,8 +84,8 @@ rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
     return RPIV_OK;
 }
 
-rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_piv_sink sink,
-                            void *user, const rpiv_progress *progress)
+rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_piv_sink sink, void *user,
+                            const rpiv_progress *progress)
 {
     if (!pairs->n)
         return rpiv_fail(RPIV_EINVAL, "piv: no image pairs");
@@ -138,8 +139,8 @@ rpiv_status rpiv_piv_stats_new(const rpiv_field *grid, rpiv_piv_stats **out)
     rpiv_piv_stats *s = calloc(1, sizeof *s);
     if (!s)
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for statistics");
-    rpiv_status st = rpiv_field_new(grid->nx, grid->ny, grid->x0, grid->y0, grid->dx, grid->dy,
-                                    &s->grid);
+    rpiv_status st =
+        rpiv_field_new(grid->nx, grid->ny, grid->x0, grid->y0, grid->dx, grid->dy, &s->grid);
     size_t n = (size_t)grid->nx * (size_t)grid->ny;
     if (!st) {
         s->grid->scale_mm_per_px = grid->scale_mm_per_px;
@@ -165,9 +166,11 @@ rpiv_status rpiv_piv_stats_add(rpiv_piv_stats *s, const rpiv_field *f)
     const rpiv_field *g = s->grid;
     if (f->nx != g->nx || f->ny != g->ny || f->x0 != g->x0 || f->y0 != g->y0 || f->dx != g->dx ||
         f->dy != g->dy)
-        return rpiv_fail(RPIV_ESIZE, "piv: field of %dx%d points at (%g, %g) step (%g, %g) "
-                         "added to statistics of %dx%d at (%g, %g) step (%g, %g)", f->nx, f->ny,
-                         f->x0, f->y0, f->dx, f->dy, g->nx, g->ny, g->x0, g->y0, g->dx, g->dy);
+        return rpiv_fail(RPIV_ESIZE,
+                         "piv: field of %dx%d points at (%g, %g) step (%g, %g) "
+                         "added to statistics of %dx%d at (%g, %g) step (%g, %g)",
+                         f->nx, f->ny, f->x0, f->y0, f->dx, f->dy, g->nx, g->ny, g->x0, g->y0,
+                         g->dx, g->dy);
     size_t n = (size_t)g->nx * (size_t)g->ny;
     for (size_t k = 0; k < n; k++) {
         int c = f->flag[k] == RPIV_FLAG_VALID ? 0 : (f->flag[k] == RPIV_FLAG_REPLACED ? 1 : -1);

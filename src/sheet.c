@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 #include "rpiv/sheet.h"
 
+#include "field_impl.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -9,7 +11,7 @@
 
 struct rpiv_sheet {
     rpiv_sheet_params p;
-    size_t n;       /* shape table rows (0 = default analytic shape) */
+    size_t n;        /* shape table rows (0 = default analytic shape) */
     double *zp, *in; /* shape table */
 };
 
@@ -78,8 +80,8 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
         if (strspn(line, " \t\r\n") == strlen(line))
             continue;
         if (sscanf(line, "%lf %lf", &a, &b) != 2 || !isfinite(a) || !(b >= 0 && b <= 1.0001)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: expected 'zplus I' with 0 <= I <= 1", path,
-                           lineno);
+            st =
+                rpiv_fail(RPIV_EFORMAT, "%s:%d: expected 'zplus I' with 0 <= I <= 1", path, lineno);
             goto out;
         }
         if (s->n && a <= s->zp[s->n - 1]) {
@@ -112,8 +114,8 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
         s->n++;
     }
     if (!magic)
-        st = rpiv_fail(RPIV_EFORMAT, "%s: not an rpiv sheet profile (no '# rpiv-sheet' line)",
-                       path);
+        st =
+            rpiv_fail(RPIV_EFORMAT, "%s: not an rpiv sheet profile (no '# rpiv-sheet' line)", path);
     else if (s->n < 3)
         st = rpiv_fail(RPIV_EFORMAT, "%s: fewer than 3 profile rows", path);
 out:
@@ -200,27 +202,20 @@ double rpiv_sheet_eval(const rpiv_sheet *s, double xstar, double zstar)
     return 0;
 }
 
-rpiv_status rpiv_sheet_save_profile(const char *path, double e0, double e1, double zm0,
-                                    double zm1, const double *zplus, const double *inten,
-                                    size_t n)
+rpiv_status rpiv_sheet_save_profile(const char *path, double e0, double e1, double zm0, double zm1,
+                                    const double *zplus, const double *inten, size_t n)
 {
-    char tmp[RPIV_PATH_MAX + 16];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *fp = fopen(tmp, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create: %s", path, strerror(errno));
-    fprintf(fp, "# rpiv-sheet 1\n# e0 %.17g\n# e1 %.17g\n# zm0 %.17g\n# zm1 %.17g\n"
-                "# columns: zplus = (z* - z*_max(x*)) / e*(x*), I0/I0max\n",
+    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&af, path, 1);
+    if (st)
+        return st;
+    fprintf(af.fp,
+            "# rpiv-sheet 1\n# e0 %.17g\n# e1 %.17g\n# zm0 %.17g\n# zm1 %.17g\n"
+            "# columns: zplus = (z* - z*_max(x*)) / e*(x*), I0/I0max\n",
             e0, e1, zm0, zm1);
     for (size_t i = 0; i < n; i++)
-        fprintf(fp, "%.10g %.10g\n", zplus[i], inten[i]);
-    int bad = ferror(fp);
-    bad |= fclose(fp) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        remove(tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    }
-    return RPIV_OK;
+        fprintf(af.fp, "%.10g %.10g\n", zplus[i], inten[i]);
+    return atomic_commit(&af);
 }
 
 rpiv_status rpiv_sheet_metrics_of(const double *z, const double *inten, size_t n,

@@ -3,6 +3,8 @@
  * docs/model.md explains the model and every reading of the paper it makes. */
 #include "rpiv/synth.h"
 
+#include "field_impl.h"
+
 #include "rpiv/config.h"
 
 #include <errno.h>
@@ -855,12 +857,11 @@ static const char *flow_name(rpiv_flow_kind k)
 
 rpiv_status rpiv_synth_save_params(const rpiv_synth *s, const char *path)
 {
-    char tmp[RPIV_PATH_MAX + 16];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp)
-        return rpiv_fail(RPIV_EIO, "%s: path too long", path);
-    FILE *fp = fopen(tmp, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create: %s", path, strerror(errno));
+    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&af, path, 1);
+    if (st)
+        return st;
+    FILE *fp = af.fp;
     rpiv_synth_info in;
     rpiv_synth_get_info(s, &in);
     const rpiv_flow *f = &in.flow;
@@ -878,12 +879,10 @@ rpiv_status rpiv_synth_save_params(const rpiv_synth *s, const char *path)
             in.y0_star + in.height_px * in.star_per_px, in.star_per_px, in.nparticles, in.region[0],
             in.region[2], in.region[1], in.region[3], in.bulk_px, in.de_focus_px, in.sigma_focus_px,
             flow_name(f->kind), f->a, f->b, f->cx, f->cy, f->y0_star, f->ystar_per_px);
-    rpiv_status st = rpiv_config_write(&s->e, fp);
-    int bad = ferror(fp);
-    bad |= fclose(fp) != 0;
-    if (st || bad || rename(tmp, path) != 0) {
-        remove(tmp);
+    st = rpiv_config_write(&s->e, fp);
+    if (st) {
+        atomic_abort(&af);
         return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
     }
-    return RPIV_OK;
+    return atomic_commit(&af);
 }

@@ -55,8 +55,7 @@ static int neighbour(const rpiv_field *f, const unsigned char *ok, int i, int j,
  * so a linear velocity gradient across the edge does not move its median. (Without this,
  * the median of a one-sided neighbourhood is the value half a grid step inside, and the
  * edge vectors of a steep profile are all rejected.) */
-static int gather(const rpiv_field *f, const unsigned char *ok, int i, int j, float *nu,
-                  float *nv)
+static int gather(const rpiv_field *f, const unsigned char *ok, int i, int j, float *nu, float *nv)
 {
     const int nx = f->nx, ny = f->ny;
     int m = 0;

@@ -10,7 +10,7 @@
 
 struct rpiv_xcorr {
     int w, h;
-    size_t n, nc;  /* real and complex element counts */
+    size_t n, nc;   /* real and complex element counts */
     fftwf_plan fwd; /* r2c, w x h */
     fftwf_plan inv; /* c2r, w x h */
 };
@@ -203,9 +203,8 @@ void rpiv_xcorr_run(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double *
         *eb = e2;
 }
 
-void rpiv_xcorr_run_from(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const float *a,
-                         size_t stride_a, const float *b, size_t stride_b, int mode, double *ea,
-                         double *eb)
+void rpiv_xcorr_run_from(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const float *a, size_t stride_a,
+                         const float *b, size_t stride_b, int mode, double *ea, double *eb)
 {
     double e1 = load_demean(ws->a, a, stride_a, x->w, x->h);
     double e2 = load_demean(ws->b, b, stride_b, x->w, x->h);

@@ -11,57 +11,57 @@
 
 static int check_failures, check_run, check_skipped, check_current_failed;
 
-#define CHECK(cond)                                                                            \
-    do {                                                                                       \
-        if (!(cond)) {                                                                         \
-            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);          \
-            check_current_failed = 1;                                                          \
-        }                                                                                      \
+#define CHECK(cond)                                                                                \
+    do {                                                                                           \
+        if (!(cond)) {                                                                             \
+            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);               \
+            check_current_failed = 1;                                                              \
+        }                                                                                          \
     } while (0)
 
-#define CHECK_NEAR(a, b, tol)                                                                  \
-    do {                                                                                       \
-        double check_a_ = (double)(a), check_b_ = (double)(b), check_t_ = (double)(tol);       \
-        if (!(fabs(check_a_ - check_b_) <= check_t_)) {                                        \
-            fprintf(stderr, "%s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, tol %.3g\n",     \
-                    __FILE__, __LINE__, #a, check_a_, #b, check_b_, check_t_);                 \
-            check_current_failed = 1;                                                          \
-        }                                                                                      \
+#define CHECK_NEAR(a, b, tol)                                                                      \
+    do {                                                                                           \
+        double check_a_ = (double)(a), check_b_ = (double)(b), check_t_ = (double)(tol);           \
+        if (!(fabs(check_a_ - check_b_) <= check_t_)) {                                            \
+            fprintf(stderr, "%s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, tol %.3g\n",          \
+                    __FILE__, __LINE__, #a, check_a_, #b, check_b_, check_t_);                     \
+            check_current_failed = 1;                                                              \
+        }                                                                                          \
     } while (0)
 
 /* Check a status call succeeded; print rpiv_errmsg() otherwise. */
-#define CHECK_OK(call)                                                                         \
-    do {                                                                                       \
-        int check_st_ = (int)(call);                                                           \
-        if (check_st_ != 0) {                                                                  \
-            fprintf(stderr, "%s:%d: %s returned %d: %s\n", __FILE__, __LINE__, #call,        \
-                    check_st_, rpiv_errmsg());                                                 \
-            check_current_failed = 1;                                                          \
-        }                                                                                      \
+#define CHECK_OK(call)                                                                             \
+    do {                                                                                           \
+        int check_st_ = (int)(call);                                                               \
+        if (check_st_ != 0) {                                                                      \
+            fprintf(stderr, "%s:%d: %s returned %d: %s\n", __FILE__, __LINE__, #call, check_st_,   \
+                    rpiv_errmsg());                                                                \
+            check_current_failed = 1;                                                              \
+        }                                                                                          \
     } while (0)
 
 /* Check a call fails with the given status. */
-#define CHECK_FAILS(call, code)                                                                \
-    do {                                                                                       \
-        int check_st_ = (int)(call);                                                           \
-        if (check_st_ != (int)(code)) {                                                        \
-            fprintf(stderr, "%s:%d: %s returned %d, expected %d\n", __FILE__, __LINE__,       \
-                    #call, check_st_, (int)(code));                                            \
-            check_current_failed = 1;                                                          \
-        }                                                                                      \
+#define CHECK_FAILS(call, code)                                                                    \
+    do {                                                                                           \
+        int check_st_ = (int)(call);                                                               \
+        if (check_st_ != (int)(code)) {                                                            \
+            fprintf(stderr, "%s:%d: %s returned %d, expected %d\n", __FILE__, __LINE__, #call,     \
+                    check_st_, (int)(code));                                                       \
+            check_current_failed = 1;                                                              \
+        }                                                                                          \
     } while (0)
 
-#define RUN_TEST(fn)                                                                           \
-    do {                                                                                       \
-        check_current_failed = 0;                                                              \
-        check_run++;                                                                           \
-        fn();                                                                                  \
-        if (check_current_failed) {                                                            \
-            check_failures++;                                                                  \
-            fprintf(stderr, "FAIL %s\n", #fn);                                                 \
-        } else {                                                                               \
-            printf("ok   %s\n", #fn);                                                          \
-        }                                                                                      \
+#define RUN_TEST(fn)                                                                               \
+    do {                                                                                           \
+        check_current_failed = 0;                                                                  \
+        check_run++;                                                                               \
+        fn();                                                                                      \
+        if (check_current_failed) {                                                                \
+            check_failures++;                                                                      \
+            fprintf(stderr, "FAIL %s\n", #fn);                                                     \
+        } else {                                                                                   \
+            printf("ok   %s\n", #fn);                                                              \
+        }                                                                                          \
     } while (0)
 
 /* Mark the current test as skipped (e.g. shared data absent). */

@@ -11,8 +11,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <tiffio.h>
 #include <sys/stat.h>
+#include <tiffio.h>
 #include <unistd.h>
 
 static char tu_dir[256];
@@ -81,11 +81,11 @@ static inline int tu_cut(const char *src, const char *dst, size_t n)
 }
 
 /* Check a failed call: the status and that the message names the file. */
-#define CHECK_ERR(call, code, name)                                                            \
-    do {                                                                                       \
-        CHECK_FAILS(call, code);                                                               \
-        CHECK(strstr(rpiv_errmsg(), (name)) != NULL);                                          \
-        printf("    (%s)\n", rpiv_errmsg());                                                   \
+#define CHECK_ERR(call, code, name)                                                                \
+    do {                                                                                           \
+        CHECK_FAILS(call, code);                                                                   \
+        CHECK(strstr(rpiv_errmsg(), (name)) != NULL);                                              \
+        printf("    (%s)\n", rpiv_errmsg());                                                       \
     } while (0)
 
 /* ---- a libtiff writer for test images ------------------------------------------------- */
@@ -93,8 +93,8 @@ static inline int tu_cut(const char *src, const char *dst, size_t n)
 typedef struct tu_tiff {
     uint32_t w, h;
     uint16_t bps, spp, sf, photo, planar, nextra;
-    uint32_t rps;     /* rows per strip (0: libtiff default) */
-    uint32_t tile;    /* tile side (multiple of 16) or 0 for strips */
+    uint32_t rps;         /* rows per strip (0: libtiff default) */
+    uint32_t tile;        /* tile side (multiple of 16) or 0 for strips */
     const uint16_t *cmap; /* 3 * 2^bps entries for palette images */
     uint16_t compression;
 } tu_tiff;

@@ -16,11 +16,11 @@ typedef void (*ti_flow_fn)(void *user, double x, double y, double *u, double *v)
 
 typedef struct ti_params {
     int w, h;
-    double ppp;      /* particles per pixel */
-    double d_tau;    /* particle image diameter, px */
-    double peak;     /* grey level of a centred particle of full intensity */
-    double noise;    /* Gaussian noise std, as a fraction of `peak` (0 = none) */
-    double offset;   /* constant background grey level */
+    double ppp;    /* particles per pixel */
+    double d_tau;  /* particle image diameter, px */
+    double peak;   /* grey level of a centred particle of full intensity */
+    double noise;  /* Gaussian noise std, as a fraction of `peak` (0 = none) */
+    double offset; /* constant background grey level */
     uint64_t seed;
 } ti_params;
 

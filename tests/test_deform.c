@@ -188,7 +188,8 @@ static void shift_errors(double d_tau, double *e_bspline, double *e_bilinear)
     *e_bspline = sqrt(fmax(ea, eb) / sig);
     *e_bilinear = sqrt(el / sig);
     printf("    shift of a d_tau = %.1f px particle image: relative RMS error B-spline %.4f, "
-           "bilinear %.4f\n", d_tau, *e_bspline, *e_bilinear);
+           "bilinear %.4f\n",
+           d_tau, *e_bspline, *e_bilinear);
     rpiv_deform_pred_free(p);
     rpiv_field_free(f);
     free(a), free(b), free(ref), free(junk), free(ca), free(cb), free(oa), free(ob);
@@ -228,7 +229,8 @@ static void deform_is_thread_count_independent(void)
     rpiv_deform_prefilter(a2, W, H, 2);
     rpiv_deform_prefilter(b2, W, H, 2);
     CHECK(memcmp(a, a2, sizeof(float) * n) == 0 && memcmp(b, b2, sizeof(float) * n) == 0);
-    rpiv_field *f = grid_field(5, 4, 30, 25, 30, (lin){d[0], 0.01, 0.002}, (lin){d[1], -0.003, 0.02});
+    rpiv_field *f =
+        grid_field(5, 4, 30, 25, 30, (lin){d[0], 0.01, 0.002}, (lin){d[1], -0.003, 0.02});
     rpiv_deform_pred *p = NULL;
     CHECK_OK(rpiv_deform_pred_new(f, W, H, RPIV_DEFORM_SHIFT, &p));
     const int rect[4] = {0, 0, W, H};

@@ -23,6 +23,7 @@
 
 #include "rpiv/demo.h"
 
+#include <omp.h>
 #include <png.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -106,6 +107,7 @@ static void run_small(void)
 {
     rpiv_experiment e = small_experiment();
     rpiv_demo_params p = small_params();
+    p.threads = 1;
     snprintf(run_dir, sizeof run_dir, "%s/run", tmpdir);
     run_status = rpiv_demo_run(&e, &p, run_dir, NULL, NULL, &res);
     CHECK_OK(run_status);
@@ -379,6 +381,38 @@ static void demo_fails_when_the_sheet_is_dark_everywhere(void)
     CHECK(strstr(rpiv_errmsg(), "dark") != NULL);
 }
 
+/* The same numbers with 1 and 2 threads (a tiny run: 128 px band, 1 pair per plane, 3 R-PIV
+ * pairs); the other runs of this file use one thread (omp_set_num_threads(1) in main): the
+ * development machine is shared, and OpenMP threads that spin at barriers on a busy machine
+ * make a two-thread run several times slower. */
+static void demo_results_do_not_depend_on_threads(void)
+{
+    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_demo_params p = rpiv_demo_params_quick();
+    p.width_px = 128;
+    p.ppiv_pairs = 1;
+    p.rpiv_pairs = 3;
+    p.save_images = 0;
+    rpiv_demo_result r[2];
+    for (int t = 0; t < 2; t++) {
+        char dir[300];
+        snprintf(dir, sizeof dir, "%s/threads%d", tmpdir, t + 1);
+        omp_set_num_threads(t + 1);
+        p.threads = t + 1;
+        CHECK_OK(rpiv_demo_run(&e, &p, dir, NULL, NULL, &r[t]));
+    }
+    omp_set_num_threads(1);
+    CHECK(r[0].threads == 1 && r[1].threads == 2);
+    printf("  E1 at z*_max %.9f / %.9f, vs CCM %.9f / %.9f\n", r[0].e1_zmax, r[1].e1_zmax,
+           r[0].e1_model, r[1].e1_model);
+    CHECK(r[0].e1_zmax == r[1].e1_zmax && r[0].e1_zinf == r[1].e1_zinf);
+    CHECK(r[0].e1_model == r[1].e1_model && r[0].ppiv_e1_mean == r[1].ppiv_e1_mean);
+    CHECK(r[0].rpiv_e1_truth == r[1].rpiv_e1_truth && r[0].e1_corr == r[1].e1_corr);
+    CHECK(r[0].trace_e_65 == r[1].trace_e_65);
+    for (size_t k = 0; k < r[0].nconv; k++)
+        CHECK(r[0].conv_e1[k] == r[1].conv_e1[k]);
+}
+
 static void cleanup(void)
 {
     char cmd[400];
@@ -396,12 +430,14 @@ int main(void)
         perror("mkdtemp");
         return 1;
     }
+    omp_set_num_threads(1);
     RUN_TEST(demo_params_check_names_the_field);
     RUN_TEST(demo_run_rejects_bad_input);
     RUN_TEST(demo_stops_when_progress_asks);
     RUN_TEST(demo_log_reports_each_step);
     RUN_TEST(demo_falls_back_to_the_configured_sheet);
     RUN_TEST(demo_fails_when_the_sheet_is_dark_everywhere);
+    RUN_TEST(demo_results_do_not_depend_on_threads);
     RUN_TEST(run_small);
     RUN_TEST(demo_uses_the_traced_sheet_with_the_papers_shape);
     RUN_TEST(demo_ppiv_reference_is_close_to_the_duct);

@@ -77,8 +77,8 @@ static int instantaneous_outliers(rpiv_piv *pv, int n, const char *what)
         rpiv_field_free(f);
     }
     printf("    instantaneous (%s), first %d of the same pairs: %d of %d vectors off by > 0.5 px "
-           "(%.1f %%), %d replaced by validation, mean E1 per pair %.2f %%\n", what, n, bad, tot,
-           100.0 * bad / tot, replaced, 100 * mean_e1);
+           "(%.1f %%), %d replaced by validation, mean E1 per pair %.2f %%\n",
+           what, n, bad, tot, 100.0 * bad / tot, replaced, 100 * mean_e1);
     free(a);
     free(b);
     return bad;
@@ -124,7 +124,8 @@ static void ensemble_recovers_parabolic_profile_from_sparse_pairs(void)
             nout += fabs((double)pred->u[k] - u) > 0.5 || fabs((double)pred->v[k]) > 0.5;
         }
     printf("    ensemble of %d pairs at 0.005 ppp: E1 = %.3f %%, %d of %d vectors replaced, "
-           "%d outliers\n", npairs, 100 * e1, nrep, n, nout);
+           "%d outliers\n",
+           npairs, 100 * e1, nrep, n, nout);
     CHECK(e1 <= 0.005);
     CHECK(nout == 0);
 

@@ -230,8 +230,7 @@ static void pgm_bad_input(void)
     CHECK_ERR(rpiv_image_load(tu_path("short.pgm"), 0, &im, NULL), RPIV_EFORMAT, "short.pgm");
     const char *shortp2 = "P2 3 3 255\n1 2 3 4 5 6 7 8\n";
     CHECK(tu_write(tu_path("short2.pgm"), shortp2, strlen(shortp2)));
-    CHECK_ERR(rpiv_image_load(tu_path("short2.pgm"), 0, &im, NULL), RPIV_EFORMAT,
-              "short2.pgm");
+    CHECK_ERR(rpiv_image_load(tu_path("short2.pgm"), 0, &im, NULL), RPIV_EFORMAT, "short2.pgm");
     const char *maxval0 = "P5 1 1 0\n\x00";
     CHECK(tu_write(tu_path("max0.pgm"), maxval0, 10));
     CHECK_ERR(rpiv_image_load(tu_path("max0.pgm"), 0, &im, NULL), RPIV_EFORMAT, "max0.pgm");
@@ -298,9 +297,7 @@ static void tiff_tiles_strips_compression(void)
         {"tiled16.tif", {W, H, 16, 1, 0, PHOTOMETRIC_MINISBLACK, 0, 0, 0, 16, NULL, 0}, d16},
         {"tiled8.tif", {W, H, 8, 1, 0, PHOTOMETRIC_MINISBLACK, 0, 0, 0, 32, NULL, 0}, d8},
         {"strips5.tif", {W, H, 16, 1, 0, PHOTOMETRIC_MINISBLACK, 0, 0, 5, 0, NULL, 0}, d16},
-        {"lzw.tif",
-         {W, H, 8, 1, 0, PHOTOMETRIC_MINISBLACK, 0, 0, 4, 0, NULL, COMPRESSION_LZW},
-         d8},
+        {"lzw.tif", {W, H, 8, 1, 0, PHOTOMETRIC_MINISBLACK, 0, 0, 4, 0, NULL, COMPRESSION_LZW}, d8},
         {"deflate.tif",
          {W, H, 16, 1, 0, PHOTOMETRIC_MINISBLACK, 0, 0, 7, 16, NULL, COMPRESSION_ADOBE_DEFLATE},
          d16},
@@ -325,8 +322,8 @@ static void tiff_palette_luminance(void)
 {
     static uint16_t cmap[3 * 256];
     for (int i = 0; i < 256; i++) {
-        cmap[i] = (uint16_t)(257 * ((i * 7) % 256));      /* red   */
-        cmap[256 + i] = (uint16_t)(257 * (255 - i));      /* green */
+        cmap[i] = (uint16_t)(257 * ((i * 7) % 256));       /* red   */
+        cmap[256 + i] = (uint16_t)(257 * (255 - i));       /* green */
         cmap[512 + i] = (uint16_t)(257 * ((i * 3) % 256)); /* blue  */
     }
     uint8_t idx[8 * 3];
@@ -351,8 +348,7 @@ static void tiff_palette_luminance(void)
         cmap4[32 + i] = (uint16_t)(257 * (255 - i * 16));
     }
     uint8_t nib[3 * 2] = {0x1F, 0xA0, 0x37, 0xC2, 0x5E, 0x09}; /* 3x2 pixels: 1,15,10 / 3,7,12 */
-    tu_tiff o4 = {.w = 3, .h = 2, .bps = 4, .spp = 1, .photo = PHOTOMETRIC_PALETTE,
-                  .cmap = cmap4};
+    tu_tiff o4 = {.w = 3, .h = 2, .bps = 4, .spp = 1, .photo = PHOTOMETRIC_PALETTE, .cmap = cmap4};
     uint8_t packed[2 * 2] = {nib[0], nib[1], nib[2], nib[3]};
     CHECK(tu_tiff_write(tu_path("pal4.tif"), &o4, packed));
     CHECK_OK(rpiv_image_load(tu_path("pal4.tif"), 0, &im, NULL));
@@ -373,8 +369,13 @@ static void tiff_rgb_luminance_warns(void)
         planes[i] = r, planes[W * H + i] = g, planes[2 * W * H + i] = b;
     }
     tu_tiff oc = {.w = W, .h = H, .bps = 8, .spp = 4, .nextra = 1, .photo = PHOTOMETRIC_RGB};
-    tu_tiff os = {.w = W, .h = H, .bps = 8, .spp = 3, .photo = PHOTOMETRIC_RGB,
-                  .planar = PLANARCONFIG_SEPARATE, .rps = 3};
+    tu_tiff os = {.w = W,
+                  .h = H,
+                  .bps = 8,
+                  .spp = 3,
+                  .photo = PHOTOMETRIC_RGB,
+                  .planar = PLANARCONFIG_SEPARATE,
+                  .rps = 3};
     CHECK(tu_tiff_write(tu_path("rgba.tif"), &oc, contig));
     CHECK(tu_tiff_write(tu_path("rgbsep.tif"), &os, planes));
     const char *names[2] = {"rgba.tif", "rgbsep.tif"};
@@ -395,8 +396,7 @@ static void tiff_grey_alpha(void)
     uint16_t d[3 * 2 * 2];
     for (int i = 0; i < 6; i++)
         d[2 * i] = (uint16_t)pat16(i, 5), d[2 * i + 1] = 777;
-    tu_tiff o = {.w = 3, .h = 2, .bps = 16, .spp = 2, .nextra = 1,
-                 .photo = PHOTOMETRIC_MINISBLACK};
+    tu_tiff o = {.w = 3, .h = 2, .bps = 16, .spp = 2, .nextra = 1, .photo = PHOTOMETRIC_MINISBLACK};
     CHECK(tu_tiff_write(tu_path("greyalpha.tif"), &o, d));
     rpiv_image *im = NULL;
     int warned = -1;
@@ -440,8 +440,7 @@ static void write_tiff_header_only(const char *path, uint16_t bps, uint16_t spp,
 static void tiff_unsupported_layouts(void)
 {
     rpiv_image *im = NULL;
-    write_tiff_header_only(tu_path("uint32.tif"), 32, 1, SAMPLEFORMAT_UINT,
-                           PHOTOMETRIC_MINISBLACK);
+    write_tiff_header_only(tu_path("uint32.tif"), 32, 1, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK);
     CHECK_ERR(rpiv_image_load(tu_path("uint32.tif"), 0, &im, NULL), RPIV_EFORMAT, "uint32.tif");
     CHECK(strstr(rpiv_errmsg(), "32-bit") != NULL);
     write_tiff_header_only(tu_path("int16.tif"), 16, 1, SAMPLEFORMAT_INT, PHOTOMETRIC_MINISBLACK);
@@ -450,8 +449,7 @@ static void tiff_unsupported_layouts(void)
     write_tiff_header_only(tu_path("two.tif"), 8, 2, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK);
     CHECK_ERR(rpiv_image_load(tu_path("two.tif"), 0, &im, NULL), RPIV_EFORMAT, "two.tif");
     CHECK(strstr(rpiv_errmsg(), "2 samples per pixel") != NULL);
-    write_tiff_header_only(tu_path("f64.tif"), 64, 1, SAMPLEFORMAT_IEEEFP,
-                           PHOTOMETRIC_MINISBLACK);
+    write_tiff_header_only(tu_path("f64.tif"), 64, 1, SAMPLEFORMAT_IEEEFP, PHOTOMETRIC_MINISBLACK);
     CHECK_ERR(rpiv_image_load(tu_path("f64.tif"), 0, &im, NULL), RPIV_EFORMAT, "f64.tif");
     write_tiff_header_only(tu_path("b12.tif"), 12, 1, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK);
     CHECK_ERR(rpiv_image_load(tu_path("b12.tif"), 0, &im, NULL), RPIV_EFORMAT, "b12.tif");
@@ -486,9 +484,9 @@ static void tiff_truncated_and_silent(void)
     struct {
         uint16_t tag, type;
         uint32_t count, value;
-    } tags[9] = {{256, 4, 1, 100},     {257, 4, 1, 80},  {258, 3, 1, 8},
-                 {259, 3, 1, 1},       {262, 3, 1, 1},   {273, 4, 1, dataoff},
-                 {277, 3, 1, 1},       {278, 4, 1, 80},  {279, 4, 1, 8000}};
+    } tags[9] = {{256, 4, 1, 100}, {257, 4, 1, 80}, {258, 3, 1, 8},
+                 {259, 3, 1, 1},   {262, 3, 1, 1},  {273, 4, 1, dataoff},
+                 {277, 3, 1, 1},   {278, 4, 1, 80}, {279, 4, 1, 8000}};
     for (int i = 0; i < 9; i++) {
         memcpy(p, &tags[i].tag, 2), memcpy(p + 2, &tags[i].type, 2);
         memcpy(p + 4, &tags[i].count, 4), memcpy(p + 8, &tags[i].value, 4);
@@ -556,8 +554,7 @@ static void tiff_truncated_and_silent(void)
     CHECK(s4 == RPIV_EFORMAT && strstr(m4, "absurd.tif") && strstr(m4, "2^31"));
     CHECK(s5 == RPIV_EFORMAT && strstr(m5, "cut_data.tif") && strstr(m5, "truncated"));
     CHECK(s6 == RPIV_EFORMAT && strstr(m6, "bighdr.tif") && strstr(m6, "cannot be stored"));
-    printf("    (%s)\n    (%s)\n    (%s)\n    (%s)\n    (%s)\n    (%s)\n", m1, m2, m3, m4,
-           m5, m6);
+    printf("    (%s)\n    (%s)\n    (%s)\n    (%s)\n    (%s)\n    (%s)\n", m1, m2, m3, m4, m5, m6);
     CHECK(im == NULL);
     free(b);
     rpiv_image_free(big);
@@ -567,8 +564,7 @@ static void tiff_truncated_and_silent(void)
 
 /* Write a PNG with libpng: rows of packed samples as PNG stores them. */
 static int png_write_raw(const char *path, int w, int h, int depth, int ctype,
-                         const unsigned char *data, size_t rowbytes, const png_color *pal,
-                         int npal)
+                         const unsigned char *data, size_t rowbytes, const png_color *pal, int npal)
 {
     FILE *f = fopen(path, "wb");
     if (!f)
@@ -679,8 +675,8 @@ static void png_bad_input(void)
         return;
     size_t idat = png_chunk(b, n, "IDAT");
     CHECK(idat > 0);
-    size_t len = (size_t)b[idat] << 24 | (size_t)b[idat + 1] << 16 | (size_t)b[idat + 2] << 8 |
-                 b[idat + 3];
+    size_t len =
+        (size_t)b[idat] << 24 | (size_t)b[idat + 1] << 16 | (size_t)b[idat + 2] << 8 | b[idat + 3];
     CHECK(tu_write(tu_path("cut.png"), b, idat + 8 + len / 2)); /* inside the pixel data */
     CHECK_ERR(rpiv_image_load(tu_path("cut.png"), 0, &im, NULL), RPIV_EFORMAT, "cut.png");
     CHECK(strstr(rpiv_errmsg(), "truncated") != NULL);
@@ -698,8 +694,7 @@ static void png_bad_input(void)
     /* a data byte flipped in IHDR (critical; its CRC no longer matches) */
     b[8 + 8 + 3] ^= 0x01; /* width 64 -> 65 */
     CHECK(tu_write(tu_path("crc_ihdr.png"), b, n));
-    CHECK_ERR(rpiv_image_load(tu_path("crc_ihdr.png"), 0, &im, NULL), RPIV_EFORMAT,
-              "crc_ihdr.png");
+    CHECK_ERR(rpiv_image_load(tu_path("crc_ihdr.png"), 0, &im, NULL), RPIV_EFORMAT, "crc_ihdr.png");
     b[8 + 8 + 3] ^= 0x01;
     /* an ancillary tEXt chunk with a wrong CRC before IDAT: libpng only warns by default */
     unsigned char *c = malloc(n + 32);
@@ -707,8 +702,8 @@ static void png_bad_input(void)
     if (c) {
         size_t k = 0;
         memcpy(c, b, idat), k = idat;
-        const unsigned char text[] = {0, 0, 0, 8, 't', 'E', 'X', 't', 'a', 'b', 0, 'x',
-                                      'y', 'z', 'w', 'v', 0xDE, 0xAD, 0xBE, 0xEF};
+        const unsigned char text[] = {0, 0,   0,   8,   't', 'E', 'X',  't',  'a',  'b',
+                                      0, 'x', 'y', 'z', 'w', 'v', 0xDE, 0xAD, 0xBE, 0xEF};
         memcpy(c + k, text, sizeof text), k += sizeof text;
         memcpy(c + k, b + idat, n - idat), k += n - idat;
         CHECK(tu_write(tu_path("crc_text.png"), c, k));
@@ -1078,11 +1073,30 @@ static void corrupted_files_never_crash(void)
     printf("    (%d mutants: %d loaded, %d refused)\n", loaded + failed, loaded, failed);
 }
 
+/* Images above RPIV_MAX_IMAGE_PIXELS are refused before allocation, naming file and limit. */
+static void pixel_limit_refuses_large_images(void)
+{
+    rpiv_image *im = image16(37, 23), *back = NULL;
+    CHECK_OK(rpiv_image_save_tiff16(im, tu_path("limit.tif")));
+    CHECK_OK(rpiv_image_save_png16(im, tu_path("limit.png")));
+    setenv("RPIV_MAX_IMAGE_PIXELS", "850", 1); /* 37 x 23 = 851 */
+    CHECK_FAILS(rpiv_image_load(tu_path("limit.tif"), 0, &back, NULL), RPIV_ELIMIT);
+    CHECK(back == NULL && strstr(rpiv_errmsg(), "limit.tif") &&
+          strstr(rpiv_errmsg(), "RPIV_MAX_IMAGE_PIXELS"));
+    CHECK_FAILS(rpiv_image_load(tu_path("limit.png"), 0, &back, NULL), RPIV_ELIMIT);
+    setenv("RPIV_MAX_IMAGE_PIXELS", "851", 1);
+    CHECK_OK(rpiv_image_load(tu_path("limit.tif"), 0, &back, NULL));
+    unsetenv("RPIV_MAX_IMAGE_PIXELS");
+    rpiv_image_free(back);
+    rpiv_image_free(im);
+}
+
 int main(void)
 {
     if (!tu_init("test_image"))
         return 1;
     RUN_TEST(roundtrip_tiff16_exact);
+    RUN_TEST(pixel_limit_refuses_large_images);
     RUN_TEST(roundtrip_png16_exact);
     RUN_TEST(roundtrip_float_tiff_exact);
     RUN_TEST(writers_round_and_clamp);
@@ -1110,6 +1124,7 @@ int main(void)
     RUN_TEST(fixture_jpeg_crop);
     RUN_TEST(fixture_bmp_crop);
     RUN_TEST(corrupted_files_never_crash);
-    if (!getenv("KEEP")) tu_cleanup();
+    if (!getenv("KEEP"))
+        tu_cleanup();
     return check_summary();
 }

@@ -130,7 +130,7 @@ static void peak_second_peak_is_a_local_maximum(void)
 static void peak_search_range_is_honoured(void)
 {
     float p[W * H] = {0};
-    add_gauss(p, 10, 0, 0.7, 1.0);       /* higher, but outside |s| <= 6 */
+    add_gauss(p, 10, 0, 0.7, 1.0);        /* higher, but outside |s| <= 6 */
     add_gauss(p, 2.2389, -1.1, 0.9, 0.5); /* inside */
     rpiv_peak pk;
     rpiv_peak_find(p, W, H, 6, RPIV_SUBPIXEL_GAUSS, &pk);

@@ -193,7 +193,8 @@ static void piv_sinusoidal_shear_amplitude(void)
     if (f && g && h4) {
         double a3 = sine_amplitude(f) / 3, a1 = sine_amplitude(g) / 3, a4 = sine_amplitude(h4) / 3;
         printf("    sine 3 px / 64 px: amplitude kept %.1f %% (64,32,32), %.1f %% (one 32 px pass),"
-               " %.1f %% (64,32,32,32)\n", 100 * a3, 100 * a1, 100 * a4);
+               " %.1f %% (64,32,32,32)\n",
+               100 * a3, 100 * a1, 100 * a4);
         CHECK(a3 >= 0.85);
         CHECK(a1 < 0.75 && a1 > 0.55); /* the top-hat window's sinc(pi/2) = 0.64, about */
         CHECK(a4 > a3);
@@ -233,7 +234,8 @@ static void piv_lamb_oseen_vortex_has_few_outliers(void)
     if (f) {
         errs e = field_errors(f, oseen, c);
         printf("    Lamb-Oseen 6 px, rc 48 px, 384x320: %d vectors, %d outliers (> 0.5 px), "
-               "%d replaced, RMS %.4f %.4f px\n", e.n, e.outliers, e.replaced, e.rms_u, e.rms_v);
+               "%d replaced, RMS %.4f %.4f px\n",
+               e.n, e.outliers, e.replaced, e.rms_u, e.rms_v);
         CHECK(e.outliers < 0.005 * e.n);
         CHECK(e.rms_u < 0.1 && e.rms_v < 0.1);
     }
@@ -303,7 +305,8 @@ static void piv_subpixel_methods_and_window_offset_mode(void)
     ti_params tp = base(192, 192, 19);
     pair p;
     pair_make(&p, &tp, ti_uniform, d);
-    const rpiv_subpixel m[3] = {RPIV_SUBPIXEL_GAUSS, RPIV_SUBPIXEL_PARABOLA, RPIV_SUBPIXEL_CENTROID};
+    const rpiv_subpixel m[3] = {RPIV_SUBPIXEL_GAUSS, RPIV_SUBPIXEL_PARABOLA,
+                                RPIV_SUBPIXEL_CENTROID};
     for (int k = 0; k < 3; k++) {
         rpiv_piv_params prm = rpiv_piv_params_default();
         prm.subpixel = m[k];
@@ -328,7 +331,8 @@ static void piv_subpixel_methods_and_window_offset_mode(void)
     if (f) {
         errs e = field_errors(f, ti_uniform, d);
         printf("    window offset (no deformation), shift (2.3187, -1.6402): mean error %+.4f "
-               "%+.4f, RMS %.4f %.4f px\n", e.mean_u, e.mean_v, e.rms_u, e.rms_v);
+               "%+.4f, RMS %.4f %.4f px\n",
+               e.mean_u, e.mean_v, e.rms_u, e.rms_v);
         CHECK(fmax(e.rms_u, e.rms_v) < 0.08);
         CHECK(f->x0 == 15.5);
     }
@@ -409,7 +413,9 @@ static void piv_background_subtraction(void)
     float *bg = malloc(sizeof(float) * n);
     for (int y = 0; y < 160; y++)
         for (int x = 0; x < 192; x++) {
-            double v = 300 + 2.0 * x + 200 * exp(-((x % 37 - 18) * (x % 37 - 18) + (y % 29 - 14) * (y % 29 - 14)) / 8.0);
+            double v =
+                300 + 2.0 * x +
+                200 * exp(-((x % 37 - 18) * (x % 37 - 18) + (y % 29 - 14) * (y % 29 - 14)) / 8.0);
             bg[y * 192 + x] = (float)v;
             p.a[y * 192 + x] += (float)v;
             p.b[y * 192 + x] += (float)v;

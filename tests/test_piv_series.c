@@ -36,8 +36,9 @@ static void stats_of_known_fields(void)
     CHECK_OK(rpiv_piv_stats_finish(s, &mean, &rms));
     if (mean && rms) {
         /* point 0: u = 1.25, 2.5, 4.75: mean 17/6, population std sqrt(1.5 ... ) */
-        double m = (1.25 + 2.5 + 4.75) / 3, var = ((1.25 - m) * (1.25 - m) + (2.5 - m) * (2.5 - m) +
-                                                  (4.75 - m) * (4.75 - m)) / 3;
+        double m = (1.25 + 2.5 + 4.75) / 3,
+               var =
+                   ((1.25 - m) * (1.25 - m) + (2.5 - m) * (2.5 - m) + (4.75 - m) * (4.75 - m)) / 3;
         CHECK_NEAR(mean->u[0], m, 1e-6);
         CHECK_NEAR(mean->v[0], -m, 1e-6);
         CHECK_NEAR(rms->u[0], sqrt(var), 1e-6);
@@ -51,7 +52,8 @@ static void stats_of_known_fields(void)
         CHECK(mean->flag[2] == RPIV_FLAG_REPLACED);
         CHECK_NEAR(mean->u[2], m + 2, 1e-6);
         /* point 3: masked throughout */
-        CHECK(mean->flag[3] == RPIV_FLAG_MASKED && mean->u[3] == 0 && rms->flag[3] == RPIV_FLAG_MASKED);
+        CHECK(mean->flag[3] == RPIV_FLAG_MASKED && mean->u[3] == 0 &&
+              rms->flag[3] == RPIV_FLAG_MASKED);
     }
     rpiv_field *g = NULL;
     CHECK_OK(rpiv_field_new(3, 2, 15.5, 15.5, 16, 8, &g));

@@ -158,7 +158,7 @@ static void validate_edge_vectors_in_a_steep_gradient_are_kept(void)
     size_t nrej = 9;
     CHECK_OK(rpiv_validate_median(f, 2, 0.1, &nrej));
     CHECK(nrej == 0);
-    f->u[0 * NX + 6] += 3.1f; /* r0* = 3.1 / (0.9 + 0.1): the gradient widens rm */
+    f->u[0 * NX + 6] += 3.1f;  /* r0* = 3.1 / (0.9 + 0.1): the gradient widens rm */
     f->v[14 * NX + 0] -= 1.2f; /* a corner */
     CHECK_OK(rpiv_validate_median(f, 2, 0.1, &nrej));
     CHECK(nrej == 2);

@@ -108,7 +108,8 @@ static void xcorr_raw_plane_equals_direct_sum(void)
             double r = 0;
             for (int j = 0; j < H; j++)
                 for (int i = 0; i < W; i++)
-                    r += ((double)a[j * W + i] - ma) * ((double)b[((j + sy) % H) * W + (i + sx) % W] - mb);
+                    r += ((double)a[j * W + i] - ma) *
+                         ((double)b[((j + sy) % H) * W + (i + sx) % W] - mb);
             double e = fabs((double)ws->plane[sy * W + sx] - r);
             maxerr = e > maxerr ? e : maxerr;
         }

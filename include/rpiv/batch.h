@@ -12,9 +12,9 @@
  * each rank adds its pairs in order, and the K partial sums are added in double at rank 0,
  * rounded once to float and broadcast, so every rank finishes the pass on the same sums and
  * a run is reproducible for a given K. A K-rank sum groups the additions differently from a
- * single process, so it agrees with it to float rounding, not to the bit: docs/cluster.md
- * gives the measured difference and tests/cli/mpi.sh holds it below 1e-6 px (1e-5 px near
- * a vector at the validation's threshold is the bound stated there).
+ * single process, so it agrees with it to float rounding, not to the bit: a few float ulps of
+ * the displacement (measured: at most 6e-7 px on 2.3 px shifts, 1e-6 px on 6 px ones;
+ * tests/cli/mpi.sh fails above 1e-6 px; docs/cluster.md).
  *
  * Checkpoints (ensemble only). With params.checkpoint = FILE, every rank writes its state to
  * FILE (one process) or FILE.rank<r> (K > 1): the pass, its predictor (the field of the
@@ -26,7 +26,8 @@
  * run continues from it and ends with the same field, to the bit, as a run that was never
  * interrupted (the pairs are added in the same order); a checkpoint of another series, plan
  * or number of ranks is refused, naming what differs. No checkpoint at all: the run starts
- * from the beginning (rpiv_batch_resumed says so).
+ * from the beginning (rpiv_batch_resumed says so). Without resume, an existing checkpoint
+ * file is not overwritten: RPIV_EINVAL. Temporary files of a killed save are removed.
  *
  * Unreadable pairs. A pair whose images cannot be read or do not have the series' size is
  * reported with its index and file. With params.skip_bad it is left out of every step and
@@ -48,11 +49,11 @@
 typedef void (*rpiv_batch_skip_fn)(void *user, size_t index, const char *msg);
 
 typedef struct rpiv_batch_params {
-    const char *checkpoint;  /* checkpoint file, NULL = none (copied)                     */
-    size_t checkpoint_every; /* pairs added by a rank between checkpoints; 0 = only at
-                                pass starts and on stopping (100)                         */
-    int resume;              /* 1: continue from the checkpoint (0)                        */
-    int skip_bad;            /* 1: skip and list unreadable pairs; 0: stop on them (0)     */
+    const char *checkpoint;     /* checkpoint file, NULL = none (copied)                     */
+    size_t checkpoint_every;    /* pairs added by a rank between checkpoints; 0 = only at
+                                   pass starts and on stopping (100)                         */
+    int resume;                 /* 1: continue from the checkpoint (0)                        */
+    int skip_bad;               /* 1: skip and list unreadable pairs; 0: stop on them (0)     */
     rpiv_batch_skip_fn on_skip; /* NULL = not called                                       */
     void *user;                 /* for on_skip                                             */
 } rpiv_batch_params;
@@ -78,9 +79,9 @@ RPIV_NODISCARD rpiv_status rpiv_batch_size(rpiv_batch *b, int *w, int *h);
  * weighted by their pair counts, in double). With one rank it is rpiv_piv_background over
  * the readable pairs. With skip_bad, a pair that fails is found, listed, and the background
  * made again without it. Collective. Errors as rpiv_piv_background's. */
-RPIV_NODISCARD rpiv_status rpiv_batch_background(rpiv_batch *b, rpiv_background kind, int w,
-                                                 int h, const rpiv_progress *progress,
-                                                 rpiv_image **bg_a, rpiv_image **bg_b);
+RPIV_NODISCARD rpiv_status rpiv_batch_background(rpiv_batch *b, rpiv_background kind, int w, int h,
+                                                 const rpiv_progress *progress, rpiv_image **bg_a,
+                                                 rpiv_image **bg_b);
 
 /* The ensemble run (rpiv_ensemble_run) of plan pv over the batch's pairs, with the
  * checkpoints, resume, skipping and dealing above; collective. Every rank gets the final
@@ -90,8 +91,7 @@ RPIV_NODISCARD rpiv_status rpiv_batch_background(rpiv_batch *b, rpiv_background 
  * RPIV_EIO (a checkpoint cannot be written, or no pair could be read); RPIV_EINTR on a stop
  * request (the checkpoint, if any, is saved first). */
 RPIV_NODISCARD rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv,
-                                               const rpiv_progress *progress,
-                                               rpiv_field **out);
+                                               const rpiv_progress *progress, rpiv_field **out);
 
 /* Per-pair processing (rpiv_piv_series) of the batch's pairs; collective, in rounds of K
  * pairs (one per rank). `local` (may be NULL) gets each field on the rank that made it;

@@ -19,8 +19,8 @@
 #include <stdio.h>
 
 typedef struct rpiv_output_params {
-    char dir[RPIV_PATH_MAX];   /* output folder ("rpiv-out")                 */
-    int plots;                 /* 1: write PNG plots (1)                     */
+    char dir[RPIV_PATH_MAX]; /* output folder ("rpiv-out")                 */
+    int plots;               /* 1: write PNG plots (1)                     */
 } rpiv_output_params;
 
 typedef struct rpiv_experiment {
@@ -48,9 +48,8 @@ RPIV_NODISCARD rpiv_status rpiv_config_load(const char *path, rpiv_experiment *e
 
 /* Set one key from a "section.key=value" or (section, key, value) string, as a command-line
  * override; `origin` names where it came from in messages (e.g. "--set"). */
-RPIV_NODISCARD rpiv_status rpiv_config_set(rpiv_experiment *e, const char *section,
-                                           const char *key, const char *value,
-                                           const char *origin);
+RPIV_NODISCARD rpiv_status rpiv_config_set(rpiv_experiment *e, const char *section, const char *key,
+                                           const char *value, const char *origin);
 
 /* Write *e as a complete INI file, every key with its unit and help as a comment. */
 RPIV_NODISCARD rpiv_status rpiv_config_write(const rpiv_experiment *e, FILE *fp);

@@ -48,8 +48,7 @@ RPIV_NODISCARD rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int 
 void rpiv_deform_pred_free(rpiv_deform_pred *p); /* NULL is a no-op */
 
 /* The predictor at any point (x, y), px (no shift applied). */
-void rpiv_deform_pred_eval(const rpiv_deform_pred *p, double x, double y, double *u,
-                           double *v);
+void rpiv_deform_pred_eval(const rpiv_deform_pred *p, double x, double y, double *u, double *v);
 
 /* The predictor at the points (x + shift, y + shift) for the pixels x0..x1-1
  * (0 <= x0 < x1 <= w) of row y (0 <= y < h), into u[0..x1-x0-1], v[...]. scratch holds
@@ -78,9 +77,9 @@ void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, floa
  * the frames' mean grey level, so after the windows' mean removal those pixels add
  * nothing): a particle there has no partner in the other frame and would only add noise.
  * nthreads as in prefilter. */
-RPIV_NODISCARD rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w,
-                                           int h, const rpiv_deform_pred *p, const int rect[4],
-                                           float fill_a, float fill_b, float *out_a,
-                                           float *out_b, int nthreads);
+RPIV_NODISCARD rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int h,
+                                           const rpiv_deform_pred *p, const int rect[4],
+                                           float fill_a, float fill_b, float *out_a, float *out_b,
+                                           int nthreads);
 
 #endif /* RPIV_DEFORM_H */

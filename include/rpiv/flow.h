@@ -13,12 +13,12 @@
 
 /* The channel. */
 typedef struct rpiv_channel {
-    double h_m;          /* side of the square duct, m (8e-3)                       */
-    double reynolds;     /* Re = U_b h / nu on the bulk velocity (465)               */
-    double nu_m2s;       /* kinematic viscosity of the fluid, m^2/s (1.0e-6, water 20 C) */
-    double x0_star;      /* emerging point of the sheet, x* = 0 at 7 h upstream of the end (7) */
-    double fov_x0_star;  /* x* of the left edge of the field of view (0.6)          */
-    double fov_y0_star;  /* y* of the top edge of the field of view (-1.73)         */
+    double h_m;         /* side of the square duct, m (8e-3)                       */
+    double reynolds;    /* Re = U_b h / nu on the bulk velocity (465)               */
+    double nu_m2s;      /* kinematic viscosity of the fluid, m^2/s (1.0e-6, water 20 C) */
+    double x0_star;     /* emerging point of the sheet, x* = 0 at 7 h upstream of the end (7) */
+    double fov_x0_star; /* x* of the left edge of the field of view (0.6)          */
+    double fov_y0_star; /* y* of the top edge of the field of view (-1.73)         */
 } rpiv_channel;
 
 rpiv_channel rpiv_channel_default(void);
@@ -41,21 +41,21 @@ double rpiv_duct_k(void);
 
 /* Other flows, as displacement fields in pixels for the generator and the tests. */
 typedef enum rpiv_flow_kind {
-    RPIV_FLOW_UNIFORM = 0,   /* (u, v) = (a, b)                                        */
-    RPIV_FLOW_DUCT = 1,      /* u = a * U*(y*, z*), y* from image y, z* from particle   */
-    RPIV_FLOW_POISEUILLE = 2, /* plane Poiseuille in z: u = a * 6 z*(1-z*) (bulk a)      */
-    RPIV_FLOW_OSEEN = 3,     /* Lamb-Oseen vortex at (cx, cy), peak swirl a px, core r_c = b px */
-    RPIV_FLOW_SINE = 4,      /* sinusoidal shear u = a sin(2 pi y / lambda), lambda = b px */
+    RPIV_FLOW_UNIFORM = 0,     /* (u, v) = (a, b)                                        */
+    RPIV_FLOW_DUCT = 1,        /* u = a * U*(y*, z*), y* from image y, z* from particle   */
+    RPIV_FLOW_POISEUILLE = 2,  /* plane Poiseuille in z: u = a * 6 z*(1-z*) (bulk a)      */
+    RPIV_FLOW_OSEEN = 3,       /* Lamb-Oseen vortex at (cx, cy), peak swirl a px, core r_c = b px */
+    RPIV_FLOW_SINE = 4,        /* sinusoidal shear u = a sin(2 pi y / lambda), lambda = b px */
     RPIV_FLOW_POISEUILLE_Y = 5 /* parabolic in image y: u = a * 4 s (1 - s), s = y / height */
 } rpiv_flow_kind;
 
 typedef struct rpiv_flow {
     rpiv_flow_kind kind;
-    double a, b;       /* amplitudes / lengths, see rpiv_flow_kind                   */
-    double cx, cy;     /* centre (Oseen), px                                         */
-    double height_px;  /* image height for FLOW_POISEUILLE_Y                          */
+    double a, b;      /* amplitudes / lengths, see rpiv_flow_kind                   */
+    double cx, cy;    /* centre (Oseen), px                                         */
+    double height_px; /* image height for FLOW_POISEUILLE_Y                          */
     /* for FLOW_DUCT: the mapping from image pixel to y* */
-    double y0_star;    /* y* at image row 0                                          */
+    double y0_star; /* y* at image row 0                                          */
     double ystar_per_px;
 } rpiv_flow;
 

@@ -77,8 +77,8 @@ RPIV_NODISCARD rpiv_status rpiv_image_save(const rpiv_image *im, const char *pat
 /* One pair: frame A and frame B from two files, or from one double-frame file (frame A in the
  * top half, frame B in the bottom half; or pages 0 and 1 of a multi-page TIFF). */
 typedef struct rpiv_pair_src {
-    char *path_a;    /* owned */
-    char *path_b;    /* owned; NULL for a double-frame file */
+    char *path_a; /* owned */
+    char *path_b; /* owned; NULL for a double-frame file */
 } rpiv_pair_src;
 
 typedef struct rpiv_pairs {
@@ -87,8 +87,8 @@ typedef struct rpiv_pairs {
 } rpiv_pairs;
 
 typedef enum rpiv_pairing {
-    RPIV_PAIR_AB = 0,          /* stems ending in a/b (so _a/_b), A/B or 1/2: matched      */
-    RPIV_PAIR_CONSECUTIVE = 1, /* sorted frames 1-2, 3-4, ...                              */
+    RPIV_PAIR_AB = 0,           /* stems ending in a/b (so _a/_b), A/B or 1/2: matched      */
+    RPIV_PAIR_CONSECUTIVE = 1,  /* sorted frames 1-2, 3-4, ...                              */
     RPIV_PAIR_TIME_RESOLVED = 2 /* sorted frames 1-2, 2-3, ...                             */
 } rpiv_pairing;
 

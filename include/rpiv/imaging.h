@@ -33,9 +33,9 @@ typedef struct rpiv_camera {
 
 /* The seeding. */
 typedef struct rpiv_particles {
-    double dp_m;         /* mean geometric diameter d_p, m (10e-6)                 */
-    double dp_sigma_m;   /* spread of d_p (uniform +- or Gaussian sigma), m (4e-6)  */
-    double density_ppp;  /* particle images per pixel in the image plane (0.015)     */
+    double dp_m;        /* mean geometric diameter d_p, m (10e-6)                 */
+    double dp_sigma_m;  /* spread of d_p (uniform +- or Gaussian sigma), m (4e-6)  */
+    double density_ppp; /* particle images per pixel in the image plane (0.015)     */
 } rpiv_particles;
 
 rpiv_camera rpiv_camera_default(void);

@@ -24,13 +24,13 @@ typedef enum rpiv_subpixel {
 #define RPIV_PEAK_EXCLUDE 2
 
 typedef struct rpiv_peak {
-    double dx, dy;    /* sub-pixel shift of the highest peak, px                          */
-    int ix, iy;       /* integer shift of the highest peak                                */
-    float value;      /* plane value at the integer peak                                  */
-    float second;     /* value of the second peak (0 if none)                             */
-    float ratio;      /* value / second; RPIV_PEAK_RATIO_MAX if second <= 0 or none       */
-    int fit_ok;       /* 0: the sub-pixel fit was impossible (flat or non-finite plane);
-                         dx, dy are then the integer shift                               */
+    double dx, dy; /* sub-pixel shift of the highest peak, px                          */
+    int ix, iy;    /* integer shift of the highest peak                                */
+    float value;   /* plane value at the integer peak                                  */
+    float second;  /* value of the second peak (0 if none)                             */
+    float ratio;   /* value / second; RPIV_PEAK_RATIO_MAX if second <= 0 or none       */
+    int fit_ok;    /* 0: the sub-pixel fit was impossible (flat or non-finite plane);
+                      dx, dy are then the integer shift                               */
 } rpiv_peak;
 
 /* Find the highest value of a w x h plane among shifts with |sx| <= max_shift and

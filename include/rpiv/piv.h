@@ -15,28 +15,28 @@
 
 typedef enum rpiv_background {
     RPIV_BACKGROUND_NONE = 0,
-    RPIV_BACKGROUND_MIN = 1,  /* subtract the series' per-pixel minimum */
-    RPIV_BACKGROUND_MEAN = 2  /* subtract the series' per-pixel mean    */
+    RPIV_BACKGROUND_MIN = 1, /* subtract the series' per-pixel minimum */
+    RPIV_BACKGROUND_MEAN = 2 /* subtract the series' per-pixel mean    */
 } rpiv_background;
 
 typedef struct rpiv_piv_params {
-    int npass;                          /* number of passes, 1..8 (3)                  */
-    int win_w[RPIV_PIV_MAX_PASSES];     /* window width per pass, px (64, 32, 32)      */
-    int win_h[RPIV_PIV_MAX_PASSES];     /* window height per pass, px (64, 32, 32)     */
-    double overlap;                     /* window overlap fraction, 0..0.95 (0.5)      */
-    int step_px;                        /* grid step, px; 0 = from overlap (0)         */
-    int ensemble;                       /* 1: sum of correlation over all pairs (0)    */
-    rpiv_subpixel subpixel;             /* (gauss)                                     */
-    double median_thr;                  /* normalised median threshold; 0 = off (2)    */
-    double median_eps;                  /* median test epsilon, px (0.1)               */
-    rpiv_background background;         /* (none)                                      */
-    int roi[4];                         /* x0, y0, x1, y1 px; all 0 = whole image      */
-    char mask[512];                     /* mask image, 0 = masked ("" = none)          */
-    int threads;                        /* OpenMP threads; 0 = all cores (0)           */
-    double scale_mm_per_px;             /* physical scale, 0 = unset (0)               */
-    double dt_s;                        /* pulse separation, s; 0 = unset (0)          */
-    int deform;                         /* 1: deform images between passes (1)         */
-    double max_mem_mb;                  /* refuse runs needing more memory, MB (4096)  */
+    int npass;                      /* number of passes, 1..8 (3)                  */
+    int win_w[RPIV_PIV_MAX_PASSES]; /* window width per pass, px (64, 32, 32)      */
+    int win_h[RPIV_PIV_MAX_PASSES]; /* window height per pass, px (64, 32, 32)     */
+    double overlap;                 /* window overlap fraction, 0..0.95 (0.5)      */
+    int step_px;                    /* grid step, px; 0 = from overlap (0)         */
+    int ensemble;                   /* 1: sum of correlation over all pairs (0)    */
+    rpiv_subpixel subpixel;         /* (gauss)                                     */
+    double median_thr;              /* normalised median threshold; 0 = off (2)    */
+    double median_eps;              /* median test epsilon, px (0.1)               */
+    rpiv_background background;     /* (none)                                      */
+    int roi[4];                     /* x0, y0, x1, y1 px; all 0 = whole image      */
+    char mask[512];                 /* mask image, 0 = masked ("" = none)          */
+    int threads;                    /* OpenMP threads; 0 = all cores (0)           */
+    double scale_mm_per_px;         /* physical scale, 0 = unset (0)               */
+    double dt_s;                    /* pulse separation, s; 0 = unset (0)          */
+    int deform;                     /* 1: deform images between passes (1)         */
+    double max_mem_mb;              /* refuse runs needing more memory, MB (4096)  */
 } rpiv_piv_params;
 
 rpiv_piv_params rpiv_piv_params_default(void);
@@ -95,8 +95,7 @@ RPIV_NODISCARD rpiv_status rpiv_piv_set_background(rpiv_piv *pv, const rpiv_imag
 /* Load a pair into the plan (copied: background subtracted, masked pixels set to the frame's
  * mean over unmasked pixels). The caller may free a and b afterwards. RPIV_ESIZE if their
  * size differs from the plan's. */
-RPIV_NODISCARD rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a,
-                                         const rpiv_image *b);
+RPIV_NODISCARD rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b);
 
 /* Run pass `pass` on the loaded pair with `predictor` (any grid; NULL: none, windows
  * correlated where they are) into a new field on the pass's grid: measured, validated,
@@ -121,8 +120,8 @@ RPIV_NODISCARD rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const
  * mean). RPIV_EINVAL for kind NONE or no pairs, RPIV_ESIZE (naming the pair) if the frames
  * change size, RPIV_EINTR on a stop request, and the image readers' errors. */
 RPIV_NODISCARD rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
-                                               const rpiv_progress *progress,
-                                               rpiv_image **bg_a, rpiv_image **bg_b);
+                                               const rpiv_progress *progress, rpiv_image **bg_a,
+                                               rpiv_image **bg_b);
 
 /* Called with every field of a series, in pair order; a non-OK return stops the series with
  * that status. The field is only lent for the call. */

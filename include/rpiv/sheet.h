@@ -28,11 +28,11 @@ typedef enum rpiv_sheet_kind {
 
 typedef struct rpiv_sheet_params {
     rpiv_sheet_kind kind;
-    double zb_star;   /* GAUSS: centre z*_B (0.5)                                   */
-    double e_star;    /* GAUSS: thickness at 0.25 max (0.05)                        */
-    double e0, e1;    /* SELFSIM: e*(x*) = e0 + e1 x* (0, 0.0646: e* = 0.42 at x* = 6.5) */
-    double zm0, zm1;  /* SELFSIM: z*_max(x*) = zm0 + zm1 x* (0, 0.0794: 0.5 at x* = 6.3) */
-    double skew;      /* SELFSIM default shape: lower/upper half-width ratio (2)      */
+    double zb_star;  /* GAUSS: centre z*_B (0.5)                                   */
+    double e_star;   /* GAUSS: thickness at 0.25 max (0.05)                        */
+    double e0, e1;   /* SELFSIM: e*(x*) = e0 + e1 x* (0, 0.0646: e* = 0.42 at x* = 6.5) */
+    double zm0, zm1; /* SELFSIM: z*_max(x*) = zm0 + zm1 x* (0, 0.0794: 0.5 at x* = 6.3) */
+    double skew;     /* SELFSIM default shape: lower/upper half-width ratio (2)      */
     char profile[RPIV_PATH_MAX]; /* SELFSIM: shape table file ("" = default shape)   */
 } rpiv_sheet_params;
 

@@ -29,7 +29,6 @@ RPIV_NODISCARD rpiv_status rpiv_validate_median(rpiv_field *f, double threshold,
  * neighbours; vectors without any take, in a following sweep, the median of the neighbours
  * filled in the sweep before, and so on outwards. If the field has no valid vector at all,
  * they become 0. *nfilled (may be NULL) gets the number of vectors written. */
-RPIV_NODISCARD rpiv_status rpiv_validate_replace(rpiv_field *f, int fill_masked,
-                                                 size_t *nfilled);
+RPIV_NODISCARD rpiv_status rpiv_validate_replace(rpiv_field *f, int fill_masked, size_t *nfilled);
 
 #endif /* RPIV_VALIDATE_H */

@@ -48,13 +48,11 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws); /* NULL is a no-op */
 /* Correlate ws->a with ws->b into ws->plane (mode RPIV_XCORR_RAW or _NORMALISE). The window
  * energies sum a'^2 and sum b'^2 go to *ea, *eb (either may be NULL). Thread-safe for
  * distinct workspaces. */
-void rpiv_xcorr_run(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double *ea,
-                    double *eb);
+void rpiv_xcorr_run(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double *ea, double *eb);
 
 /* As rpiv_xcorr_run, the windows read from frames: w x h floats starting at a (rows
  * stride_a floats apart) and at b (stride_b). ws->a and ws->b are overwritten. */
-void rpiv_xcorr_run_from(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const float *a,
-                         size_t stride_a, const float *b, size_t stride_b, int mode, double *ea,
-                         double *eb);
+void rpiv_xcorr_run_from(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const float *a, size_t stride_a,
+                         const float *b, size_t stride_b, int mode, double *ea, double *eb);
 
 #endif /* RPIV_XCORR_H */

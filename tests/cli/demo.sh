@@ -5,7 +5,9 @@
 # 1 pair per P-PIV plane, 4 R-PIV pairs; seconds, also under the sanitizers) that writes the
 # report, valid PNG plots, the data files and the summary on stdout, and whose R-PIV field
 # rpiv synth + rpiv piv reproduce exactly from the files it wrote. The figures themselves are
-# checked by tests/test_demo.c on a larger run.
+# checked by tests/test_demo.c on a larger run. One thread: the results do not depend on it
+# (test_demo.c checks), and two threads that spin at OpenMP barriers on a busy machine are
+# several times slower.
 set -u
 bin=${RPIV_BIN:?}
 tmp=$(mktemp -d)
@@ -49,7 +51,7 @@ grep -q "plain" "$tmp/err" && ok || ko "unwritable --out not named: $(cat "$tmp/
 
 # a tiny run
 out="$tmp/run"
-"$bin" demo --quick --width 256 --ppiv-pairs 1 --pairs 4 --out "$out" >"$tmp/out" 2>"$tmp/err"
+"$bin" demo --quick --threads 1 --width 256 --ppiv-pairs 1 --pairs 4 --out "$out" >"$tmp/out" 2>"$tmp/err"
 rc=$?
 [ $rc -eq 0 ] && ok || { ko "tiny run: exit $rc"; cat "$tmp/err" >&2; }
 grep -q "report.md" "$tmp/out" && grep -q "R-PIV vs CCM" "$tmp/out" && ok || ko "summary on stdout"
@@ -70,15 +72,15 @@ done
 [ "$n" -ge 14 ] && ok || ko "only $n plots"
 # the demo composes the commands: the same R-PIV pairs and field through rpiv synth and
 # rpiv piv with the parameter file and the mask the demo wrote
-"$bin" synth --quiet --config "$out/data/rpiv.ini" --out "$tmp/pairs" && ok || ko "rpiv synth --config data/rpiv.ini"
+"$bin" synth --quiet --threads 1 --config "$out/data/rpiv.ini" --out "$tmp/pairs" && ok || ko "rpiv synth --config data/rpiv.ini"
 cmp -s "$tmp/pairs/pair_00001_a.tif" "$out/images/rpiv_a.tif" && ok || ko "rpiv synth made another frame A"
-"$bin" piv --quiet --config "$out/data/rpiv.ini" --mask "$out/data/mask.png" "$tmp/pairs/pair_*" \
+"$bin" piv --quiet --threads 1 --config "$out/data/rpiv.ini" --mask "$out/data/mask.png" "$tmp/pairs/pair_*" \
     -o "$tmp/rpiv.txt" && ok || ko "rpiv piv --config data/rpiv.ini"
 "$bin" compare --component u "$out/data/rpiv.txt" "$tmp/rpiv.txt" >"$tmp/cmp" && ok || ko "rpiv compare"
 [ "$(awk '$1 == "E1" { print $2 }' "$tmp/cmp")" = 0 ] && ok || ko "rpiv piv field differs: $(cat "$tmp/cmp")"
 
 # --quiet: nothing on stderr
-"$bin" demo --quick --width 256 --ppiv-pairs 1 --pairs 2 --quiet --out "$tmp/q" >"$tmp/out" \
+"$bin" demo --quick --threads 1 --width 256 --ppiv-pairs 1 --pairs 2 --quiet --out "$tmp/q" >"$tmp/out" \
     2>"$tmp/err" && ok || ko "quiet run"
 [ ! -s "$tmp/err" ] && ok || ko "--quiet wrote on stderr: $(head -3 "$tmp/err")"
 

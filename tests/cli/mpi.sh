@@ -2,11 +2,12 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 # rpiv under mpirun with 2 ranks, against the same commands in one process: rpiv synth makes
 # the same bytes; the ensemble field agrees within 1e-6 px (float sums grouped per rank; the
-# displacements here are ~2.3 px, where a float ulp is 2.4e-7 px) with the same flags, and a
-# 2-rank run is reproducible to the bit; mpirun -np 1 equals no mpirun; per-pair fields
-# (each rank writes its own) and their mean (gathered to rank 0) are identical; a run stopped by an
-# unreadable pair resumes from its per-rank checkpoints to the bits of an uninterrupted 2-rank
-# run, and a 2-rank checkpoint is refused by a 1-process resume; --skip-bad lists the pair.
+# displacements here are ~2.3 px, where a float ulp is 2.4e-7 px) with the same flags;
+# mpirun -np 1 equals no mpirun; per-pair fields (each rank writes its own) and their mean
+# (gathered to rank 0) are identical; a 2-rank run stopped by an unreadable pair resumes from
+# its per-rank checkpoints to the bits of an uninterrupted 2-rank run (so 2-rank runs are
+# reproducible), a 2-rank checkpoint is refused by a 1-process resume; --skip-bad lists the
+# pair.
 # Skipped (77) when the build has no MPI or mpirun is missing.
 set -u
 bin=${RPIV_BIN:?RPIV_BIN not set}
@@ -16,9 +17,11 @@ command -v mpirun >/dev/null || { echo "mpirun not found: skipped"; exit 77; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # sanitizer builds: OpenMPI's process-lifetime allocations (tests/lsan-mpi.supp; their frames
-# in dlopen'ed components need the slow unwinder) and the suite's own list
+# in dlopen'ed components need the slow unwinder) and the suite's own list. The suppressions
+# match module names, so leak stacks need no symbolizing (it took a second per rank); a leak
+# in rpiv itself is still reported (rerun with symbolize=1 to read its stack).
 cat "$here/../lsan-mpi.supp" "$here/../lsan.supp" >"$tmp/lsan.supp" 2>/dev/null
-export LSAN_OPTIONS="suppressions=$tmp/lsan.supp:fast_unwind_on_malloc=0:print_suppressions=0"
+export LSAN_OPTIONS="suppressions=$tmp/lsan.supp:fast_unwind_on_malloc=0:print_suppressions=0:symbolize=0"
 export OMP_NUM_THREADS=1
 mpi() { mpirun --oversubscribe --allow-run-as-root --bind-to none -np "$@"; }
 fail=0; pass=0
@@ -57,8 +60,6 @@ grep -q '^# mpi_ranks = 2$' two.txt && ok || ko "rank count not in the header"
 # the field is right: the imposed uniform displacement
 rows two.txt | awk '{du = $3 - 2.3187; dv = $4 + 1.1471; e += du * du + dv * dv; n++}
     END {exit !(sqrt(e / n) < 0.05)}' && ok || ko "2-rank field is not (2.3187, -1.1471)"
-mpi 2 "$bin" piv --ensemble -q 's1/pair_*_[ab].tif' -o two_again.txt && cmp -s two.txt two_again.txt \
-    && ok || ko "two 2-rank runs differ"
 mpi 1 "$bin" piv --ensemble -q --threads 1 's1/pair_*_[ab].tif' -o np1.txt &&
     "$bin" piv --ensemble -q --threads 1 's1/pair_*_[ab].tif' -o plain.txt && cmp -s np1.txt plain.txt \
     && ok || ko "mpirun -np 1 differs from a plain run"

@@ -3,8 +3,9 @@
 # Checkpoints of ensemble runs: a run killed with SIGKILL in its first pass, resumed and killed
 # again in a later pass, then resumed to the end, writes the same bytes as a run never
 # interrupted; SIGTERM saves the checkpoint and exits 1 with a message; a checkpoint of
-# another plan or series, a corrupt or truncated one, is refused with a message naming it;
-# --resume without a checkpoint starts from the beginning; option errors exit 2.
+# another plan or series, a corrupt or truncated one, is refused with a message naming it, and
+# a run without --resume does not overwrite a checkpoint; --resume without a checkpoint starts
+# from the beginning; option errors exit 2.
 set -u
 bin=${RPIV_BIN:?RPIV_BIN not set}
 export RPIV_PROGRESS_DELAY=0 # the test watches the progress lines
@@ -65,6 +66,10 @@ grep -Eq '^rpiv: error: ensemble: interrupted in pass [0-9] after [0-9]+ of 8 pa
 run_until err5 1 TERM "$bin" piv --ensemble "$pairs" -o x.txt --checkpoint ck --checkpoint-every 1000
 [ -s ck ] || ko "no checkpoint for the refusal tests"
 cp ck ck.keep
+# a new run does not overwrite it without --resume
+"$bin" piv --ensemble -q "$pairs" -o x.txt --checkpoint ck 2>err
+[ $? -eq 2 ] && grep -q '^rpiv: error: ck: a checkpoint is already there: continue it (rpiv piv --resume) or remove it' err \
+    && ok || ko "existing checkpoint without --resume: $(cat err)"
 "$bin" piv --ensemble -q --window 48,24 "$pairs" -o x.txt --checkpoint ck --resume 2>err
 [ $? -eq 1 ] && grep -q "^rpiv: error: ck: checkpoint of another plan (.*windows 64x64,32x32,32x32.*); this run: .*windows 48x48,24x24" err \
     && ok || ko "another plan: $(cat err)"
