@@ -103,15 +103,15 @@ out_free:
     return st;
 }
 
-static void add_plane(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea, double eb,
-                      double pu, double pv_)
+static void add_plane(void *ctx, const float *plane, size_t win, double ea, double eb, double pu,
+                      double pv_)
 {
     rpiv_ensemble *e = ctx;
     float *sum = e->data + win * e->plane, *energy = e->data + e->nwin * e->plane;
     (void)pu;
     (void)pv_;
     for (size_t i = 0; i < e->plane; i++)
-        sum[i] += ws->plane[i];
+        sum[i] += plane[i];
     energy[2 * win] += (float)ea;
     energy[2 * win + 1] += (float)eb;
 }

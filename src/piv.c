@@ -404,23 +404,46 @@ void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, dou
     window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
 }
 
-void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, rpiv_xcorr_work *ws,
-                size_t win, double *ea, double *eb, double *pu, double *pv_)
+/* Where window `win` of src is read: a pointer into the frames, or (only window offsets reach
+ * past the frames, which they read whole: row0 = 0) a copy in the spare buffers a, b. */
+static void window_src(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, size_t win,
+                       float *a, float *b, rpiv_xcorr_src *xs, double *pu, double *pv_)
 {
     int ax, ay, bx, by;
     window_place(ps, src, win, &ax, &ay, &bx, &by, pu, pv_);
     if (ax >= 0 && ay >= 0 && bx >= 0 && by >= 0 && ax + ps->ww <= pv->w && bx + ps->ww <= pv->w &&
         ay + ps->wh <= pv->h && by + ps->wh <= pv->h) {
         const size_t sw = (size_t)pv->w;
-        rpiv_xcorr_run_from(ps->xc, ws, src->fa + (size_t)(ay - src->row0) * sw + (size_t)ax, sw,
-                            src->fb + (size_t)(by - src->row0) * sw + (size_t)bx, sw,
-                            RPIV_XCORR_RAW, ea, eb);
+        *xs = (rpiv_xcorr_src){src->fa + (size_t)(ay - src->row0) * sw + (size_t)ax,
+                               src->fb + (size_t)(by - src->row0) * sw + (size_t)bx, sw, sw};
         return;
     }
-    /* only window offsets reach past the frames; they read whole frames (row0 = 0) */
-    copy_window(src->fa, pv->w, pv->h, ax, ay, ps->ww, ps->wh, pv->fill_a, ws->a);
-    copy_window(src->fb, pv->w, pv->h, bx, by, ps->ww, ps->wh, pv->fill_b, ws->b);
-    rpiv_xcorr_run(ps->xc, ws, RPIV_XCORR_RAW, ea, eb);
+    copy_window(src->fa, pv->w, pv->h, ax, ay, ps->ww, ps->wh, pv->fill_a, a);
+    copy_window(src->fb, pv->w, pv->h, bx, by, ps->ww, ps->wh, pv->fill_b, b);
+    *xs = (rpiv_xcorr_src){a, b, (size_t)ps->ww, (size_t)ps->ww};
+}
+
+void piv_windows(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, rpiv_xcorr_work *ws,
+                 size_t i, size_t j, piv_win_fn fn, void *ctx)
+{
+    size_t win[2];
+    int n = 0;
+    for (size_t k = i; k < i + 2 && k < (size_t)ps->nx; k++) {
+        size_t wk = j * (size_t)ps->nx + k;
+        if (!ps->masked || !ps->masked[wk])
+            win[n++] = wk;
+    }
+    if (!n)
+        return;
+    rpiv_xcorr_src xs[2];
+    double e[4], pu[2], pv_[2];
+    window_src(pv, ps, src, win[0], ws->a, ws->b, &xs[0], &pu[0], &pv_[0]);
+    if (n > 1)
+        window_src(pv, ps, src, win[1], ws->a2, ws->b2, &xs[1], &pu[1], &pv_[1]);
+    rpiv_xcorr_run_pairs(ps->xc, ws, xs, n, RPIV_XCORR_RAW, e);
+    fn(ctx, ws->plane, win[0], e[0], e[1], pu[0], pv_[0]);
+    if (n > 1)
+        fn(ctx, ws->plane2, win[1], e[2], e[3], pu[1], pv_[1]);
 }
 
 rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_win_fn fn,
@@ -432,15 +455,12 @@ rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
     if (st)
         return st;
     if (!src.deform) {
-#pragma omp parallel for schedule(dynamic, 8) num_threads(pv->nthreads)
-        for (size_t win = 0; win < ps->nwin; win++) {
-            if (ps->masked && ps->masked[win])
-                continue;
-            rpiv_xcorr_work *ws = ps->ws[omp_get_thread_num()];
-            double ea, eb, pu, pv_;
-            piv_window(pv, ps, &src, ws, win, &ea, &eb, &pu, &pv_);
-            fn(ctx, ws, win, ea, eb, pu, pv_);
-        }
+        /* windows two by two along each row: (0, 1), (2, 3), ... */
+        const size_t half = ((size_t)ps->nx + 1) / 2, nslot = half * (size_t)ps->ny;
+#pragma omp parallel for schedule(dynamic, 4) num_threads(pv->nthreads)
+        for (size_t slot = 0; slot < nslot; slot++)
+            piv_windows(pv, ps, &src, ps->ws[omp_get_thread_num()], 2 * (slot % half), slot / half,
+                        fn, ctx);
         return RPIV_OK;
     }
     /* Strips, without any synchronisation: the rows of windows are cut into chunks handed
@@ -480,14 +500,8 @@ rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
                                pv->fill_b, sa + (size_t)(y - s) * sw, sb + (size_t)(y - s) * sw,
                                scr);
                 my.row0 = s;
-                for (int i = 0; i < ps->nx; i++) {
-                    size_t win = (size_t)j * (size_t)ps->nx + (size_t)i;
-                    if (ps->masked && ps->masked[win])
-                        continue;
-                    double ea, eb, pu, pv_;
-                    piv_window(pv, ps, &my, ws, win, &ea, &eb, &pu, &pv_);
-                    fn(ctx, ws, win, ea, eb, pu, pv_);
-                }
+                for (int i = 0; i < ps->nx; i += 2)
+                    piv_windows(pv, ps, &my, ws, (size_t)i, (size_t)j, fn, ctx);
                 prev_s = s;
                 prev_e = e;
             }
@@ -533,11 +547,11 @@ typedef struct step_ctx {
     rpiv_field *f;
 } step_ctx;
 
-static void step_vector(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea, double eb,
-                        double pu, double pv_)
+static void step_vector(void *ctx, const float *plane, size_t win, double ea, double eb, double pu,
+                        double pv_)
 {
     step_ctx *c = ctx;
-    piv_vector(c->pv, c->ps, ws->plane, ea, eb, pu, pv_, c->f, win);
+    piv_vector(c->pv, c->ps, plane, ea, eb, pu, pv_, c->f, win);
 }
 
 rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, rpiv_field **out)

@@ -49,8 +49,8 @@ typedef struct piv_source {
 } piv_source;
 
 /* Called from the worker threads with each correlated window (distinct windows at once):
- * the raw plane in ws->plane, the energies, and the shift of the window pair. */
-typedef void (*piv_win_fn)(void *ctx, const rpiv_xcorr_work *ws, size_t win, double ea, double eb,
+ * the raw plane, the energies, and the shift of the window pair. */
+typedef void (*piv_win_fn)(void *ctx, const float *plane, size_t win, double ea, double eb,
                            double pu, double pv_);
 
 /* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
@@ -78,13 +78,15 @@ void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
 RPIV_NODISCARD rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
                                        piv_source *src);
 
-/* Correlate window `win` of pass ps from src with the workspace ws (raw plane, energies);
- * *pu, *pv get the displacement the window pair was shifted by (the predictor at the centre,
- * or the integer offset). */
-void piv_window(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, rpiv_xcorr_work *ws,
-                size_t win, double *ea, double *eb, double *pu, double *pv_);
+/* Correlate the unmasked windows among (i, j) and (i + 1, j) of pass ps from src (grid column
+ * i, row j), the two packed in one set of transforms (rpiv_xcorr_run_pairs), and hand each to
+ * fn with its raw plane, energies and the displacement its window pair was shifted by (the
+ * predictor at the centre, or the integer offset). Windows are always paired this way, so a
+ * plane does not depend on how the work is split. */
+void piv_windows(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, rpiv_xcorr_work *ws,
+                 size_t i, size_t j, piv_win_fn fn, void *ctx);
 
-/* Just the displacement window `win` is shifted by (as piv_window gives it). */
+/* Just the displacement window `win` is shifted by (as piv_windows gives it). */
 void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, double *pu,
                       double *pv_);
 

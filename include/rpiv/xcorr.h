@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* rpiv/xcorr.h - FFT cross-correlation of interrogation windows (FFTW, single precision).
  *
- * One rpiv_xcorr holds the r2c/c2r plans of one window size. Plans are made once, on one
- * thread (the FFTW planner is not thread-safe), with FFTW_ESTIMATE so that the same
+ * One rpiv_xcorr holds the complex forward and backward plans of one window size. Plans are made
+ * once, on one thread (the FFTW planner is not thread-safe), with FFTW_ESTIMATE so that the same
  * algorithm, hence the same bits, come out on every run. Each thread then owns an
  * rpiv_xcorr_work (aligned buffers from fftwf_malloc) and runs the plans on it through
  * FFTW's new-array execute functions, which are thread-safe.
@@ -23,12 +23,21 @@
 typedef struct rpiv_xcorr rpiv_xcorr;
 
 /* A thread's workspace: the caller fills a and b (w*h floats each, row-major, stride w)
- * and reads plane after rpiv_xcorr_run. The buffers are owned by the workspace. */
+ * and reads plane after rpiv_xcorr_run. The buffers are owned by the workspace. a2 and b2
+ * are spare window buffers for a second pair (rpiv_xcorr_run_pairs). */
 typedef struct rpiv_xcorr_work {
-    float *a, *b;  /* the two windows (overwritten by rpiv_xcorr_run: means removed) */
-    float *plane;  /* the correlation, w*h, circular (FFT) order: see rpiv/peak.h     */
-    void *fa, *fb; /* spectra (fftwf_complex), private                               */
+    float *a, *b;   /* the two windows (left unchanged by rpiv_xcorr_run)             */
+    float *a2, *b2; /* spare windows, w*h each                                        */
+    float *plane;   /* the correlation, w*h, circular (FFT) order: see rpiv/peak.h      */
+    float *plane2;  /* the second pair's correlation after rpiv_xcorr_run_pairs         */
+    void *priv;     /* complex buffers, private                                        */
 } rpiv_xcorr_work;
+
+/* A window pair read from frames: w x h floats at a (rows stride_a floats apart) and at b. */
+typedef struct rpiv_xcorr_src {
+    const float *a, *b;
+    size_t stride_a, stride_b;
+} rpiv_xcorr_src;
 
 enum {
     RPIV_XCORR_RAW = 0,      /* plane = R(s) = sum_x a'(x) b'(x + s)                       */
@@ -51,8 +60,16 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws); /* NULL is a no-op */
 void rpiv_xcorr_run(const rpiv_xcorr *x, rpiv_xcorr_work *ws, int mode, double *ea, double *eb);
 
 /* As rpiv_xcorr_run, the windows read from frames: w x h floats starting at a (rows
- * stride_a floats apart) and at b (stride_b). ws->a and ws->b are overwritten. */
+ * stride_a floats apart) and at b (stride_b). */
 void rpiv_xcorr_run_from(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const float *a, size_t stride_a,
                          const float *b, size_t stride_b, int mode, double *ea, double *eb);
+
+/* Correlate count (1 or 2) window pairs src[0..count-1] into ws->plane and ws->plane2; the
+ * energies sum a'^2, sum b'^2 of pair k go to e[2k], e[2k+1] (2 count values). Two pairs
+ * share each complex transform (a + i b forward, then both cross-spectra in one inverse):
+ * 1.5 complex transforms per pair instead of 2 r2c + 1 c2r. A plane's rounding depends (at
+ * the 1e-7 level) on the pair it was packed with; callers pair windows in a fixed order. */
+void rpiv_xcorr_run_pairs(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const rpiv_xcorr_src *src,
+                          int count, int mode, double *e);
 
 #endif /* RPIV_XCORR_H */
