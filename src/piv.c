@@ -248,6 +248,12 @@ rpiv_status rpiv_piv_set_background(rpiv_piv *pv, const rpiv_image *bg_a, const 
 
 /* ---- loading ------------------------------------------------------------------------------- */
 
+/* Lanes of the row sums in load_frame: independent float accumulators the compiler keeps in
+ * vector registers (one running double sum is a serial chain of additions, ~4 cycles a
+ * pixel). A lane sums at most w / 16 grey levels: exact for 16-bit integers up to w = 4096,
+ * within 1e-7 relative otherwise; lanes are combined in double in a fixed order. */
+#define ROW_LANES 16
+
 /* dst = src - bg; the mean over unmasked pixels; masked pixels set to it. Row sums are
  * combined in row order, so the mean does not depend on the thread count. */
 static float load_frame(const rpiv_piv *pv, const float *src, const float *bg, float *dst,
@@ -256,16 +262,34 @@ static float load_frame(const rpiv_piv *pv, const float *src, const float *bg, f
     const int w = pv->w, h = pv->h;
 #pragma omp parallel for schedule(static) num_threads(pv->nthreads)
     for (int y = 0; y < h; y++) {
-        size_t o = (size_t)y * (size_t)w;
+        const size_t o = (size_t)y * (size_t)w;
+        const float *restrict in = src + o, *restrict b = bg ? bg + o : NULL;
+        float *restrict out = dst + o;
+        if (b)
+            for (int x = 0; x < w; x++)
+                out[x] = in[x] - b[x];
+        else
+            memcpy(out, in, (size_t)w * sizeof *out);
         double s = 0;
         long c = 0;
-        for (int x = 0; x < w; x++) {
-            float v = bg ? src[o + (size_t)x] - bg[o + (size_t)x] : src[o + (size_t)x];
-            dst[o + (size_t)x] = v;
-            if (!pv->mask || !pv->mask[o + (size_t)x]) {
-                s += (double)v;
-                c++;
-            }
+        if (!pv->mask) {
+            float acc[ROW_LANES] = {0};
+            int x = 0;
+            for (; x + ROW_LANES <= w; x += ROW_LANES)
+                for (int l = 0; l < ROW_LANES; l++)
+                    acc[l] += out[x + l];
+            for (; x < w; x++)
+                s += (double)out[x];
+            for (int l = 0; l < ROW_LANES; l++)
+                s += (double)acc[l];
+            c = w;
+        } else {
+            const unsigned char *m = pv->mask + o;
+            for (int x = 0; x < w; x++)
+                if (!m[x]) {
+                    s += (double)out[x];
+                    c++;
+                }
         }
         rows[y] = s;
         counts[y] = c;
