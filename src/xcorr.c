@@ -3,6 +3,8 @@
  * plans once, new-array execute per thread. */
 #include "rpiv/xcorr.h"
 
+#include "simd.h"
+
 #include <fftw3.h>
 #include <math.h>
 #include <stdlib.h>
@@ -123,16 +125,10 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws)
 }
 
 /* The glue around the transforms (packing, cross-spectra, unpacking) is written with GCC/Clang
- * vector extensions, 8 floats (4 complex) at a time, and compiled twice on x86-64: for AVX2
- * and for the baseline, the better one picked at load time (target_clones). Only mul, add
- * and sub are used, never fused, so both clones give the same bits. */
+ * vector extensions, 8 floats (4 complex) at a time, in kernels cloned for AVX2 (simd.h). */
 typedef float v8f __attribute__((vector_size(32)));
 #define SHUF __builtin_shufflevector
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(RPIV_NO_CLONES)
-#define KERNEL __attribute__((target_clones("avx2", "default")))
-#else
-#define KERNEL
-#endif
+#define KERNEL RPIV_KERNEL
 
 /* Unaligned access to 8 floats through a vector type that may alias them. */
 typedef float v8fu __attribute__((vector_size(32), aligned(4), may_alias));
