@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 #include "cli.h"
 
+#include <getopt.h>
+
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -30,6 +32,16 @@ rpiv_status cli_usage_error(const char *cmd, const char *fmt, ...)
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
     return rpiv_fail(RPIV_EINVAL, "%s: %s (see 'rpiv %s --help')", cmd, buf, cmd);
+}
+
+rpiv_status cli_bad_option(const char *cmd, int o, char **argv)
+{
+    const char *arg = argv[optind - 1];
+    if (o == ':')
+        return cli_usage_error(cmd, "option '%s' needs a value", arg);
+    if (optopt && strncmp(arg, "--", 2) != 0)
+        return cli_usage_error(cmd, "unknown option '-%c'", optopt);
+    return cli_usage_error(cmd, "unknown option '%s'", arg);
 }
 
 rpiv_status cli_parse_double(const char *opt, const char *s, double lo, double hi, double *out)

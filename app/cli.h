@@ -57,6 +57,11 @@ RPIV_NODISCARD rpiv_status cli_parse_int(const char *opt, const char *s, long lo
 /* Usage error: message "<cmd>: <text>" and RPIV_EINVAL. */
 rpiv_status cli_usage_error(const char *cmd, const char *fmt, ...) RPIV_PRINTF(2, 3);
 
+/* The usage error for what getopt_long returned as o ('?' or ':'; option strings start with
+ * ':' so that a known option without its value gives ':'): "option '--x' needs a value" or
+ * "unknown option '--x'". */
+rpiv_status cli_bad_option(const char *cmd, int o, char **argv);
+
 /* Progress on stderr: a bar with count, rate and ETA on a terminal, a line every ~10 %
  * otherwise, from one second into the run; nothing when quiet. Also the cancellation point for
  * SIGINT/SIGTERM. */

@@ -182,7 +182,7 @@ static rpiv_status parse(job *j, int argc, char **argv, int *done, const char *s
     char name[48];
     snprintf(name, sizeof name, "calib %s", sub);
     optind = 1;
-    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS "o:", opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS "o:", opts, NULL)) != -1) {
         if (cli_common_opt(&j->c, o, optarg, &st)) {
             if (st)
                 return st;
@@ -194,7 +194,7 @@ static rpiv_status parse(job *j, int argc, char **argv, int *done, const char *s
             return RPIV_OK;
         }
         if (o == '?' || o == ':')
-            return cli_usage_error(name, "unknown option or missing value '%s'", argv[optind - 1]);
+            return cli_bad_option(name, o, argv);
         if (!accepted(o, j->mode))
             return cli_usage_error(name, "option '%s' does not apply to %s", argv[optind - 1], sub);
         switch (o) {

@@ -599,7 +599,7 @@ rpiv_status cmd_ccm(int argc, char **argv)
     o->nthick = 2;
     rpiv_status st = RPIV_OK;
     int c;
-    while ((c = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS "o:", lo, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS "o:", lo, NULL)) != -1) {
         if (cli_common_opt(&r->c, c, optarg, &st)) {
             if (st)
                 goto out_free;
@@ -609,9 +609,8 @@ rpiv_status cmd_ccm(int argc, char **argv)
             help();
             goto out_free;
         }
-        if (c == '?') {
-            st =
-                cli_usage_error("ccm", "unknown option or missing argument '%s'", argv[optind - 1]);
+        if (c == '?' || c == ':') {
+            st = cli_bad_option("ccm", c, argv);
             goto out_free;
         }
         if ((st = parse_opt(o, c, optarg)))

@@ -135,7 +135,7 @@ rpiv_status cmd_compare(int argc, char **argv)
     rpiv_status st;
     cli_ctx_init(&c);
     optind = 1;
-    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
         if (o == 'h') {
             help();
             return RPIV_OK;
@@ -158,7 +158,7 @@ rpiv_status cmd_compare(int argc, char **argv)
             else
                 return cli_usage_error("compare", "--component: '%s' is not u, v or mag", optarg);
         } else {
-            return cli_usage_error("compare", "unknown option '%s'", argv[optind - 1]);
+            return cli_bad_option("compare", o, argv);
         }
     }
     if (argc - optind != 2)

@@ -38,9 +38,7 @@ rpiv_status cmd_config(int argc, char **argv)
             doc = 1;
             continue;
         }
-        if (o == ':')
-            return cli_usage_error("config", "option '%s' needs a value", argv[optind - 1]);
-        return cli_usage_error("config", "unknown option '%s'", argv[optind - 1]);
+        return cli_bad_option("config", o, argv);
     }
     if (optind < argc)
         return cli_usage_error("config", "unexpected argument '%s'", argv[optind]);

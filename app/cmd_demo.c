@@ -88,7 +88,7 @@ rpiv_status cmd_demo(int argc, char **argv)
     int quick = 0, o;
     rpiv_status st = RPIV_OK;
     optind = 1;
-    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
         if (cli_common_opt(&c, o, optarg, &st)) {
             if (st)
                 return st;
@@ -114,7 +114,7 @@ rpiv_status cmd_demo(int argc, char **argv)
             quick = 1;
             break;
         default:
-            return cli_usage_error("demo", "unknown option '%s'", argv[optind - 1]);
+            return cli_bad_option("demo", o, argv);
         }
         if (st)
             return st;

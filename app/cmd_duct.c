@@ -102,7 +102,7 @@ rpiv_status cmd_duct(int argc, char **argv)
     rpiv_status st;
     cli_ctx_init(&c);
     optind = 1;
-    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
         if (o == 'h') {
             help();
             return RPIV_OK;
@@ -119,7 +119,7 @@ rpiv_status cmd_duct(int argc, char **argv)
         else if (o == 'p')
             png = optarg;
         else
-            return cli_usage_error("duct", "unknown option '%s'", argv[optind - 1]);
+            return cli_bad_option("duct", o, argv);
     }
     if (optind < argc)
         return cli_usage_error("duct", "unexpected argument '%s'", argv[optind]);

@@ -45,12 +45,12 @@ rpiv_status cmd_info(int argc, char **argv)
     int o;
     optind = 1;
     opterr = 0;
-    while ((o = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
         if (o == 'h') {
             help();
             return RPIV_OK;
         }
-        return cli_usage_error("info", "unknown option '%s'", argv[optind - 1]);
+        return cli_bad_option("info", o, argv);
     }
     if (optind >= argc)
         return cli_usage_error("info", "no image file given");

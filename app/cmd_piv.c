@@ -303,7 +303,7 @@ rpiv_status cmd_piv(int argc, char **argv)
     int o;
     rpiv_status st = RPIV_OK;
     cli_ctx_init(&c);
-    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS "o:", opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS "o:", opts, NULL)) != -1) {
         if (cli_common_opt(&c, o, optarg, &st)) {
             if (st)
                 return st;
@@ -367,7 +367,7 @@ rpiv_status cmd_piv(int argc, char **argv)
                                        optarg);
             break;
         default:
-            return cli_usage_error("piv", "unknown option '%s'", argv[optind - 1]);
+            return cli_bad_option("piv", o, argv);
         }
     }
     rpiv_piv_params *p = &c.exp.piv;

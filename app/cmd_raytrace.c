@@ -460,7 +460,7 @@ static rpiv_status parse(job *j, int argc, char **argv, int *done)
     long v;
     int o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
         if (cli_common_opt(&j->c, o, optarg, &st)) {
             if (st)
                 return st;
@@ -515,7 +515,7 @@ static rpiv_status parse(job *j, int argc, char **argv, int *done)
             j->png = 1;
             break;
         default:
-            return cli_usage_error("raytrace", "unknown option '%s'", argv[optind - 1]);
+            return cli_bad_option("raytrace", o, argv);
         }
         if (st)
             return st;

@@ -194,7 +194,7 @@ rpiv_status cmd_synth(int argc, char **argv)
     int opt;
     cli_ctx_init(&c);
     optind = 1;
-    while ((opt = getopt_long(argc, argv, CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
+    while ((opt = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
         if (opt == 'h') {
             help();
             return RPIV_OK;
@@ -227,9 +227,7 @@ rpiv_status cmd_synth(int argc, char **argv)
             o.double_frame = 1;
             break;
         default:
-            if (optopt) /* glibc: a known option without its value */
-                return cli_usage_error("synth", "option '%s' needs a value", argv[optind - 1]);
-            return cli_usage_error("synth", "unknown option '%s'", argv[optind - 1]);
+            return cli_bad_option("synth", opt, argv);
         }
     }
     if (optind < argc)

@@ -167,5 +167,15 @@ else
         "the image: 'rpiv piv' is not implemented yet"
 fi
 
+# Options: an option that takes a value but is given none, and an unknown one, for every
+# command (getopt's two errors, told apart).
+for c in piv synth raytrace ccm duct compare demo config; do
+    expect 2 "--threads" "needs a value" -- "$c" --threads
+    expect 2 "--no-such-option" "unknown option" -- "$c" --no-such-option
+done
+expect 2 "--rays" "needs a value" -- raytrace --rays
+expect 2 "--threads" "needs a value" -- calib sheet --threads
+expect 2 "-Q" "unknown option" -- info -Q
+
 echo "bad_input: $pass passed, $fail failed, $skip skipped"
 [ "$fail" -eq 0 ]
