@@ -56,6 +56,12 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
         lineno++;
         char key[32];
         double v, a, b;
+        int used = 0;
+        if (!strchr(line, '\n') && !feof(fp)) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: line longer than %zu characters", path, lineno,
+                           sizeof line - 2);
+            goto out;
+        }
         if (line[0] == '#') {
             if (strstr(line, "rpiv-sheet"))
                 magic = 1;
@@ -79,9 +85,10 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
         }
         if (strspn(line, " \t\r\n") == strlen(line))
             continue;
-        if (sscanf(line, "%lf %lf", &a, &b) != 2 || !isfinite(a) || !(b >= 0 && b <= 1.0001)) {
-            st =
-                rpiv_fail(RPIV_EFORMAT, "%s:%d: expected 'zplus I' with 0 <= I <= 1", path, lineno);
+        if (sscanf(line, "%lf %lf %n", &a, &b, &used) != 2 || line[used] != '\0' || !isfinite(a) ||
+            !(b >= 0 && b <= 1.0001)) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: expected 'zplus I' (two numbers) with 0 <= I <= 1",
+                           path, lineno);
             goto out;
         }
         if (s->n && a <= s->zp[s->n - 1]) {

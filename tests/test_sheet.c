@@ -63,9 +63,21 @@ static void profile_file_round_trips(void)
 
 static void bad_profile_files_are_refused(void)
 {
-    const char *cases[] = {"0 1\n1 0.5\n2 0\n", "# rpiv-sheet 1\n0 1\n1 0.5\n",
-                           "# rpiv-sheet 1\n0 1\n1 0.5\n0.5 0\n", "# rpiv-sheet 1\n0 1\nx y\n2 0\n",
-                           "# rpiv-sheet 1\n0 1\n1 1.5\n2 0\n"};
+    const char *cases[] = {
+        "0 1\n1 0.5\n2 0\n", "# rpiv-sheet 1\n0 1\n1 0.5\n", "# rpiv-sheet 1\n0 1\n1 0.5\n0.5 0\n",
+        "# rpiv-sheet 1\n0 1\nx y\n2 0\n", "# rpiv-sheet 1\n0 1\n1 1.5\n2 0\n",
+        /* trailing junk, a third column, an over-long line */
+        "# rpiv-sheet 1\n0 1\n1 0.5 cm\n2 0\n", "# rpiv-sheet 1\n0 1\n1 0.5 0.25\n2 0\n",
+        "# rpiv-sheet 1\n0 1\n1 0.5"
+        "                                                                  "
+        "                                                                  "
+        "                                                                  "
+        "                                                                  "
+        "                                                                  "
+        "                                                                  "
+        "                                                                  "
+        "                                                                  "
+        "  1\n2 0\n"};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         char path[] = "/tmp/rpiv-sheet-XXXXXX";
         int fd = mkstemp(path);
