@@ -230,8 +230,13 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
     int is_rpiv = 0, ncol = 0;
     double scale = 0, dt = 0;
     rpiv_status st = RPIV_OK;
-    while (getline(&line, &cap, fp) >= 0) {
+    ssize_t len;
+    while ((len = getline(&line, &cap, fp)) >= 0) {
         lineno++;
+        if (memchr(line, '\0', (size_t)len)) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, lineno);
+            goto out_free;
+        }
         char *s = line + strspn(line, " \t\r\n");
         if (*s == '#') {
             if (r.n == 0)
@@ -324,8 +329,13 @@ rpiv_status rpiv_text_columns(const char *path, int *ncol)
     size_t cap = 0;
     long lineno = 0;
     rpiv_status st = rpiv_fail(RPIV_EFORMAT, "%s: no data lines", path);
-    while (getline(&line, &cap, fp) >= 0) {
+    ssize_t len;
+    while ((len = getline(&line, &cap, fp)) >= 0) {
         lineno++;
+        if (memchr(line, '\0', (size_t)len)) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, lineno);
+            break;
+        }
         char *s = line + strspn(line, " \t\r\n");
         if (*s == '#' || *s == '\0')
             continue;
@@ -358,8 +368,13 @@ rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out)
         st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
         goto out_close;
     }
-    while (getline(&line, &cap, fp) >= 0) {
+    ssize_t len;
+    while ((len = getline(&line, &cap, fp)) >= 0) {
         lineno++;
+        if (memchr(line, '\0', (size_t)len)) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, lineno);
+            goto out_close;
+        }
         char *s = line + strspn(line, " \t\r\n");
         if (*s == '#' || *s == '\0')
             continue;

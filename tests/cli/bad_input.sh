@@ -167,6 +167,12 @@ else
         "the image: 'rpiv piv' is not implemented yet"
 fi
 
+# A vector file with a NUL byte in a line (binary junk) is refused, not read up to the NUL.
+printf '# x y u v\n1 2 3 4\n\0 5 6 7 8\n' >"$tmp/nul.txt"
+printf '# x y u v\n1 2 3 4\n5 6 7 8\0 9\n' >"$tmp/nul2.txt"
+expect 1 "$tmp/nul.txt:3" "NUL byte" -- compare "$tmp/nul.txt" "$tmp/nul.txt"
+expect 1 "$tmp/nul2.txt:3" "NUL byte" -- compare "$tmp/nul2.txt" "$tmp/nul2.txt"
+
 # Options: an option that takes a value but is given none, and an unknown one, for every
 # command (getopt's two errors, told apart).
 for c in piv synth raytrace ccm duct compare demo config; do
