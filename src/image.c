@@ -249,7 +249,7 @@ rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out, int *w
         else if (fmt == RPIV_IMAGE_JPEG)
             st = img_jpeg_load(path, buf, size, out, &warn);
         else
-            st = img_stb_load(path, fmt, buf, size, out, &warn);
+            st = img_bmp_load(path, buf, size, out, &warn);
         free(buf);
         break;
     case RPIV_IMAGE_UNKNOWN:

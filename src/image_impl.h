@@ -46,9 +46,8 @@ IMG_HIDDEN rpiv_status img_pgm_load(const char *path, const unsigned char *buf, 
                                     rpiv_image **out);
 IMG_HIDDEN rpiv_status img_jpeg_load(const char *path, const unsigned char *buf, size_t n,
                                      rpiv_image **out, int *warned);
-IMG_HIDDEN rpiv_status img_stb_load(const char *path, rpiv_image_format fmt,
-                                    const unsigned char *buf, size_t n, rpiv_image **out,
-                                    int *warned);
+IMG_HIDDEN rpiv_status img_bmp_load(const char *path, const unsigned char *buf, size_t n,
+                                    rpiv_image **out, int *warned);
 
 /* Writers' plumbing: create a unique temporary file next to path (mode 0666 & ~umask);
  * *fd and tmp (size cap) receive it. img_commit fsyncs fd's file, closes nothing, renames tmp

@@ -94,8 +94,8 @@ static void centroid3x3(const float *p, int w, int h, int i, int j, double *dx, 
 /* Column maxima: cm[i] = max over the rows j of [j0, j1) (taken modulo h) of plane(i, j),
  * for the columns of the segments [a0, a1) and [b0, b1); element-wise over whole rows, so
  * the compiler vectorises it, instead of one serial chain of compares. */
-RPIV_KERNEL static void colmax_rows(const float *plane, int w, int h, int j0, int j1, int a0, int a1, int b0,
-                        int b1, float *cm)
+RPIV_KERNEL static void colmax_rows(const float *plane, int w, int h, int j0, int j1, int a0,
+                                    int a1, int b0, int b1, float *cm)
 {
     for (int jj = j0; jj < j1; jj++) {
         const float *row = plane + (size_t)wrap(jj % h, h) * (size_t)w;

@@ -48,18 +48,18 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
     FILE *fp = fopen(path, "r");
     if (!fp)
         return rpiv_fail(RPIV_EIO, "%s: cannot open sheet profile: %s", path, strerror(errno));
-    char line[512];
-    size_t cap = 0;
+    char *line = NULL;
+    size_t cap = 0, lcap = 0;
+    ssize_t len;
     int lineno = 0, magic = 0;
     rpiv_status st = RPIV_OK;
-    while (fgets(line, sizeof line, fp)) {
+    while ((len = getline(&line, &lcap, fp)) >= 0) {
         lineno++;
         char key[32];
         double v, a, b;
         int used = 0;
-        if (!strchr(line, '\n') && !feof(fp)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: line longer than %zu characters", path, lineno,
-                           sizeof line - 2);
+        if (memchr(line, '\0', (size_t)len)) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: NUL byte: not a text file", path, lineno);
             goto out;
         }
         if (line[0] == '#') {
@@ -126,6 +126,7 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
     else if (s->n < 3)
         st = rpiv_fail(RPIV_EFORMAT, "%s: fewer than 3 profile rows", path);
 out:
+    free(line);
     fclose(fp);
     return st;
 }

@@ -127,7 +127,7 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws)
 /* The glue around the transforms (packing, cross-spectra, unpacking) is written with GCC/Clang
  * vector extensions, 8 floats (4 complex) at a time, in kernels cloned for AVX2 (simd.h). */
 typedef float v8f __attribute__((vector_size(32)));
-#define SHUF __builtin_shufflevector
+#define SHUF   __builtin_shufflevector
 #define KERNEL RPIV_KERNEL
 
 /* Unaligned access to 8 floats through a vector type that may alias them. */

@@ -97,8 +97,11 @@ static const expect table[] = {
      * scale, and its mm and m/s columns came out infinite when saved; now the header is
      * ignored as a value <= 0 is (the field is left unscaled) */
     {"vectors_scale_overflows.txt", VECTORS, 0, RPIV_OK, NULL},
-    /* header "# zm1 1e3086" (infinite): the sheet loaded and I0 evaluated to NaN */
-    {"sheet_header_not_finite.sheet", SHEET, 0, RPIV_EFORMAT, ":8: zm1 is inf"},
+    /* the fuzzer's file: header "# zm1 1e3086" (infinite) loaded and I0 evaluated to NaN;
+     * its line 5 holds NUL bytes, refused first since lines with a NUL are */
+    {"sheet_header_not_finite.sheet", SHEET, 0, RPIV_EFORMAT, ":5: NUL byte"},
+    /* the same header finding in a clean text file (written by hand) */
+    {"sheet_header_inf.sheet", SHEET, 0, RPIV_EFORMAT, ":5: zm1 is inf"},
     /* rows -1e308 and 1.7e308: their step overflows and I0 evaluated to NaN (written by hand
      * after the fuzzer's header finding; the fuzzer did not reach it in 10 s) */
     {"sheet_zplus_step_overflows.sheet", SHEET, 0, RPIV_EFORMAT, ":7: zplus"},

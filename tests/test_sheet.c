@@ -66,7 +66,7 @@ static void bad_profile_files_are_refused(void)
     const char *cases[] = {
         "0 1\n1 0.5\n2 0\n", "# rpiv-sheet 1\n0 1\n1 0.5\n", "# rpiv-sheet 1\n0 1\n1 0.5\n0.5 0\n",
         "# rpiv-sheet 1\n0 1\nx y\n2 0\n", "# rpiv-sheet 1\n0 1\n1 1.5\n2 0\n",
-        /* trailing junk, a third column, an over-long line */
+        /* trailing junk, a third column, a number after a long run of blanks, a NUL */
         "# rpiv-sheet 1\n0 1\n1 0.5 cm\n2 0\n", "# rpiv-sheet 1\n0 1\n1 0.5 0.25\n2 0\n",
         "# rpiv-sheet 1\n0 1\n1 0.5"
         "                                                                  "
@@ -77,11 +77,16 @@ static void bad_profile_files_are_refused(void)
         "                                                                  "
         "                                                                  "
         "                                                                  "
-        "  1\n2 0\n"};
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        "  1\n2 0\n",
+        "# rpiv-sheet 1\n0 1\n1 0.5\0 7\n2 0\n"};
+    /* the last case holds a NUL: its length is that of the literal */
+    const size_t nul_len = sizeof "# rpiv-sheet 1\n0 1\n1 0.5\0 7\n2 0\n" - 1;
+    const size_t ncases = sizeof cases / sizeof cases[0];
+    for (size_t i = 0; i < ncases; i++) {
         char path[] = "/tmp/rpiv-sheet-XXXXXX";
         int fd = mkstemp(path);
-        CHECK(write(fd, cases[i], strlen(cases[i])) == (ssize_t)strlen(cases[i]));
+        size_t len = i + 1 == ncases ? nul_len : strlen(cases[i]);
+        CHECK(write(fd, cases[i], len) == (ssize_t)len);
         close(fd);
         rpiv_sheet_params p = rpiv_sheet_params_default();
         strcpy(p.profile, path);
