@@ -655,9 +655,34 @@ rpiv_status rpiv_ccm_sheet_x_of_zmax(const rpiv_sheet *s, double target, double 
                                      const rpiv_ccm_params *p, double *xstar)
 {
     zmax_ctx c = {s, p, target, 0};
-    double flo = zmax_minus(xlo, &c), fhi = zmax_minus(xhi, &c);
-    if (c.failed)
-        return rpiv_fail(RPIV_ENUMERIC, "ccm: the sheet is zero at the end of x* in [%g, %g]", xlo,
+    double flo = zmax_minus(xlo, &c);
+    int dark_lo = c.failed;
+    c.failed = 0;
+    double fhi = zmax_minus(xhi, &c);
+    int dark_hi = c.failed;
+    c.failed = 0;
+    if (dark_lo != dark_hi) {
+        /* The sheet is dark (zero thickness) at one end, as a fitted e*(x*) = e0 + e1 x* is
+         * below some x*: the range starts where it is lit, found by bisection. */
+        double dark = dark_lo ? xlo : xhi, lit = dark_lo ? xhi : xlo;
+        for (int it = 0; it < 200 && fabs(lit - dark) > 1e-12 * fmax(1.0, fabs(lit)); it++) {
+            double mid = 0.5 * (dark + lit);
+            (void)zmax_minus(mid, &c);
+            if (c.failed)
+                dark = mid;
+            else
+                lit = mid;
+            c.failed = 0;
+        }
+        if (dark_lo)
+            xlo = lit;
+        else
+            xhi = lit;
+        flo = zmax_minus(xlo, &c);
+        fhi = zmax_minus(xhi, &c);
+    }
+    if (c.failed || (dark_lo && dark_hi))
+        return rpiv_fail(RPIV_ENUMERIC, "ccm: the sheet is zero at the ends of x* in [%g, %g]", xlo,
                          xhi);
     if (flo == 0 || fhi == 0) {
         *xstar = flo == 0 ? xlo : xhi;

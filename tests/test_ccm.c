@@ -1003,6 +1003,22 @@ static void error_paths(void)
     CHECK_FAILS(rpiv_ccm_sheet_x_of_zmax(s, 0.5, 0.01, 2, &P, &x), RPIV_EINVAL);
     CHECK_OK(rpiv_ccm_sheet_x_of_zmax(s, 0.3187, 0.01, 100, &P, &x));
     CHECK_NEAR(x, 0.3187 / (0.5 / 6.3), 1e-7);
+    /* a fitted sheet whose thickness e0 + e1 x* is negative below x* = 0.9333 (as the traced
+     * sheet's fit is): the search starts where it is lit */
+    rpiv_sheet_params lp = rpiv_sheet_params_default();
+    lp.e0 = -0.0742;
+    lp.e1 = 0.0795;
+    lp.zm0 = -0.0073;
+    lp.zm1 = 0.0679;
+    rpiv_sheet *fs = NULL;
+    CHECK_OK(rpiv_sheet_new(&lp, &fs));
+    if (fs) {
+        CHECK_OK(rpiv_ccm_sheet_x_of_zmax(fs, 0.2113, 0.01, 100, &P, &x));
+        CHECK_NEAR(x, (0.2113 + 0.0073) / 0.0679, 1e-6);
+        CHECK_FAILS(rpiv_ccm_sheet_x_of_zmax(fs, 0.0311, 0.01, 100, &P, &x), RPIV_EINVAL);
+        CHECK(strstr(rpiv_errmsg(), "x* in [0.933") != NULL);
+    }
+    rpiv_sheet_free(fs);
 
     rpiv_ccm_scenario sc = rpiv_ccm_scenario_default(RPIV_CCM_RPIV);
     rpiv_ccm_table *t = NULL;
