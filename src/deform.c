@@ -126,7 +126,7 @@ static void prefilter_cols(float *img, int w, int h, int i0, int i1)
     }
 }
 
-void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
+void deform_prefilter_ref(float *img, int w, int h, int nthreads)
 {
     int nt = nthr(nthreads);
 #pragma omp parallel num_threads(nt)
@@ -142,6 +142,11 @@ void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
             }
         }
     }
+}
+
+void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
+{
+    deform_prefilter_ref(img, w, h, nthreads);
 }
 
 /* Cubic B-spline weights for taps -1, 0, 1, 2 at fraction t in [0, 1). */
@@ -212,11 +217,12 @@ static inline int inside(const spos *p, int w, int h)
              p->iy > h - 1 || (p->iy == h - 1 && p->ty > 0.5f));
 }
 
-/* The interpolant at a located point inside the image: 4 x 4 taps, mirrored at the edges. */
-static inline float sample_at(const float *c, int w, int h, const spos *p)
+/* The interpolant at a located point inside the image with the tap weights wx, wy: 4 x 4 taps,
+ * mirrored at the edges; summed over the rows, then over the columns. */
+static inline float sample_w(const float *c, int w, int h, const spos *p, v4f wx, v4f wy)
 {
     const size_t sw = (size_t)w;
-    v4f wx = vweights(p->tx), wy = vweights(p->ty), acc;
+    v4f acc;
     if (p->ix >= 1 && p->ix + 2 < w && p->iy >= 1 && p->iy + 2 < h) {
         const float *r = c + (size_t)(p->iy - 1) * sw + (size_t)(p->ix - 1);
         acc = wy[0] * load4(r) + wy[1] * load4(r + sw) + wy[2] * load4(r + 2 * sw) +
@@ -234,6 +240,27 @@ static inline float sample_at(const float *c, int w, int h, const spos *p)
     }
     acc *= wx;
     return (acc[0] + acc[1]) + (acc[2] + acc[3]);
+}
+
+/* bweights as a vector. */
+static inline v4f bweights4(float t)
+{
+    float wt[4];
+    bweights(t, wt);
+    return (v4f){wt[0], wt[1], wt[2], wt[3]};
+}
+
+/* The interpolant at a located point inside the image (the weights of bweights, which the
+ * vector blocks compute lane by lane). */
+static inline float sample_at(const float *c, int w, int h, const spos *p)
+{
+    return sample_w(c, w, h, p, bweights4(p->tx), bweights4(p->ty));
+}
+
+/* The same with the weights of vweights: the per-pixel code the blocks replaced. */
+static inline float sample_at_ref(const float *c, int w, int h, const spos *p)
+{
+    return sample_w(c, w, h, p, vweights(p->tx), vweights(p->ty));
 }
 
 float rpiv_deform_sample(const float *coef, int w, int h, double x, double y, float fill)
@@ -256,6 +283,8 @@ struct rpiv_deform_pred {
     float maxabs;   /* largest |coefficient|: the interpolant's bound (convex weights) */
     int *ix, *iy;   /* first tap per pixel column / row */
     float *wx, *wy; /* 4 weights per pixel column / row */
+    float *wxs;     /* the column weights by tap: wxs[k * w + x] = wx[4 * x + k] */
+    int *runend;    /* first column after x whose first tap differs from ix[x] */
 };
 
 void rpiv_deform_pred_free(rpiv_deform_pred *p)
@@ -268,6 +297,8 @@ void rpiv_deform_pred_free(rpiv_deform_pred *p)
     free(p->iy);
     free(p->wx);
     free(p->wy);
+    free(p->wxs);
+    free(p->runend);
     free(p);
 }
 
@@ -342,7 +373,9 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift
     p->iy = malloc((size_t)h * sizeof *p->iy);
     p->wx = malloc((size_t)w * 4 * sizeof *p->wx);
     p->wy = malloc((size_t)h * 4 * sizeof *p->wy);
-    if (!p->cu || !p->cv || !p->ix || !p->iy || !p->wx || !p->wy) {
+    p->wxs = malloc((size_t)w * 4 * sizeof *p->wxs);
+    p->runend = malloc((size_t)w * sizeof *p->runend);
+    if (!p->cu || !p->cv || !p->ix || !p->iy || !p->wx || !p->wy || !p->wxs || !p->runend) {
         rpiv_deform_pred_free(p);
         return rpiv_fail(RPIV_ENOMEM, "deform: out of memory for the predictor");
     }
@@ -366,6 +399,11 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift
         tap((x + shift - f->x0) / f->dx, f->nx, &p->ix[x], p->wx + 4 * (size_t)x);
     for (int y = 0; y < h; y++)
         tap((y + shift - f->y0) / f->dy, f->ny, &p->iy[y], p->wy + 4 * (size_t)y);
+    for (int x = 0; x < w; x++)
+        for (int k = 0; k < 4; k++)
+            p->wxs[(size_t)k * (size_t)w + (size_t)x] = p->wx[4 * (size_t)x + (size_t)k];
+    for (int x = w - 1; x >= 0; x--)
+        p->runend[x] = x + 1 < w && p->ix[x + 1] == p->ix[x] ? p->runend[x + 1] : x + 1;
     *out = p;
     return RPIV_OK;
 }
@@ -396,11 +434,10 @@ size_t rpiv_deform_pred_scratch(const rpiv_deform_pred *p)
     return 2 * (size_t)p->nx;
 }
 
-void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
-                          float *scratch)
+/* The grid rows of the predictor combined for image row y: tu[k], tv[k] for the nx columns. */
+static void pred_grid_row(const rpiv_deform_pred *p, int y, float *tu, float *tv)
 {
     const size_t snx = (size_t)p->nx;
-    float *tu = scratch, *tv = scratch + snx;
     const float *wy = p->wy + 4 * (size_t)y;
     const float *ru = p->cu + (size_t)p->iy[y] * snx, *rv = p->cv + (size_t)p->iy[y] * snx;
     for (size_t k = 0; k < snx; k++) {
@@ -409,10 +446,63 @@ void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, floa
         tv[k] =
             wy[0] * rv[k] + wy[1] * rv[k + snx] + wy[2] * rv[k + 2 * snx] + wy[3] * rv[k + 3 * snx];
     }
+}
+
+void deform_pred_row_ref(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
+                         float *scratch)
+{
+    float *tu = scratch, *tv = scratch + (size_t)p->nx;
+    pred_grid_row(p, y, tu, tv);
     for (int x = x0; x < x1; x++) {
         const float *wx = p->wx + 4 * (size_t)x, *a = tu + p->ix[x], *b = tv + p->ix[x];
         u[x - x0] = wx[0] * a[0] + wx[1] * a[1] + wx[2] * a[2] + wx[3] * a[3];
         v[x - x0] = wx[0] * b[0] + wx[1] * b[1] + wx[2] * b[2] + wx[3] * b[3];
+    }
+}
+
+#define ALWAYS_INLINE static inline __attribute__((always_inline))
+
+ALWAYS_INLINE void store4(float *p, v4f v)
+{
+    memcpy(p, &v, sizeof v);
+}
+
+/* The predictor at the columns [xx, xx + 4) from the combined grid row t, with the first
+ * tap i0 common to these columns: per column, the arithmetic of deform_pred_row_ref. */
+ALWAYS_INLINE void pred_block(const rpiv_deform_pred *p, const float *t, int i0, int xx, float *o)
+{
+    const size_t sw = (size_t)p->w;
+    const float *w0 = p->wxs + (size_t)xx;
+    const float a0 = t[i0], a1 = t[i0 + 1], a2 = t[i0 + 2], a3 = t[i0 + 3];
+    store4(o, load4(w0) * a0 + load4(w0 + sw) * a1 + load4(w0 + 2 * sw) * a2 +
+                  load4(w0 + 3 * sw) * a3);
+}
+
+void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
+                          float *scratch)
+{
+    float *tu = scratch, *tv = scratch + (size_t)p->nx;
+    pred_grid_row(p, y, tu, tv);
+    /* Along a run of columns sharing their first tap, the 4 grid values are common and the
+     * weights are loaded by tap: 4 columns at a time, the last block of a run of at least 4
+     * columns overlapping the previous one (it recomputes the same values). */
+    for (int x = x0; x < x1;) {
+        const int e = p->runend[x] < x1 ? p->runend[x] : x1, i0 = p->ix[x];
+        int xx = x;
+        for (; xx + 4 <= e; xx += 4) {
+            pred_block(p, tu, i0, xx, u + (xx - x0));
+            pred_block(p, tv, i0, xx, v + (xx - x0));
+        }
+        if (xx < e && e - x >= 4) {
+            pred_block(p, tu, i0, e - 4, u + (e - 4 - x0));
+            pred_block(p, tv, i0, e - 4, v + (e - 4 - x0));
+        } else
+            for (; xx < e; xx++) {
+                const float *wx = p->wx + 4 * (size_t)xx, *a = tu + i0, *b = tv + i0;
+                u[xx - x0] = wx[0] * a[0] + wx[1] * a[1] + wx[2] * a[2] + wx[3] * a[3];
+                v[xx - x0] = wx[0] * b[0] + wx[1] * b[1] + wx[2] * b[2] + wx[3] * b[3];
+            }
+        x = e;
     }
 }
 
@@ -432,14 +522,14 @@ static inline float sample_inner(const float *c, size_t sw, const spos *p)
     return (acc[0] + acc[1]) + (acc[2] + acc[3]);
 }
 
-void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rpiv_deform_pred *p,
-                int x0, int x1, int y, float fill_a, float fill_b, float *ra, float *rb,
-                float *scratch)
+void deform_row_ref(const float *coef_a, const float *coef_b, int w, int h,
+                    const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
+                    float *ra, float *rb, float *scratch)
 {
     const size_t nw = (size_t)(x1 - x0);
     const float c = (float)p->shift;
     float *pu = scratch, *pv = pu + nw, *tmp = pv + nw;
-    rpiv_deform_pred_row(p, y, x0, x1, pu, pv, tmp);
+    deform_pred_row_ref(p, y, x0, x1, pu, pv, tmp);
     /* The columns whose samples in both frames have all their taps inside the image take
      * the short path (no bounds test, no mirroring). The predictor is a convex combination
      * of its spline coefficients, so |p| <= maxabs (with a margin for rounding). */
@@ -460,13 +550,97 @@ void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rp
             ra[x] = sample_inner(coef_a, sw, &pa);
             rb[x] = sample_inner(coef_b, sw, &pb);
         } else if (inside(&pa, w, h) && inside(&pb, w, h)) {
-            ra[x] = sample_at(coef_a, w, h, &pa);
-            rb[x] = sample_at(coef_b, w, h, &pb);
+            ra[x] = sample_at_ref(coef_a, w, h, &pa);
+            rb[x] = sample_at_ref(coef_b, w, h, &pb);
         } else { /* a particle here has no partner in the other frame */
             ra[x] = fill_a;
             rb[x] = fill_b;
         }
     }
+}
+
+/* Per pixel, for the columns [xs, xe) of row y: the samples of the frames not done yet
+ * (done_a, done_b: that frame's block was computed; its points are then inside), or the
+ * fill values where either point falls outside its frame. */
+static void pixels(const float *coef_a, const float *coef_b, int w, int h, float c,
+                   const float *pu, const float *pv, int xs, int xe, int y, float fill_a,
+                   float fill_b, float *ra, float *rb, int done_a, int done_b)
+{
+    for (int x = xs; x < xe; x++) {
+        float hx = 0.5f * pu[x - xs], hy = 0.5f * pv[x - xs];
+        spos pa = locate(x, y, c - hx, c - hy), pb = locate(x, y, c + hx, c + hy);
+        if ((done_a || inside(&pa, w, h)) && (done_b || inside(&pb, w, h))) {
+            if (!done_a)
+                ra[x] = sample_at(coef_a, w, h, &pa);
+            if (!done_b)
+                rb[x] = sample_at(coef_b, w, h, &pb);
+        } else { /* a particle here has no partner in the other frame */
+            ra[x] = fill_a;
+            rb[x] = fill_b;
+        }
+    }
+}
+
+/* ---- vector blocks -------------------------------------------------------------------------
+ * The samples of VL consecutive pixels of a row computed together, one pixel per lane of a
+ * GCC/Clang vector: VL = 4 (SSE2, NEON) everywhere, VL = 8 (AVX2) where the CPU has it. Every
+ * lane performs exactly the float operations, in the same order, that sample_at performs for
+ * its pixel, so the blocks give the same bits as the per-pixel code, whatever the block
+ * width and however a row is cut (no contraction into FMAs: ISO C mode, and no FMA in the
+ * targets). */
+#if defined(__GNUC__) && !defined(__clang__)
+/* The helpers taking and returning vectors are always inlined: no call crosses an ABI. */
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
+typedef int32_t v4i __attribute__((vector_size(16)));
+#define DB_VL 4
+#define DB_VF v4f
+#define DB_VI v4i
+#define DB_(name) name##_4
+#define DB_TARGET
+#include "deform_block.h"
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DEFORM_AVX2 1
+typedef float v8f __attribute__((vector_size(32)));
+typedef int32_t v8i __attribute__((vector_size(32)));
+#define DB_VL 8
+#define DB_VF v8f
+#define DB_VI v8i
+#define DB_(name) name##_8
+#define DB_TARGET __attribute__((target("avx2")))
+#include "deform_block.h"
+#endif
+
+void deform_row_blocks(int vl, const float *coef_a, const float *coef_b, int w, int h,
+                       const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a,
+                       float fill_b, float *ra, float *rb, float *scratch)
+{
+    const size_t nw = (size_t)(x1 - x0);
+    const float c = (float)p->shift;
+    float *pu = scratch, *pv = pu + nw, *tmp = pv + nw;
+    rpiv_deform_pred_row(p, y, x0, x1, pu, pv, tmp);
+    int x = x0;
+    /* |p| <= maxabs (the predictor is a convex combination of its coefficients): a bounded
+     * predictor keeps the integer conversions of the blocks in range. */
+    if (vl > 0 && 0.5f * p->maxabs * 1.001f + c + 1.0f < 1e6f) {
+#ifdef DEFORM_AVX2
+        if (vl >= 8 && __builtin_cpu_supports("avx2"))
+            x = blocks_8(coef_a, coef_b, w, h, c, pu, pv, x0, x1, y, fill_a, fill_b, ra, rb);
+        else
+#endif
+            x = blocks_4(coef_a, coef_b, w, h, c, pu, pv, x0, x1, y, fill_a, fill_b, ra, rb);
+    }
+    pixels(coef_a, coef_b, w, h, c, pu + (x - x0), pv + (x - x0), x, x1, y, fill_a, fill_b, ra,
+           rb, 0, 0);
+}
+
+void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rpiv_deform_pred *p,
+                int x0, int x1, int y, float fill_a, float fill_b, float *ra, float *rb,
+                float *scratch)
+{
+    deform_row_blocks(8, coef_a, coef_b, w, h, p, x0, x1, y, fill_a, fill_b, ra, rb, scratch);
 }
 
 rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int h,

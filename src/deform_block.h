@@ -1,0 +1,130 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/deform_block.h - the vector blocks of deform_row, included by src/deform.c once per
+ * vector width with DB_VL (lanes), DB_VF / DB_VI (float / int32 vector types of DB_VL lanes),
+ * DB_(name) (the suffixed name) and DB_TARGET (the function's target attribute) defined; it
+ * undefines them. Lane j of a block is pixel x + j and performs the float operations of
+ * locate, bweights and sample_w for that pixel, in the same order. */
+
+ALWAYS_INLINE DB_VF DB_(loadv)(const float *p)
+{
+    DB_VF v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* Lanes of b where m is all ones, of a where it is zero. */
+ALWAYS_INLINE DB_VF DB_(selv)(DB_VI m, DB_VF b, DB_VF a)
+{
+    return (DB_VF)(((DB_VI)b & m) | ((DB_VI)a & ~m));
+}
+
+/* floor and fraction of every lane, as ifloor and locate compute them. */
+ALWAYS_INLINE void DB_(vfloor)(DB_VF o, DB_VI *fi, DB_VF *t)
+{
+    DB_VI i = __builtin_convertvector(o, DB_VI);
+    DB_VF f = __builtin_convertvector(i, DB_VF);
+    i += (DB_VI)(f > o); /* -1 where the truncation went up */
+    *fi = i;
+    *t = o - __builtin_convertvector(i, DB_VF);
+}
+
+/* The tap weights of every lane, as bweights computes them. */
+ALWAYS_INLINE void DB_(weights)(DB_VF t, DB_VF wt[4])
+{
+    DB_VF t2 = t * t, t3 = t2 * t, s = 1.0f - t;
+    wt[0] = s * s * s * (1.0f / 6.0f);
+    wt[1] = (2.0f / 3.0f) - t2 + 0.5f * t3;
+    wt[3] = t3 * (1.0f / 6.0f);
+    wt[2] = 1.0f - wt[0] - wt[1] - wt[3];
+}
+
+/* The 4 x 4 taps of the block from base (row and column of its lowest first tap): lanes with
+ * mx (my) set take their taps one column (row) further; sx (sy) says whether any lane does.
+ * Summed as sample_w sums: over the rows first, then the columns. */
+ALWAYS_INLINE DB_VF DB_(taps)(const float *base, size_t sw, int sx, int sy, DB_VI mx, DB_VI my,
+                              const DB_VF wx[4], const DB_VF wy[4])
+{
+    DB_VF t[4];
+    for (int k = 0; k < 4; k++) {
+        DB_VF acc = {0};
+        for (int m = 0; m < 4; m++) {
+            const float *r = base + (size_t)m * sw + (size_t)k;
+            DB_VF s = DB_(loadv)(r);
+            if (sx)
+                s = DB_(selv)(mx, DB_(loadv)(r + 1), s);
+            if (sy) {
+                DB_VF s2 = DB_(loadv)(r + sw);
+                if (sx)
+                    s2 = DB_(selv)(mx, DB_(loadv)(r + sw + 1), s2);
+                s = DB_(selv)(my, s2, s);
+            }
+            acc = m ? acc + wy[m] * s : wy[m] * s;
+        }
+        t[k] = acc;
+    }
+    return (wx[0] * t[0] + wx[1] * t[1]) + (wx[2] * t[2] + wx[3] * t[3]);
+}
+
+/* The samples of a frame (coefficients c) at the pixels x..x+DB_VL-1 of row y offset by
+ * (ox, oy), into out[0..DB_VL-1], if their integer offsets differ by at most 1 across the
+ * block and all their taps lie inside the image; returns 0 (nothing written) otherwise. */
+ALWAYS_INLINE int DB_(block)(const float *c, int w, int h, int x, int y, DB_VF ox, DB_VF oy,
+                             float *out)
+{
+    DB_VI fx, fy;
+    DB_VF tx, ty;
+    DB_(vfloor)(ox, &fx, &tx);
+    DB_(vfloor)(oy, &fy, &ty);
+    int lx = fx[0], hx = fx[0], ly = fy[0], hy = fy[0];
+    for (int j = 1; j < DB_VL; j++) {
+        lx = fx[j] < lx ? fx[j] : lx;
+        hx = fx[j] > hx ? fx[j] : hx;
+        ly = fy[j] < ly ? fy[j] : ly;
+        hy = fy[j] > hy ? fy[j] : hy;
+    }
+    const int sx = hx - lx, sy = hy - ly;
+    if (sx > 1 || sy > 1 || x + lx - 1 < 0 || x + DB_VL - 1 + hx + 2 > w - 1 || y + ly - 1 < 0 ||
+        y + hy + 2 > h - 1)
+        return 0;
+    DB_VF wx[4], wy[4], r;
+    DB_(weights)(tx, wx);
+    DB_(weights)(ty, wy);
+    const size_t sw = (size_t)w;
+    const float *base = c + (size_t)(y + ly - 1) * sw + (size_t)(x + lx - 1);
+    const DB_VI mx = fx != lx, my = fy != ly;
+    if (!sx && !sy)
+        r = DB_(taps)(base, sw, 0, 0, mx, my, wx, wy);
+    else if (!sy)
+        r = DB_(taps)(base, sw, 1, 0, mx, my, wx, wy);
+    else if (!sx)
+        r = DB_(taps)(base, sw, 0, 1, mx, my, wx, wy);
+    else
+        r = DB_(taps)(base, sw, 1, 1, mx, my, wx, wy);
+    memcpy(out, &r, sizeof r);
+    return 1;
+}
+
+/* The blocks of row y from x0 while a whole block fits before x1 (pu, pv: the predictor
+ * from x0); blocks a frame cannot take go through pixels(). Returns the first column left. */
+static DB_TARGET int DB_(blocks)(const float *coef_a, const float *coef_b, int w, int h, float c,
+                                 const float *pu, const float *pv, int x0, int x1, int y,
+                                 float fill_a, float fill_b, float *ra, float *rb)
+{
+    int x = x0;
+    for (; x + DB_VL <= x1; x += DB_VL) {
+        const DB_VF hx = 0.5f * DB_(loadv)(pu + (x - x0)), hy = 0.5f * DB_(loadv)(pv + (x - x0));
+        const DB_VF cc = (DB_VF){0} + c;
+        int da = DB_(block)(coef_a, w, h, x, y, cc - hx, cc - hy, ra + x);
+        int db = DB_(block)(coef_b, w, h, x, y, cc + hx, cc + hy, rb + x);
+        if (!da || !db)
+            pixels(coef_a, coef_b, w, h, c, pu + (x - x0), pv + (x - x0), x, x + DB_VL, y, fill_a,
+                   fill_b, ra, rb, da, db);
+    }
+    return x;
+}
+
+#undef DB_VL
+#undef DB_VF
+#undef DB_VI
+#undef DB_
+#undef DB_TARGET
