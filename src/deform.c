@@ -6,6 +6,9 @@
 
 #include <math.h>
 #include <omp.h>
+#if defined(__x86_64__) || defined(__SSE2__)
+#include <immintrin.h>
+#endif
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -126,7 +129,7 @@ static void prefilter_cols(float *img, int w, int h, int i0, int i1)
     }
 }
 
-void deform_prefilter_ref(float *img, int w, int h, int nthreads)
+void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
 {
     int nt = nthr(nthreads);
 #pragma omp parallel num_threads(nt)
@@ -142,11 +145,6 @@ void deform_prefilter_ref(float *img, int w, int h, int nthreads)
             }
         }
     }
-}
-
-void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
-{
-    deform_prefilter_ref(img, w, h, nthreads);
 }
 
 /* Cubic B-spline weights for taps -1, 0, 1, 2 at fraction t in [0, 1). */
@@ -306,10 +304,10 @@ void rpiv_deform_pred_free(rpiv_deform_pred *p)
 static double ext(const float *g, int n, size_t stride, int k)
 {
     if (k <= n - 1)
-        return g[(size_t)k * stride];
+        return (double)g[(size_t)k * stride];
     if (n == 1)
-        return g[0];
-    double e = g[(size_t)(n - 1) * stride], d = e - (double)g[(size_t)(n - 2) * stride];
+        return (double)g[0];
+    double e = (double)g[(size_t)(n - 1) * stride], d = e - (double)g[(size_t)(n - 2) * stride];
     return e + (k - (n - 1)) * d;
 }
 
@@ -325,9 +323,9 @@ static void ghosts(float *g, int n, size_t stride)
         if (k <= n - 1)
             hi = 2.0 * (double)rev[0] - (double)rev[-(ptrdiff_t)((size_t)k * stride)];
         else if (n == 1)
-            hi = rev[0];
+            hi = (double)rev[0];
         else {
-            double e = g[0], d = e - (double)g[stride];
+            double e = (double)g[0], d = e - (double)g[stride];
             hi = 2.0 * (double)rev[0] - (e + (k - (n - 1)) * d);
         }
         g[-(ptrdiff_t)((size_t)k * stride)] = (float)lo;
@@ -562,9 +560,9 @@ void deform_row_ref(const float *coef_a, const float *coef_b, int w, int h,
 /* Per pixel, for the columns [xs, xe) of row y: the samples of the frames not done yet
  * (done_a, done_b: that frame's block was computed; its points are then inside), or the
  * fill values where either point falls outside its frame. */
-static void pixels(const float *coef_a, const float *coef_b, int w, int h, float c,
-                   const float *pu, const float *pv, int xs, int xe, int y, float fill_a,
-                   float fill_b, float *ra, float *rb, int done_a, int done_b)
+static void pixels(const float *coef_a, const float *coef_b, int w, int h, float c, const float *pu,
+                   const float *pv, int xs, int xe, int y, float fill_a, float fill_b, float *ra,
+                   float *rb, int done_a, int done_b)
 {
     for (int x = xs; x < xe; x++) {
         float hx = 0.5f * pu[x - xs], hy = 0.5f * pv[x - xs];
@@ -594,28 +592,41 @@ static void pixels(const float *coef_a, const float *coef_b, int w, int h, float
 #endif
 
 typedef int32_t v4i __attribute__((vector_size(16)));
-#define DB_VL 4
-#define DB_VF v4f
-#define DB_VI v4i
+
+static inline int allzero4(v4i e)
+{
+    return !(e[0] | e[1] | e[2] | e[3]);
+}
+
+#define DB_VL     4
+#define DB_VF     v4f
+#define DB_VI     v4i
 #define DB_(name) name##_4
 #define DB_TARGET
+#if defined(__SSE2__)
+#define DB_ALLZERO(e)                                                                              \
+    (_mm_movemask_epi8(_mm_cmpeq_epi32((__m128i)(e), _mm_setzero_si128())) == 0xFFFF)
+#else
+#define DB_ALLZERO(e) allzero4(e)
+#endif
 #include "deform_block.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DEFORM_AVX2 1
 typedef float v8f __attribute__((vector_size(32)));
 typedef int32_t v8i __attribute__((vector_size(32)));
-#define DB_VL 8
-#define DB_VF v8f
-#define DB_VI v8i
+#define DB_VL     8
+#define DB_VF     v8f
+#define DB_VI     v8i
 #define DB_(name) name##_8
 #define DB_TARGET __attribute__((target("avx2")))
+#define DB_ALLZERO(e) _mm256_testz_si256((__m256i)(e), (__m256i)(e))
 #include "deform_block.h"
 #endif
 
 void deform_row_blocks(int vl, const float *coef_a, const float *coef_b, int w, int h,
-                       const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a,
-                       float fill_b, float *ra, float *rb, float *scratch)
+                       const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
+                       float *ra, float *rb, float *scratch)
 {
     const size_t nw = (size_t)(x1 - x0);
     const float c = (float)p->shift;
@@ -632,8 +643,8 @@ void deform_row_blocks(int vl, const float *coef_a, const float *coef_b, int w, 
 #endif
             x = blocks_4(coef_a, coef_b, w, h, c, pu, pv, x0, x1, y, fill_a, fill_b, ra, rb);
     }
-    pixels(coef_a, coef_b, w, h, c, pu + (x - x0), pv + (x - x0), x, x1, y, fill_a, fill_b, ra,
-           rb, 0, 0);
+    pixels(coef_a, coef_b, w, h, c, pu + (x - x0), pv + (x - x0), x, x1, y, fill_a, fill_b, ra, rb,
+           0, 0);
 }
 
 void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rpiv_deform_pred *p,

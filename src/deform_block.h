@@ -1,11 +1,11 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* src/deform_block.h - the vector blocks of deform_row, included by src/deform.c once per
  * vector width with DB_VL (lanes), DB_VF / DB_VI (float / int32 vector types of DB_VL lanes),
- * DB_(name) (the suffixed name) and DB_TARGET (the function's target attribute) defined; it
- * undefines them. Lane j of a block is pixel x + j and performs the float operations of
+ * DB_(name) (the suffixed name), DB_TARGET (the function's target attribute) and
+ * DB_ALLZERO(e) (1 if every lane of the DB_VI e is 0) defined; it undefines them. Lane j of a block is pixel x + j and performs the float operations of
  * locate, bweights and sample_w for that pixel, in the same order. */
 
-ALWAYS_INLINE DB_VF DB_(loadv)(const float *p)
+ALWAYS_INLINE DB_TARGET DB_VF DB_(loadv)(const float *p)
 {
     DB_VF v;
     memcpy(&v, p, sizeof v);
@@ -13,13 +13,13 @@ ALWAYS_INLINE DB_VF DB_(loadv)(const float *p)
 }
 
 /* Lanes of b where m is all ones, of a where it is zero. */
-ALWAYS_INLINE DB_VF DB_(selv)(DB_VI m, DB_VF b, DB_VF a)
+ALWAYS_INLINE DB_TARGET DB_VF DB_(selv)(DB_VI m, DB_VF b, DB_VF a)
 {
     return (DB_VF)(((DB_VI)b & m) | ((DB_VI)a & ~m));
 }
 
 /* floor and fraction of every lane, as ifloor and locate compute them. */
-ALWAYS_INLINE void DB_(vfloor)(DB_VF o, DB_VI *fi, DB_VF *t)
+ALWAYS_INLINE DB_TARGET void DB_(vfloor)(DB_VF o, DB_VI *fi, DB_VF *t)
 {
     DB_VI i = __builtin_convertvector(o, DB_VI);
     DB_VF f = __builtin_convertvector(i, DB_VF);
@@ -29,7 +29,7 @@ ALWAYS_INLINE void DB_(vfloor)(DB_VF o, DB_VI *fi, DB_VF *t)
 }
 
 /* The tap weights of every lane, as bweights computes them. */
-ALWAYS_INLINE void DB_(weights)(DB_VF t, DB_VF wt[4])
+ALWAYS_INLINE DB_TARGET void DB_(weights)(DB_VF t, DB_VF wt[4])
 {
     DB_VF t2 = t * t, t3 = t2 * t, s = 1.0f - t;
     wt[0] = s * s * s * (1.0f / 6.0f);
@@ -41,8 +41,8 @@ ALWAYS_INLINE void DB_(weights)(DB_VF t, DB_VF wt[4])
 /* The 4 x 4 taps of the block from base (row and column of its lowest first tap): lanes with
  * mx (my) set take their taps one column (row) further; sx (sy) says whether any lane does.
  * Summed as sample_w sums: over the rows first, then the columns. */
-ALWAYS_INLINE DB_VF DB_(taps)(const float *base, size_t sw, int sx, int sy, DB_VI mx, DB_VI my,
-                              const DB_VF wx[4], const DB_VF wy[4])
+ALWAYS_INLINE DB_TARGET DB_VF DB_(taps)(const float *base, size_t sw, int sx, int sy, DB_VI mx,
+                                        DB_VI my, const DB_VF wx[4], const DB_VF wy[4])
 {
     DB_VF t[4];
     for (int k = 0; k < 4; k++) {
@@ -68,20 +68,21 @@ ALWAYS_INLINE DB_VF DB_(taps)(const float *base, size_t sw, int sx, int sy, DB_V
 /* The samples of a frame (coefficients c) at the pixels x..x+DB_VL-1 of row y offset by
  * (ox, oy), into out[0..DB_VL-1], if their integer offsets differ by at most 1 across the
  * block and all their taps lie inside the image; returns 0 (nothing written) otherwise. */
-ALWAYS_INLINE int DB_(block)(const float *c, int w, int h, int x, int y, DB_VF ox, DB_VF oy,
-                             float *out)
+ALWAYS_INLINE DB_TARGET int DB_(block)(const float *c, int w, int h, int x, int y, DB_VF ox,
+                                       DB_VF oy, float *out)
 {
     DB_VI fx, fy;
     DB_VF tx, ty;
     DB_(vfloor)(ox, &fx, &tx);
     DB_(vfloor)(oy, &fy, &ty);
     int lx = fx[0], hx = fx[0], ly = fy[0], hy = fy[0];
-    for (int j = 1; j < DB_VL; j++) {
-        lx = fx[j] < lx ? fx[j] : lx;
-        hx = fx[j] > hx ? fx[j] : hx;
-        ly = fy[j] < ly ? fy[j] : ly;
-        hy = fy[j] > hy ? fy[j] : hy;
-    }
+    if (!DB_ALLZERO((fx - lx) | (fy - ly))) /* rarely: the predictor varies slowly */
+        for (int j = 1; j < DB_VL; j++) {
+            lx = fx[j] < lx ? fx[j] : lx;
+            hx = fx[j] > hx ? fx[j] : hx;
+            ly = fy[j] < ly ? fy[j] : ly;
+            hy = fy[j] > hy ? fy[j] : hy;
+        }
     const int sx = hx - lx, sy = hy - ly;
     if (sx > 1 || sy > 1 || x + lx - 1 < 0 || x + DB_VL - 1 + hx + 2 > w - 1 || y + ly - 1 < 0 ||
         y + hy + 2 > h - 1)
@@ -128,3 +129,4 @@ static DB_TARGET int DB_(blocks)(const float *coef_a, const float *coef_b, int w
 #undef DB_VI
 #undef DB_
 #undef DB_TARGET
+#undef DB_ALLZERO
