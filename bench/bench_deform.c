@@ -3,13 +3,14 @@
  * random particles, 0.05 particles/px, d_tau 2.5 px) with a smooth non-uniform predictor of a
  * few px on a 16 px grid: the prefilter of both frames, the predictor rows alone, and one
  * whole deformation of both frames through deform_row (every row, all columns, as the PIV
- * strips call it). rpiv_ms is the current code, ref_ms the per-pixel code it replaced
- * (deform_row_ref, deform_pred_row_ref, kept in the library as the tests' reference); the
- * checksum is that of the current results. The program fails if the predictor rows differ
- * from the reference's by a bit, the deformed frames by more than 1e-5 (relative), or
- * deform_row from its own per-pixel path (deform_row_blocks, vl = 0) and 4-wide blocks. Median of
- * the repeats (argument 1, default 5), wall time; run it with OMP_NUM_THREADS=1 for the
- * single-thread figures. */
+ * strips call it; the predictor rows into a small rolling buffer, as deform_row does). rpiv_ms is
+ * the current code, ref_ms the per-pixel code it replaced (deform_row_ref, deform_pred_row_ref,
+ * deform_prefilter_ref, kept in the library as the tests' reference); the checksum is that of the
+ * current results. The program fails if the prefiltered frames or the predictor rows differ from
+ * the reference's by a bit, the deformed frames by more than 1e-5 (relative), or deform_row from
+ * its own per-pixel path (deform_row_blocks, vl = 0) and 4-wide blocks. Median of the repeats
+ * (argument 1, default 5), wall time; run it with OMP_NUM_THREADS=1 for the single-thread figures.
+ */
 #include "../tests/piv_testimg.h"
 #include "bench.h"
 #include "deform_impl.h"
@@ -57,7 +58,7 @@ static double pred_all(pred_fn fn, const rpiv_deform_pred *p, float *u, float *v
 {
     double t0 = bench_now();
     for (int y = 0; y < H; y++)
-        fn(p, y, 0, W, u + (size_t)y * W, v + (size_t)y * W, scr);
+        fn(p, y, 0, W, u + (size_t)(y % 8) * W, v + (size_t)(y % 8) * W, scr);
     return 1e3 * (bench_now() - t0);
 }
 
@@ -103,7 +104,7 @@ int main(int argc, char **argv)
     double mnew[MAXREP], mref[MAXREP];
     bench_columns();
 
-    /* prefilter of both frames (unchanged: no reference) */
+    /* prefilter of both frames */
     for (int r = 0; r < reps; r++) {
         memcpy(ca, a, n * sizeof *ca);
         memcpy(cb, b, n * sizeof *cb);
@@ -111,20 +112,25 @@ int main(int argc, char **argv)
         rpiv_deform_prefilter(ca, W, H, thr);
         rpiv_deform_prefilter(cb, W, H, thr);
         mnew[r] = 1e3 * (bench_now() - t0);
+        memcpy(o[0], a, n * sizeof *ca);
+        memcpy(o[1], b, n * sizeof *cb);
+        t0 = bench_now();
+        deform_prefilter_ref(o[0], W, H, thr);
+        deform_prefilter_ref(o[1], W, H, thr);
+        mref[r] = 1e3 * (bench_now() - t0);
     }
-    double pre = bench_median(mnew, reps);
-    bench_line("prefilter-pair", W, H, thr, pre, 0,
-               bench_checksum(bench_checksum(0, ca, n), cb, n));
-    printf("#   %-16s %.3f ns per sample\n", "prefilter-pair", 1e6 * pre / (2.0 * (double)n));
+    bad |= memcmp(ca, o[0], n * sizeof *ca) || memcmp(cb, o[1], n * sizeof *cb);
+    line("prefilter-pair", thr, mnew, mref, reps, 2.0 * (double)n,
+         bench_checksum(bench_checksum(0, ca, n), cb, n));
 
     /* predictor rows alone */
     for (int r = 0; r < reps; r++) {
         mnew[r] = pred_all(rpiv_deform_pred_row, p, o[0], o[1], scr);
         mref[r] = pred_all(deform_pred_row_ref, p, o[2], o[3], scr);
     }
-    bad |= memcmp(o[0], o[2], n * sizeof *ca) || memcmp(o[1], o[3], n * sizeof *cb);
+    bad |= memcmp(o[0], o[2], 8 * W * sizeof *ca) || memcmp(o[1], o[3], 8 * W * sizeof *cb);
     line("predictor-rows", 1, mnew, mref, reps, (double)n,
-         bench_checksum(bench_checksum(0, o[0], n), o[1], n));
+         bench_checksum(bench_checksum(0, o[0], 8 * W), o[1], 8 * W));
 
     /* one deformation of both frames, rows through deform_row (one thread: the PIV strips
      * call it per row from their own threads) */

@@ -55,7 +55,7 @@ static double causal_init(const float *s, int n, size_t stride)
 /* Prefilter lines in place: rows y0..y0+nl-1 (nl <= 4) of a w-wide image, their recursions
  * interleaved so that the nl independent dependency chains overlap in the pipeline (one
  * line's recursion is latency-bound). Each line gets exactly the arithmetic of a lone line. */
-static void prefilter_lines(float *img, int w, int y0, int nl)
+static void prefilter_lines4(float *img, int w, int y0, int nl)
 {
     const float z = (float)POLE, g = (float)GAIN;
     float *c[4];
@@ -98,6 +98,69 @@ static void prefilter_lines(float *img, int w, int y0, int nl)
     }
 }
 
+/* Prefilter lines in place: rows y0..y0+nl-1 (nl <= LINES) of a w-wide image, their
+ * recursions interleaved so that the nl independent dependency chains overlap in the pipeline
+ * (one line's recursion is latency-bound). Each line gets exactly the arithmetic of a lone
+ * line. */
+#define LINES 8
+static void prefilter_lines(float *img, int w, int y0, int nl)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    float *c[LINES];
+    if (w < 2)
+        return;
+    /* the gain: on the samples causal_init reads first, on the others within the recursion
+     * (the same product, rounded the same, added the same) */
+    const int k0 = w > HORIZON ? HORIZON : w;
+    for (int l = 0; l < nl; l++) {
+        c[l] = img + (size_t)(y0 + l) * (size_t)w;
+        for (int k = 0; k < k0; k++)
+            c[l][k] *= g;
+        c[l][0] = (float)causal_init(c[l], w, 1);
+        for (int k = 1; k < k0; k++)
+            c[l][k] += z * c[l][k - 1];
+    }
+    if (nl == LINES) {
+        float *c0 = c[0], *c1 = c[1], *c2 = c[2], *c3 = c[3], *c4 = c[4], *c5 = c[5], *c6 = c[6],
+              *c7 = c[7];
+        for (int k = k0; k < w; k++) {
+            c0[k] = g * c0[k] + z * c0[k - 1];
+            c1[k] = g * c1[k] + z * c1[k - 1];
+            c2[k] = g * c2[k] + z * c2[k - 1];
+            c3[k] = g * c3[k] + z * c3[k - 1];
+            c4[k] = g * c4[k] + z * c4[k - 1];
+            c5[k] = g * c5[k] + z * c5[k - 1];
+            c6[k] = g * c6[k] + z * c6[k - 1];
+            c7[k] = g * c7[k] + z * c7[k - 1];
+        }
+    } else {
+        for (int l = 0; l < nl; l++)
+            for (int k = k0; k < w; k++)
+                c[l][k] = g * c[l][k] + z * c[l][k - 1];
+    }
+    for (int l = 0; l < nl; l++)
+        c[l][w - 1] = (float)((POLE / (POLE * POLE - 1.0)) *
+                              ((double)c[l][w - 1] + POLE * (double)c[l][w - 2]));
+    if (nl == LINES) {
+        float *c0 = c[0], *c1 = c[1], *c2 = c[2], *c3 = c[3], *c4 = c[4], *c5 = c[5], *c6 = c[6],
+              *c7 = c[7];
+        for (int k = w - 2; k >= 0; k--) {
+            c0[k] = z * (c0[k + 1] - c0[k]);
+            c1[k] = z * (c1[k + 1] - c1[k]);
+            c2[k] = z * (c2[k + 1] - c2[k]);
+            c3[k] = z * (c3[k + 1] - c3[k]);
+            c4[k] = z * (c4[k + 1] - c4[k]);
+            c5[k] = z * (c5[k + 1] - c5[k]);
+            c6[k] = z * (c6[k + 1] - c6[k]);
+            c7[k] = z * (c7[k + 1] - c7[k]);
+        }
+    } else {
+        for (int l = 0; l < nl; l++)
+            for (int k = w - 2; k >= 0; k--)
+                c[l][k] = z * (c[l][k + 1] - c[l][k]);
+    }
+}
+
 /* Prefilter columns i0..i1-1 of a w x h image in place, all columns of the block together. */
 static void prefilter_cols(float *img, int w, int h, int i0, int i1)
 {
@@ -129,14 +192,14 @@ static void prefilter_cols(float *img, int w, int h, int i0, int i1)
     }
 }
 
-void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
+void deform_prefilter_ref(float *img, int w, int h, int nthreads)
 {
     int nt = nthr(nthreads);
 #pragma omp parallel num_threads(nt)
     {
 #pragma omp for schedule(static)
         for (int g = 0; g < (h + 3) / 4; g++)
-            prefilter_lines(img, w, 4 * g, 4 * g + 4 <= h ? 4 : h - 4 * g);
+            prefilter_lines4(img, w, 4 * g, 4 * g + 4 <= h ? 4 : h - 4 * g);
         if (h >= 2) {
 #pragma omp for schedule(static)
             for (int b = 0; b < (w + COLBLOCK - 1) / COLBLOCK; b++) {
@@ -145,6 +208,75 @@ void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
             }
         }
     }
+}
+
+/* Prefilter the columns i0..i1-1 of a w x h image (h > HORIZON) in place, sweeping whole
+ * rows of the slab (contiguous memory, which the hardware prefetches; the blocks of
+ * prefilter_cols jump a row's length at every step). acc holds i1 - i0 doubles. Each column
+ * gets exactly the arithmetic of prefilter_cols: the causal sums of causal_init, in the same
+ * order, run over the columns side by side. */
+static void prefilter_slab(float *img, int w, int h, int i0, int i1, double *acc)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    const size_t sw = (size_t)w;
+    const int nb = i1 - i0;
+    double zk = 1;
+    for (int i = 0; i < nb; i++)
+        acc[i] = 0;
+    for (int k = 0; k < HORIZON; k++) {
+        const float *row = img + (size_t)k * sw + i0;
+        for (int i = 0; i < nb; i++)
+            acc[i] += zk * (double)row[i];
+        zk *= POLE;
+    }
+    float *row = img + i0;
+    for (int i = 0; i < nb; i++)
+        row[i] = (float)(GAIN * acc[i]);
+    for (int k = 1; k < h; k++) {
+        float *cur = img + (size_t)k * sw + i0;
+        const float *prev = cur - sw;
+        for (int i = 0; i < nb; i++)
+            cur[i] = g * cur[i] + z * prev[i];
+    }
+    float *last = img + (size_t)(h - 1) * sw + i0, *before = last - sw;
+    for (int i = 0; i < nb; i++)
+        last[i] =
+            (float)((POLE / (POLE * POLE - 1.0)) * ((double)last[i] + POLE * (double)before[i]));
+    for (int k = h - 2; k >= 0; k--) {
+        float *cur = img + (size_t)k * sw + i0;
+        const float *next = cur + sw;
+        for (int i = 0; i < nb; i++)
+            cur[i] = z * (next[i] - cur[i]);
+    }
+}
+
+void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
+{
+    int nt = nthr(nthreads);
+    /* the column pass in slabs of whole rows: one per thread, in multiples of 16 columns (the
+     * split does not change any column's arithmetic) */
+    int slab = ((w + nt - 1) / nt + 15) / 16 * 16, nslab = (w + slab - 1) / slab;
+    double *acc = h > HORIZON ? malloc((size_t)nslab * (size_t)slab * sizeof *acc) : NULL;
+#pragma omp parallel num_threads(nt)
+    {
+#pragma omp for schedule(static)
+        for (int gi = 0; gi < (h + LINES - 1) / LINES; gi++)
+            prefilter_lines(img, w, LINES * gi, LINES * gi + LINES <= h ? LINES : h - LINES * gi);
+        if (acc) {
+#pragma omp for schedule(static)
+            for (int b = 0; b < nslab; b++) {
+                int i0 = b * slab, i1 = i0 + slab < w ? i0 + slab : w;
+                prefilter_slab(img, w, h, i0, i1, acc + (size_t)b * (size_t)slab);
+            }
+        } else if (h >= 2) { /* short columns (exact initialisation), or no memory */
+#pragma omp for schedule(static)
+            for (int b = 0; b < (w + COLBLOCK - 1) / COLBLOCK; b++) {
+                int i0 = b * COLBLOCK, i1 = i0 + COLBLOCK < w ? i0 + COLBLOCK : w;
+                prefilter_cols(img, w, h, i0, i1);
+            }
+        }
+    }
+    free(acc);
 }
 
 /* Cubic B-spline weights for taps -1, 0, 1, 2 at fraction t in [0, 1). */
@@ -460,50 +592,6 @@ void deform_pred_row_ref(const rpiv_deform_pred *p, int y, int x0, int x1, float
 
 #define ALWAYS_INLINE static inline __attribute__((always_inline))
 
-ALWAYS_INLINE void store4(float *p, v4f v)
-{
-    memcpy(p, &v, sizeof v);
-}
-
-/* The predictor at the columns [xx, xx + 4) from the combined grid row t, with the first
- * tap i0 common to these columns: per column, the arithmetic of deform_pred_row_ref. */
-ALWAYS_INLINE void pred_block(const rpiv_deform_pred *p, const float *t, int i0, int xx, float *o)
-{
-    const size_t sw = (size_t)p->w;
-    const float *w0 = p->wxs + (size_t)xx;
-    const float a0 = t[i0], a1 = t[i0 + 1], a2 = t[i0 + 2], a3 = t[i0 + 3];
-    store4(o, load4(w0) * a0 + load4(w0 + sw) * a1 + load4(w0 + 2 * sw) * a2 +
-                  load4(w0 + 3 * sw) * a3);
-}
-
-void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
-                          float *scratch)
-{
-    float *tu = scratch, *tv = scratch + (size_t)p->nx;
-    pred_grid_row(p, y, tu, tv);
-    /* Along a run of columns sharing their first tap, the 4 grid values are common and the
-     * weights are loaded by tap: 4 columns at a time, the last block of a run of at least 4
-     * columns overlapping the previous one (it recomputes the same values). */
-    for (int x = x0; x < x1;) {
-        const int e = p->runend[x] < x1 ? p->runend[x] : x1, i0 = p->ix[x];
-        int xx = x;
-        for (; xx + 4 <= e; xx += 4) {
-            pred_block(p, tu, i0, xx, u + (xx - x0));
-            pred_block(p, tv, i0, xx, v + (xx - x0));
-        }
-        if (xx < e && e - x >= 4) {
-            pred_block(p, tu, i0, e - 4, u + (e - 4 - x0));
-            pred_block(p, tv, i0, e - 4, v + (e - 4 - x0));
-        } else
-            for (; xx < e; xx++) {
-                const float *wx = p->wx + 4 * (size_t)xx, *a = tu + i0, *b = tv + i0;
-                u[xx - x0] = wx[0] * a[0] + wx[1] * a[1] + wx[2] * a[2] + wx[3] * a[3];
-                v[xx - x0] = wx[0] * b[0] + wx[1] * b[1] + wx[2] * b[2] + wx[3] * b[3];
-            }
-        x = e;
-    }
-}
-
 size_t deform_row_scratch(const rpiv_deform_pred *p, int x0, int x1)
 {
     return 2 * (size_t)(x1 - x0) + rpiv_deform_pred_scratch(p);
@@ -615,14 +703,27 @@ static inline int allzero4(v4i e)
 #define DEFORM_AVX2 1
 typedef float v8f __attribute__((vector_size(32)));
 typedef int32_t v8i __attribute__((vector_size(32)));
-#define DB_VL     8
-#define DB_VF     v8f
-#define DB_VI     v8i
-#define DB_(name) name##_8
-#define DB_TARGET __attribute__((target("avx2")))
+#define DB_VL         8
+#define DB_VF         v8f
+#define DB_VI         v8i
+#define DB_(name)     name##_8
+#define DB_TARGET     __attribute__((target("avx2")))
 #define DB_ALLZERO(e) _mm256_testz_si256((__m256i)(e), (__m256i)(e))
 #include "deform_block.h"
 #endif
+
+void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
+                          float *scratch)
+{
+    float *tu = scratch, *tv = scratch + (size_t)p->nx;
+    pred_grid_row(p, y, tu, tv);
+#ifdef DEFORM_AVX2
+    if (__builtin_cpu_supports("avx2"))
+        pred_runs_8(p, tu, tv, x0, x1, u, v);
+    else
+#endif
+        pred_runs_4(p, tu, tv, x0, x1, u, v);
+}
 
 void deform_row_blocks(int vl, const float *coef_a, const float *coef_b, int w, int h,
                        const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,

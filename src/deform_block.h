@@ -2,8 +2,9 @@
 /* src/deform_block.h - the vector blocks of deform_row, included by src/deform.c once per
  * vector width with DB_VL (lanes), DB_VF / DB_VI (float / int32 vector types of DB_VL lanes),
  * DB_(name) (the suffixed name), DB_TARGET (the function's target attribute) and
- * DB_ALLZERO(e) (1 if every lane of the DB_VI e is 0) defined; it undefines them. Lane j of a block is pixel x + j and performs the float operations of
- * locate, bweights and sample_w for that pixel, in the same order. */
+ * DB_ALLZERO(e) (1 if every lane of the DB_VI e is 0) defined; it undefines them. Lane j of a block
+ * is pixel x + j and performs the float operations of locate, bweights and sample_w for that pixel,
+ * in the same order. */
 
 ALWAYS_INLINE DB_TARGET DB_VF DB_(loadv)(const float *p)
 {
@@ -122,6 +123,46 @@ static DB_TARGET int DB_(blocks)(const float *coef_a, const float *coef_b, int w
                    fill_b, ra, rb, da, db);
     }
     return x;
+}
+
+/* The predictor at the columns [xx, xx + DB_VL) from the combined grid row t, with the
+ * first tap i0 common to these columns: per column, the arithmetic of deform_pred_row_ref. */
+ALWAYS_INLINE DB_TARGET void DB_(pred_block)(const rpiv_deform_pred *p, const float *t, int i0,
+                                             int xx, float *o)
+{
+    const size_t sw = (size_t)p->w;
+    const float *w0 = p->wxs + (size_t)xx;
+    const float a0 = t[i0], a1 = t[i0 + 1], a2 = t[i0 + 2], a3 = t[i0 + 3];
+    DB_VF r = DB_(loadv)(w0) * a0 + DB_(loadv)(w0 + sw) * a1 + DB_(loadv)(w0 + 2 * sw) * a2 +
+              DB_(loadv)(w0 + 3 * sw) * a3;
+    memcpy(o, &r, sizeof r);
+}
+
+/* The columns x0..x1-1 of rpiv_deform_pred_row from the combined grid rows tu, tv. Along a
+ * run of columns sharing their first tap, the 4 grid values are common and the weights are
+ * loaded by tap: DB_VL columns at a time, the last block of a run of at least DB_VL columns
+ * overlapping the previous one (it recomputes the same values). */
+static DB_TARGET void DB_(pred_runs)(const rpiv_deform_pred *p, const float *tu, const float *tv,
+                                     int x0, int x1, float *u, float *v)
+{
+    for (int x = x0; x < x1;) {
+        const int e = p->runend[x] < x1 ? p->runend[x] : x1, i0 = p->ix[x];
+        int xx = x;
+        for (; xx + DB_VL <= e; xx += DB_VL) {
+            DB_(pred_block)(p, tu, i0, xx, u + (xx - x0));
+            DB_(pred_block)(p, tv, i0, xx, v + (xx - x0));
+        }
+        if (xx < e && e - x >= DB_VL) {
+            DB_(pred_block)(p, tu, i0, e - DB_VL, u + (e - DB_VL - x0));
+            DB_(pred_block)(p, tv, i0, e - DB_VL, v + (e - DB_VL - x0));
+        } else
+            for (; xx < e; xx++) {
+                const float *wx = p->wx + 4 * (size_t)xx, *a = tu + i0, *b = tv + i0;
+                u[xx - x0] = wx[0] * a[0] + wx[1] * a[1] + wx[2] * a[2] + wx[3] * a[3];
+                v[xx - x0] = wx[0] * b[0] + wx[1] * b[1] + wx[2] * b[2] + wx[3] * b[3];
+            }
+        x = e;
+    }
 }
 
 #undef DB_VL

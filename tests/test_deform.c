@@ -393,6 +393,30 @@ out:
         free(o[k]);
 }
 
+/* The prefilter (8 rows interleaved, the gain within the recursion, columns swept in slabs
+ * of whole rows) gives the bits of the code it replaced, for sizes around the causal horizon
+ * and the groups of rows, and any thread count. */
+static void deform_prefilter_matches_replaced_code(void)
+{
+    const int sizes[][2] = {{203, 77}, {17, 9}, {16, 23}, {5, 40}, {64, 16}, {33, 1}, {1, 19}};
+    uint64_t seed = 1618;
+    int same = 1;
+    for (int k = 0; k < 7; k++) {
+        const int w = sizes[k][0], h = sizes[k][1];
+        const size_t n = (size_t)w * (size_t)h;
+        float *a = malloc(sizeof(float) * n), *b = malloc(sizeof(float) * n);
+        float *c = malloc(sizeof(float) * n);
+        for (size_t i = 0; i < n; i++)
+            a[i] = b[i] = c[i] = (float)(300 * ti_rnd(&seed) - 100);
+        rpiv_deform_prefilter(a, w, h, 1);
+        rpiv_deform_prefilter(b, w, h, 3);
+        deform_prefilter_ref(c, w, h, 1);
+        same &= !memcmp(a, c, sizeof(float) * n) && !memcmp(b, c, sizeof(float) * n);
+        free(a), free(b), free(c);
+    }
+    CHECK(same);
+}
+
 int main(void)
 {
     RUN_TEST(deform_bspline_interpolates_pixels_and_reproduces_cubics);
@@ -401,6 +425,7 @@ int main(void)
     RUN_TEST(deform_predictor_interpolates_nodes);
     RUN_TEST(deform_shifts_a_bspline_interpolated_image);
     RUN_TEST(deform_is_thread_count_independent);
+    RUN_TEST(deform_prefilter_matches_replaced_code);
     RUN_TEST(deform_predictor_rows_match_per_pixel_code);
     RUN_TEST(deform_blocks_match_per_pixel_path);
     return check_summary();
