@@ -681,11 +681,6 @@ static void pixels(const float *coef_a, const float *coef_b, int w, int h, float
 
 typedef int32_t v4i __attribute__((vector_size(16)));
 
-static inline int allzero4(v4i e)
-{
-    return !(e[0] | e[1] | e[2] | e[3]);
-}
-
 #define DB_VL     4
 #define DB_VF     v4f
 #define DB_VI     v4i
@@ -695,6 +690,10 @@ static inline int allzero4(v4i e)
 #define DB_ALLZERO(e)                                                                              \
     (_mm_movemask_epi8(_mm_cmpeq_epi32((__m128i)(e), _mm_setzero_si128())) == 0xFFFF)
 #else
+static inline int allzero4(v4i e)
+{
+    return !(e[0] | e[1] | e[2] | e[3]);
+}
 #define DB_ALLZERO(e) allzero4(e)
 #endif
 #include "deform_block.h"
