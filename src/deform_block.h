@@ -66,6 +66,22 @@ ALWAYS_INLINE DB_TARGET DB_VF DB_(taps)(const float *base, size_t sw, int sx, in
     return (wx[0] * t[0] + wx[1] * t[1]) + (wx[2] * t[2] + wx[3] * t[3]);
 }
 
+/* taps for the blocks whose integer parts differ by 1 (sx, sy: along x, y), into out. */
+static DB_TARGET __attribute__((noinline)) void DB_(taps_mixed)(const float *base, size_t sw,
+                                                                int sx, int sy, const DB_VI *mx,
+                                                                const DB_VI *my, const DB_VF wx[4],
+                                                                const DB_VF wy[4], float *out)
+{
+    DB_VF r;
+    if (!sy)
+        r = DB_(taps)(base, sw, 1, 0, *mx, *my, wx, wy);
+    else if (!sx)
+        r = DB_(taps)(base, sw, 0, 1, *mx, *my, wx, wy);
+    else
+        r = DB_(taps)(base, sw, 1, 1, *mx, *my, wx, wy);
+    memcpy(out, &r, sizeof r);
+}
+
 /* The samples of a frame (coefficients c) at the pixels x..x+DB_VL-1 of row y offset by
  * (ox, oy), into out[0..DB_VL-1], if their integer offsets differ by at most 1 across the
  * block and all their taps lie inside the image; returns 0 (nothing written) otherwise. */
@@ -93,15 +109,14 @@ ALWAYS_INLINE DB_TARGET int DB_(block)(const float *c, int w, int h, int x, int 
     DB_(weights)(ty, wy);
     const size_t sw = (size_t)w;
     const float *base = c + (size_t)(y + ly - 1) * sw + (size_t)(x + lx - 1);
-    const DB_VI mx = fx != lx, my = fy != ly;
-    if (!sx && !sy)
-        r = DB_(taps)(base, sw, 0, 0, mx, my, wx, wy);
-    else if (!sy)
-        r = DB_(taps)(base, sw, 1, 0, mx, my, wx, wy);
-    else if (!sx)
-        r = DB_(taps)(base, sw, 0, 1, mx, my, wx, wy);
-    else
-        r = DB_(taps)(base, sw, 1, 1, mx, my, wx, wy);
+    if (sx || sy) { /* out of line: the common case keeps its registers */
+        const DB_VI mx = fx != lx, my = fy != ly;
+        const DB_VF cx[4] = {wx[0], wx[1], wx[2], wx[3]}, cy[4] = {wy[0], wy[1], wy[2], wy[3]};
+        DB_(taps_mixed)(base, sw, sx, sy, &mx, &my, cx, cy, out);
+        return 1;
+    }
+    const DB_VI zero = {0};
+    r = DB_(taps)(base, sw, 0, 0, zero, zero, wx, wy);
     memcpy(out, &r, sizeof r);
     return 1;
 }
