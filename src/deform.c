@@ -161,6 +161,88 @@ static void prefilter_lines(float *img, int w, int y0, int nl)
     }
 }
 
+#if defined(__SSE2__)
+/* Rows per group of the transposed row pass. */
+#define TROWS 16
+
+/* Prefilter rows y0..y0+TROWS-1 of a w-wide image (w >= 2) in place, 4 columns at a time
+ * through 4 x 4 transposes: lane l of a column vector is row 4 q + l, so each step of the
+ * recursion advances 4 rows with one vector operation, 4 such chains in flight. The first
+ * samples (up to the causal horizon), the last one and the columns left over by the 4 x 4
+ * tiles are done per row as in prefilter_lines; every value gets exactly its arithmetic. */
+static void prefilter_rows_t(float *img, int w, int y0)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    const __m128 vz = _mm_set1_ps(z), vg = _mm_set1_ps(g);
+    float *c[TROWS];
+    __m128 prev[TROWS / 4];
+    const int k0 = w > HORIZON ? HORIZON : w;
+    for (int l = 0; l < TROWS; l++) {
+        c[l] = img + (size_t)(y0 + l) * (size_t)w;
+        for (int k = 0; k < k0; k++)
+            c[l][k] *= g;
+        c[l][0] = (float)causal_init(c[l], w, 1);
+        for (int k = 1; k < k0; k++)
+            c[l][k] += z * c[l][k - 1];
+    }
+    for (int q = 0; q < TROWS / 4; q++)
+        prev[q] = _mm_setr_ps(c[4 * q][k0 - 1], c[4 * q + 1][k0 - 1], c[4 * q + 2][k0 - 1],
+                              c[4 * q + 3][k0 - 1]);
+    int k = k0;
+    for (; k + 4 <= w; k += 4)
+        for (int q = 0; q < TROWS / 4; q++) {
+            float *const *r = c + 4 * q;
+            __m128 t0 = _mm_loadu_ps(r[0] + k), t1 = _mm_loadu_ps(r[1] + k);
+            __m128 t2 = _mm_loadu_ps(r[2] + k), t3 = _mm_loadu_ps(r[3] + k);
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            t0 = _mm_add_ps(_mm_mul_ps(vg, t0), _mm_mul_ps(vz, prev[q]));
+            t1 = _mm_add_ps(_mm_mul_ps(vg, t1), _mm_mul_ps(vz, t0));
+            t2 = _mm_add_ps(_mm_mul_ps(vg, t2), _mm_mul_ps(vz, t1));
+            t3 = _mm_add_ps(_mm_mul_ps(vg, t3), _mm_mul_ps(vz, t2));
+            prev[q] = t3;
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            _mm_storeu_ps(r[0] + k, t0);
+            _mm_storeu_ps(r[1] + k, t1);
+            _mm_storeu_ps(r[2] + k, t2);
+            _mm_storeu_ps(r[3] + k, t3);
+        }
+    for (int l = 0; l < TROWS; l++)
+        for (int kk = k; kk < w; kk++)
+            c[l][kk] = g * c[l][kk] + z * c[l][kk - 1];
+    for (int l = 0; l < TROWS; l++)
+        c[l][w - 1] = (float)((POLE / (POLE * POLE - 1.0)) *
+                              ((double)c[l][w - 1] + POLE * (double)c[l][w - 2]));
+    __m128 *next = prev;
+    for (int q = 0; q < TROWS / 4; q++)
+        next[q] = _mm_setr_ps(c[4 * q][w - 1], c[4 * q + 1][w - 1], c[4 * q + 2][w - 1],
+                              c[4 * q + 3][w - 1]);
+    k = w - 2; /* the next column to do, downwards */
+    for (; k >= 3; k -= 4)
+        for (int q = 0; q < TROWS / 4; q++) {
+            float *const *r = c + 4 * q;
+            const int s = k - 3;
+            __m128 t0 = _mm_loadu_ps(r[0] + s), t1 = _mm_loadu_ps(r[1] + s);
+            __m128 t2 = _mm_loadu_ps(r[2] + s), t3 = _mm_loadu_ps(r[3] + s);
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            t3 = _mm_mul_ps(vz, _mm_sub_ps(next[q], t3));
+            t2 = _mm_mul_ps(vz, _mm_sub_ps(t3, t2));
+            t1 = _mm_mul_ps(vz, _mm_sub_ps(t2, t1));
+            t0 = _mm_mul_ps(vz, _mm_sub_ps(t1, t0));
+            next[q] = t0;
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            _mm_storeu_ps(r[0] + s, t0);
+            _mm_storeu_ps(r[1] + s, t1);
+            _mm_storeu_ps(r[2] + s, t2);
+            _mm_storeu_ps(r[3] + s, t3);
+        }
+    for (int l = 0; l < TROWS; l++)
+        for (int kk = k; kk >= 0; kk--)
+            c[l][kk] = z * (c[l][kk + 1] - c[l][kk]);
+}
+#else
+#define TROWS 0
+#endif
+
 /* Prefilter columns i0..i1-1 of a w x h image in place, all columns of the block together. */
 static void prefilter_cols(float *img, int w, int h, int i0, int i1)
 {
@@ -259,9 +341,18 @@ void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
     double *acc = h > HORIZON ? malloc((size_t)nslab * (size_t)slab * sizeof *acc) : NULL;
 #pragma omp parallel num_threads(nt)
     {
+        /* groups of TROWS rows through transposed tiles, then the rest LINES at a time */
+        const int nt16 = TROWS && w >= 2 ? h / (TROWS ? TROWS : 1) : 0, done = nt16 * TROWS;
+#if TROWS
 #pragma omp for schedule(static)
-        for (int gi = 0; gi < (h + LINES - 1) / LINES; gi++)
-            prefilter_lines(img, w, LINES * gi, LINES * gi + LINES <= h ? LINES : h - LINES * gi);
+        for (int gi = 0; gi < nt16; gi++)
+            prefilter_rows_t(img, w, TROWS * gi);
+#endif
+#pragma omp for schedule(static)
+        for (int gi = 0; gi < (h - done + LINES - 1) / LINES; gi++) {
+            const int y0 = done + LINES * gi;
+            prefilter_lines(img, w, y0, y0 + LINES <= h ? LINES : h - y0);
+        }
         if (acc) {
 #pragma omp for schedule(static)
             for (int b = 0; b < nslab; b++) {

@@ -393,15 +393,17 @@ out:
         free(o[k]);
 }
 
-/* The prefilter (8 rows interleaved, the gain within the recursion, columns swept in slabs
- * of whole rows) gives the bits of the code it replaced, for sizes around the causal horizon
- * and the groups of rows, and any thread count. */
+/* The prefilter (16 rows through 4 x 4 transposed tiles, 8 rows interleaved, the gain within
+ * the recursion, columns swept in slabs of whole rows) gives the bits of the code it
+ * replaced, for sizes around the causal horizon, the tiles and the groups of rows, and any
+ * thread count. */
 static void deform_prefilter_matches_replaced_code(void)
 {
-    const int sizes[][2] = {{203, 77}, {17, 9}, {16, 23}, {5, 40}, {64, 16}, {33, 1}, {1, 19}};
+    const int sizes[][2] = {{203, 77}, {17, 9}, {16, 23}, {5, 40}, {64, 16},
+                            {33, 1},   {1, 19}, {20, 33}, {2, 48}, {19, 47}};
     uint64_t seed = 1618;
     int same = 1;
-    for (int k = 0; k < 7; k++) {
+    for (int k = 0; k < (int)(sizeof sizes / sizeof sizes[0]); k++) {
         const int w = sizes[k][0], h = sizes[k][1];
         const size_t n = (size_t)w * (size_t)h;
         float *a = malloc(sizeof(float) * n), *b = malloc(sizeof(float) * n);
