@@ -1,16 +1,17 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* bench_deform - the image deformation of the PIV passes on the full sensor (2560 x 2160,
  * random particles, 0.05 particles/px, d_tau 2.5 px) with a smooth non-uniform predictor of a
- * few px on a 16 px grid: the prefilter of both frames, the predictor rows alone, and one
- * whole deformation of both frames through deform_row (every row, all columns, as the PIV
- * strips call it; the predictor rows into a small rolling buffer, as deform_row does). rpiv_ms is
- * the current code, ref_ms the per-pixel code it replaced (deform_row_ref, deform_pred_row_ref,
- * deform_prefilter_ref, kept in the library as the tests' reference); the checksum is that of the
- * current results. The program fails if the prefiltered frames or the predictor rows differ from
- * the reference's by a bit, the deformed frames by more than 1e-5 (relative), or deform_row from
- * its own per-pixel path (deform_row_blocks, vl = 0) and 4-wide blocks. Median of the repeats
- * (argument 1, default 5), wall time; run it with OMP_NUM_THREADS=1 for the single-thread figures.
- */
+ * few px on a 16 px grid. Cases: the prefilter of both frames (OpenMP's threads); the
+ * predictor rows alone (into a rolling buffer of 8 rows, as deform_row uses its scratch); one
+ * whole deformation of both frames through deform_row (every row, all columns, one thread, as
+ * each PIV strip calls it). rpiv_ms is the current code, ref_ms the code it replaced
+ * (deform_prefilter_ref, deform_pred_row_ref, deform_row_ref, kept in the library as the
+ * tests' reference), measured in the same run; the checksum is that of the current results.
+ * The program fails (exit 1, "FAILED") if the prefiltered frames or the predictor rows differ
+ * from the reference's by a bit, the deformed frames by more than 1e-5 (relative), or
+ * deform_row from its own per-pixel path (deform_row_blocks, vl = 0) or its 4-wide blocks by
+ * a bit. Median of the repeats (argument 1, default 5), wall time. Single-thread figures:
+ *     OMP_NUM_THREADS=1 build/bench/bench_deform 9 */
 #include "../tests/piv_testimg.h"
 #include "bench.h"
 #include "deform_impl.h"
