@@ -6,6 +6,9 @@
 
 #include <math.h>
 #include <omp.h>
+#if defined(__x86_64__) || defined(__SSE2__)
+#include <immintrin.h>
+#endif
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -52,7 +55,7 @@ static double causal_init(const float *s, int n, size_t stride)
 /* Prefilter lines in place: rows y0..y0+nl-1 (nl <= 4) of a w-wide image, their recursions
  * interleaved so that the nl independent dependency chains overlap in the pipeline (one
  * line's recursion is latency-bound). Each line gets exactly the arithmetic of a lone line. */
-static void prefilter_lines(float *img, int w, int y0, int nl)
+static void prefilter_lines4(float *img, int w, int y0, int nl)
 {
     const float z = (float)POLE, g = (float)GAIN;
     float *c[4];
@@ -95,6 +98,151 @@ static void prefilter_lines(float *img, int w, int y0, int nl)
     }
 }
 
+/* Prefilter lines in place: rows y0..y0+nl-1 (nl <= LINES) of a w-wide image, their
+ * recursions interleaved so that the nl independent dependency chains overlap in the pipeline
+ * (one line's recursion is latency-bound). Each line gets exactly the arithmetic of a lone
+ * line. */
+#define LINES 8
+static void prefilter_lines(float *img, int w, int y0, int nl)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    float *c[LINES];
+    if (w < 2)
+        return;
+    /* the gain: on the samples causal_init reads first, on the others within the recursion
+     * (the same product, rounded the same, added the same) */
+    const int k0 = w > HORIZON ? HORIZON : w;
+    for (int l = 0; l < nl; l++) {
+        c[l] = img + (size_t)(y0 + l) * (size_t)w;
+        for (int k = 0; k < k0; k++)
+            c[l][k] *= g;
+        c[l][0] = (float)causal_init(c[l], w, 1);
+        for (int k = 1; k < k0; k++)
+            c[l][k] += z * c[l][k - 1];
+    }
+    if (nl == LINES) {
+        float *c0 = c[0], *c1 = c[1], *c2 = c[2], *c3 = c[3], *c4 = c[4], *c5 = c[5], *c6 = c[6],
+              *c7 = c[7];
+        for (int k = k0; k < w; k++) {
+            c0[k] = g * c0[k] + z * c0[k - 1];
+            c1[k] = g * c1[k] + z * c1[k - 1];
+            c2[k] = g * c2[k] + z * c2[k - 1];
+            c3[k] = g * c3[k] + z * c3[k - 1];
+            c4[k] = g * c4[k] + z * c4[k - 1];
+            c5[k] = g * c5[k] + z * c5[k - 1];
+            c6[k] = g * c6[k] + z * c6[k - 1];
+            c7[k] = g * c7[k] + z * c7[k - 1];
+        }
+    } else {
+        for (int l = 0; l < nl; l++)
+            for (int k = k0; k < w; k++)
+                c[l][k] = g * c[l][k] + z * c[l][k - 1];
+    }
+    for (int l = 0; l < nl; l++)
+        c[l][w - 1] = (float)((POLE / (POLE * POLE - 1.0)) *
+                              ((double)c[l][w - 1] + POLE * (double)c[l][w - 2]));
+    if (nl == LINES) {
+        float *c0 = c[0], *c1 = c[1], *c2 = c[2], *c3 = c[3], *c4 = c[4], *c5 = c[5], *c6 = c[6],
+              *c7 = c[7];
+        for (int k = w - 2; k >= 0; k--) {
+            c0[k] = z * (c0[k + 1] - c0[k]);
+            c1[k] = z * (c1[k + 1] - c1[k]);
+            c2[k] = z * (c2[k + 1] - c2[k]);
+            c3[k] = z * (c3[k + 1] - c3[k]);
+            c4[k] = z * (c4[k + 1] - c4[k]);
+            c5[k] = z * (c5[k + 1] - c5[k]);
+            c6[k] = z * (c6[k + 1] - c6[k]);
+            c7[k] = z * (c7[k + 1] - c7[k]);
+        }
+    } else {
+        for (int l = 0; l < nl; l++)
+            for (int k = w - 2; k >= 0; k--)
+                c[l][k] = z * (c[l][k + 1] - c[l][k]);
+    }
+}
+
+#if defined(__SSE2__)
+/* Rows per group of the transposed row pass. */
+#define TROWS 16
+
+/* Prefilter rows y0..y0+TROWS-1 of a w-wide image (w >= 2) in place, 4 columns at a time
+ * through 4 x 4 transposes: lane l of a column vector is row 4 q + l, so each step of the
+ * recursion advances 4 rows with one vector operation, 4 such chains in flight. The first
+ * samples (up to the causal horizon), the last one and the columns left over by the 4 x 4
+ * tiles are done per row as in prefilter_lines; every value gets exactly its arithmetic. */
+static void prefilter_rows_t(float *img, int w, int y0)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    const __m128 vz = _mm_set1_ps(z), vg = _mm_set1_ps(g);
+    float *c[TROWS];
+    __m128 prev[TROWS / 4];
+    const int k0 = w > HORIZON ? HORIZON : w;
+    for (int l = 0; l < TROWS; l++) {
+        c[l] = img + (size_t)(y0 + l) * (size_t)w;
+        for (int k = 0; k < k0; k++)
+            c[l][k] *= g;
+        c[l][0] = (float)causal_init(c[l], w, 1);
+        for (int k = 1; k < k0; k++)
+            c[l][k] += z * c[l][k - 1];
+    }
+    for (int q = 0; q < TROWS / 4; q++)
+        prev[q] = _mm_setr_ps(c[4 * q][k0 - 1], c[4 * q + 1][k0 - 1], c[4 * q + 2][k0 - 1],
+                              c[4 * q + 3][k0 - 1]);
+    int k = k0;
+    for (; k + 4 <= w; k += 4)
+        for (int q = 0; q < TROWS / 4; q++) {
+            float *const *r = c + 4 * q;
+            __m128 t0 = _mm_loadu_ps(r[0] + k), t1 = _mm_loadu_ps(r[1] + k);
+            __m128 t2 = _mm_loadu_ps(r[2] + k), t3 = _mm_loadu_ps(r[3] + k);
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            t0 = _mm_add_ps(_mm_mul_ps(vg, t0), _mm_mul_ps(vz, prev[q]));
+            t1 = _mm_add_ps(_mm_mul_ps(vg, t1), _mm_mul_ps(vz, t0));
+            t2 = _mm_add_ps(_mm_mul_ps(vg, t2), _mm_mul_ps(vz, t1));
+            t3 = _mm_add_ps(_mm_mul_ps(vg, t3), _mm_mul_ps(vz, t2));
+            prev[q] = t3;
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            _mm_storeu_ps(r[0] + k, t0);
+            _mm_storeu_ps(r[1] + k, t1);
+            _mm_storeu_ps(r[2] + k, t2);
+            _mm_storeu_ps(r[3] + k, t3);
+        }
+    for (int l = 0; l < TROWS; l++)
+        for (int kk = k; kk < w; kk++)
+            c[l][kk] = g * c[l][kk] + z * c[l][kk - 1];
+    for (int l = 0; l < TROWS; l++)
+        c[l][w - 1] = (float)((POLE / (POLE * POLE - 1.0)) *
+                              ((double)c[l][w - 1] + POLE * (double)c[l][w - 2]));
+    __m128 *next = prev;
+    for (int q = 0; q < TROWS / 4; q++)
+        next[q] = _mm_setr_ps(c[4 * q][w - 1], c[4 * q + 1][w - 1], c[4 * q + 2][w - 1],
+                              c[4 * q + 3][w - 1]);
+    k = w - 2; /* the next column to do, downwards */
+    for (; k >= 3; k -= 4)
+        for (int q = 0; q < TROWS / 4; q++) {
+            float *const *r = c + 4 * q;
+            const int s = k - 3;
+            __m128 t0 = _mm_loadu_ps(r[0] + s), t1 = _mm_loadu_ps(r[1] + s);
+            __m128 t2 = _mm_loadu_ps(r[2] + s), t3 = _mm_loadu_ps(r[3] + s);
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            t3 = _mm_mul_ps(vz, _mm_sub_ps(next[q], t3));
+            t2 = _mm_mul_ps(vz, _mm_sub_ps(t3, t2));
+            t1 = _mm_mul_ps(vz, _mm_sub_ps(t2, t1));
+            t0 = _mm_mul_ps(vz, _mm_sub_ps(t1, t0));
+            next[q] = t0;
+            _MM_TRANSPOSE4_PS(t0, t1, t2, t3);
+            _mm_storeu_ps(r[0] + s, t0);
+            _mm_storeu_ps(r[1] + s, t1);
+            _mm_storeu_ps(r[2] + s, t2);
+            _mm_storeu_ps(r[3] + s, t3);
+        }
+    for (int l = 0; l < TROWS; l++)
+        for (int kk = k; kk >= 0; kk--)
+            c[l][kk] = z * (c[l][kk + 1] - c[l][kk]);
+}
+#else
+#define TROWS 0
+#endif
+
 /* Prefilter columns i0..i1-1 of a w x h image in place, all columns of the block together. */
 static void prefilter_cols(float *img, int w, int h, int i0, int i1)
 {
@@ -126,14 +274,14 @@ static void prefilter_cols(float *img, int w, int h, int i0, int i1)
     }
 }
 
-void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
+void deform_prefilter_ref(float *img, int w, int h, int nthreads)
 {
     int nt = nthr(nthreads);
 #pragma omp parallel num_threads(nt)
     {
 #pragma omp for schedule(static)
         for (int g = 0; g < (h + 3) / 4; g++)
-            prefilter_lines(img, w, 4 * g, 4 * g + 4 <= h ? 4 : h - 4 * g);
+            prefilter_lines4(img, w, 4 * g, 4 * g + 4 <= h ? 4 : h - 4 * g);
         if (h >= 2) {
 #pragma omp for schedule(static)
             for (int b = 0; b < (w + COLBLOCK - 1) / COLBLOCK; b++) {
@@ -142,6 +290,84 @@ void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
             }
         }
     }
+}
+
+/* Prefilter the columns i0..i1-1 of a w x h image (h > HORIZON) in place, sweeping whole
+ * rows of the slab (contiguous memory, which the hardware prefetches; the blocks of
+ * prefilter_cols jump a row's length at every step). acc holds i1 - i0 doubles. Each column
+ * gets exactly the arithmetic of prefilter_cols: the causal sums of causal_init, in the same
+ * order, run over the columns side by side. */
+static void prefilter_slab(float *img, int w, int h, int i0, int i1, double *acc)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    const size_t sw = (size_t)w;
+    const int nb = i1 - i0;
+    double zk = 1;
+    for (int i = 0; i < nb; i++)
+        acc[i] = 0;
+    for (int k = 0; k < HORIZON; k++) {
+        const float *row = img + (size_t)k * sw + i0;
+        for (int i = 0; i < nb; i++)
+            acc[i] += zk * (double)row[i];
+        zk *= POLE;
+    }
+    float *row = img + i0;
+    for (int i = 0; i < nb; i++)
+        row[i] = (float)(GAIN * acc[i]);
+    for (int k = 1; k < h; k++) {
+        float *cur = img + (size_t)k * sw + i0;
+        const float *prev = cur - sw;
+        for (int i = 0; i < nb; i++)
+            cur[i] = g * cur[i] + z * prev[i];
+    }
+    float *last = img + (size_t)(h - 1) * sw + i0, *before = last - sw;
+    for (int i = 0; i < nb; i++)
+        last[i] =
+            (float)((POLE / (POLE * POLE - 1.0)) * ((double)last[i] + POLE * (double)before[i]));
+    for (int k = h - 2; k >= 0; k--) {
+        float *cur = img + (size_t)k * sw + i0;
+        const float *next = cur + sw;
+        for (int i = 0; i < nb; i++)
+            cur[i] = z * (next[i] - cur[i]);
+    }
+}
+
+void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
+{
+    int nt = nthr(nthreads);
+    /* the column pass in slabs of whole rows: one per thread, in multiples of 16 columns (the
+     * split does not change any column's arithmetic) */
+    int slab = ((w + nt - 1) / nt + 15) / 16 * 16, nslab = (w + slab - 1) / slab;
+    double *acc = h > HORIZON ? malloc((size_t)nslab * (size_t)slab * sizeof *acc) : NULL;
+#pragma omp parallel num_threads(nt)
+    {
+        /* groups of TROWS rows through transposed tiles, then the rest LINES at a time */
+        const int nt16 = TROWS && w >= 2 ? h / (TROWS ? TROWS : 1) : 0, done = nt16 * TROWS;
+#if TROWS
+#pragma omp for schedule(static)
+        for (int gi = 0; gi < nt16; gi++)
+            prefilter_rows_t(img, w, TROWS * gi);
+#endif
+#pragma omp for schedule(static)
+        for (int gi = 0; gi < (h - done + LINES - 1) / LINES; gi++) {
+            const int y0 = done + LINES * gi;
+            prefilter_lines(img, w, y0, y0 + LINES <= h ? LINES : h - y0);
+        }
+        if (acc) {
+#pragma omp for schedule(static)
+            for (int b = 0; b < nslab; b++) {
+                int i0 = b * slab, i1 = i0 + slab < w ? i0 + slab : w;
+                prefilter_slab(img, w, h, i0, i1, acc + (size_t)b * (size_t)slab);
+            }
+        } else if (h >= 2) { /* short columns (exact initialisation), or no memory */
+#pragma omp for schedule(static)
+            for (int b = 0; b < (w + COLBLOCK - 1) / COLBLOCK; b++) {
+                int i0 = b * COLBLOCK, i1 = i0 + COLBLOCK < w ? i0 + COLBLOCK : w;
+                prefilter_cols(img, w, h, i0, i1);
+            }
+        }
+    }
+    free(acc);
 }
 
 /* Cubic B-spline weights for taps -1, 0, 1, 2 at fraction t in [0, 1). */
@@ -212,11 +438,12 @@ static inline int inside(const spos *p, int w, int h)
              p->iy > h - 1 || (p->iy == h - 1 && p->ty > 0.5f));
 }
 
-/* The interpolant at a located point inside the image: 4 x 4 taps, mirrored at the edges. */
-static inline float sample_at(const float *c, int w, int h, const spos *p)
+/* The interpolant at a located point inside the image with the tap weights wx, wy: 4 x 4 taps,
+ * mirrored at the edges; summed over the rows, then over the columns. */
+static inline float sample_w(const float *c, int w, int h, const spos *p, v4f wx, v4f wy)
 {
     const size_t sw = (size_t)w;
-    v4f wx = vweights(p->tx), wy = vweights(p->ty), acc;
+    v4f acc;
     if (p->ix >= 1 && p->ix + 2 < w && p->iy >= 1 && p->iy + 2 < h) {
         const float *r = c + (size_t)(p->iy - 1) * sw + (size_t)(p->ix - 1);
         acc = wy[0] * load4(r) + wy[1] * load4(r + sw) + wy[2] * load4(r + 2 * sw) +
@@ -234,6 +461,27 @@ static inline float sample_at(const float *c, int w, int h, const spos *p)
     }
     acc *= wx;
     return (acc[0] + acc[1]) + (acc[2] + acc[3]);
+}
+
+/* bweights as a vector. */
+static inline v4f bweights4(float t)
+{
+    float wt[4];
+    bweights(t, wt);
+    return (v4f){wt[0], wt[1], wt[2], wt[3]};
+}
+
+/* The interpolant at a located point inside the image (the weights of bweights, which the
+ * vector blocks compute lane by lane). */
+static inline float sample_at(const float *c, int w, int h, const spos *p)
+{
+    return sample_w(c, w, h, p, bweights4(p->tx), bweights4(p->ty));
+}
+
+/* The same with the weights of vweights: the per-pixel code the blocks replaced. */
+static inline float sample_at_ref(const float *c, int w, int h, const spos *p)
+{
+    return sample_w(c, w, h, p, vweights(p->tx), vweights(p->ty));
 }
 
 float rpiv_deform_sample(const float *coef, int w, int h, double x, double y, float fill)
@@ -256,6 +504,8 @@ struct rpiv_deform_pred {
     float maxabs;   /* largest |coefficient|: the interpolant's bound (convex weights) */
     int *ix, *iy;   /* first tap per pixel column / row */
     float *wx, *wy; /* 4 weights per pixel column / row */
+    float *wxs;     /* the column weights by tap: wxs[k * w + x] = wx[4 * x + k] */
+    int *runend;    /* first column after x whose first tap differs from ix[x] */
 };
 
 void rpiv_deform_pred_free(rpiv_deform_pred *p)
@@ -268,6 +518,8 @@ void rpiv_deform_pred_free(rpiv_deform_pred *p)
     free(p->iy);
     free(p->wx);
     free(p->wy);
+    free(p->wxs);
+    free(p->runend);
     free(p);
 }
 
@@ -275,10 +527,10 @@ void rpiv_deform_pred_free(rpiv_deform_pred *p)
 static double ext(const float *g, int n, size_t stride, int k)
 {
     if (k <= n - 1)
-        return g[(size_t)k * stride];
+        return (double)g[(size_t)k * stride];
     if (n == 1)
-        return g[0];
-    double e = g[(size_t)(n - 1) * stride], d = e - (double)g[(size_t)(n - 2) * stride];
+        return (double)g[0];
+    double e = (double)g[(size_t)(n - 1) * stride], d = e - (double)g[(size_t)(n - 2) * stride];
     return e + (k - (n - 1)) * d;
 }
 
@@ -294,9 +546,9 @@ static void ghosts(float *g, int n, size_t stride)
         if (k <= n - 1)
             hi = 2.0 * (double)rev[0] - (double)rev[-(ptrdiff_t)((size_t)k * stride)];
         else if (n == 1)
-            hi = rev[0];
+            hi = (double)rev[0];
         else {
-            double e = g[0], d = e - (double)g[stride];
+            double e = (double)g[0], d = e - (double)g[stride];
             hi = 2.0 * (double)rev[0] - (e + (k - (n - 1)) * d);
         }
         g[-(ptrdiff_t)((size_t)k * stride)] = (float)lo;
@@ -342,7 +594,9 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift
     p->iy = malloc((size_t)h * sizeof *p->iy);
     p->wx = malloc((size_t)w * 4 * sizeof *p->wx);
     p->wy = malloc((size_t)h * 4 * sizeof *p->wy);
-    if (!p->cu || !p->cv || !p->ix || !p->iy || !p->wx || !p->wy) {
+    p->wxs = malloc((size_t)w * 4 * sizeof *p->wxs);
+    p->runend = malloc((size_t)w * sizeof *p->runend);
+    if (!p->cu || !p->cv || !p->ix || !p->iy || !p->wx || !p->wy || !p->wxs || !p->runend) {
         rpiv_deform_pred_free(p);
         return rpiv_fail(RPIV_ENOMEM, "deform: out of memory for the predictor");
     }
@@ -366,6 +620,11 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift
         tap((x + shift - f->x0) / f->dx, f->nx, &p->ix[x], p->wx + 4 * (size_t)x);
     for (int y = 0; y < h; y++)
         tap((y + shift - f->y0) / f->dy, f->ny, &p->iy[y], p->wy + 4 * (size_t)y);
+    for (int x = 0; x < w; x++)
+        for (int k = 0; k < 4; k++)
+            p->wxs[(size_t)k * (size_t)w + (size_t)x] = p->wx[4 * (size_t)x + (size_t)k];
+    for (int x = w - 1; x >= 0; x--)
+        p->runend[x] = x + 1 < w && p->ix[x + 1] == p->ix[x] ? p->runend[x + 1] : x + 1;
     *out = p;
     return RPIV_OK;
 }
@@ -396,11 +655,10 @@ size_t rpiv_deform_pred_scratch(const rpiv_deform_pred *p)
     return 2 * (size_t)p->nx;
 }
 
-void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
-                          float *scratch)
+/* The grid rows of the predictor combined for image row y: tu[k], tv[k] for the nx columns. */
+static void pred_grid_row(const rpiv_deform_pred *p, int y, float *tu, float *tv)
 {
     const size_t snx = (size_t)p->nx;
-    float *tu = scratch, *tv = scratch + snx;
     const float *wy = p->wy + 4 * (size_t)y;
     const float *ru = p->cu + (size_t)p->iy[y] * snx, *rv = p->cv + (size_t)p->iy[y] * snx;
     for (size_t k = 0; k < snx; k++) {
@@ -409,12 +667,21 @@ void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, floa
         tv[k] =
             wy[0] * rv[k] + wy[1] * rv[k + snx] + wy[2] * rv[k + 2 * snx] + wy[3] * rv[k + 3 * snx];
     }
+}
+
+void deform_pred_row_ref(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
+                         float *scratch)
+{
+    float *tu = scratch, *tv = scratch + (size_t)p->nx;
+    pred_grid_row(p, y, tu, tv);
     for (int x = x0; x < x1; x++) {
         const float *wx = p->wx + 4 * (size_t)x, *a = tu + p->ix[x], *b = tv + p->ix[x];
         u[x - x0] = wx[0] * a[0] + wx[1] * a[1] + wx[2] * a[2] + wx[3] * a[3];
         v[x - x0] = wx[0] * b[0] + wx[1] * b[1] + wx[2] * b[2] + wx[3] * b[3];
     }
 }
+
+#define ALWAYS_INLINE static inline __attribute__((always_inline))
 
 size_t deform_row_scratch(const rpiv_deform_pred *p, int x0, int x1)
 {
@@ -432,14 +699,14 @@ static inline float sample_inner(const float *c, size_t sw, const spos *p)
     return (acc[0] + acc[1]) + (acc[2] + acc[3]);
 }
 
-void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rpiv_deform_pred *p,
-                int x0, int x1, int y, float fill_a, float fill_b, float *ra, float *rb,
-                float *scratch)
+void deform_row_ref(const float *coef_a, const float *coef_b, int w, int h,
+                    const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
+                    float *ra, float *rb, float *scratch)
 {
     const size_t nw = (size_t)(x1 - x0);
     const float c = (float)p->shift;
     float *pu = scratch, *pv = pu + nw, *tmp = pv + nw;
-    rpiv_deform_pred_row(p, y, x0, x1, pu, pv, tmp);
+    deform_pred_row_ref(p, y, x0, x1, pu, pv, tmp);
     /* The columns whose samples in both frames have all their taps inside the image take
      * the short path (no bounds test, no mirroring). The predictor is a convex combination
      * of its spline coefficients, so |p| <= maxabs (with a margin for rounding). */
@@ -460,13 +727,122 @@ void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rp
             ra[x] = sample_inner(coef_a, sw, &pa);
             rb[x] = sample_inner(coef_b, sw, &pb);
         } else if (inside(&pa, w, h) && inside(&pb, w, h)) {
-            ra[x] = sample_at(coef_a, w, h, &pa);
-            rb[x] = sample_at(coef_b, w, h, &pb);
+            ra[x] = sample_at_ref(coef_a, w, h, &pa);
+            rb[x] = sample_at_ref(coef_b, w, h, &pb);
         } else { /* a particle here has no partner in the other frame */
             ra[x] = fill_a;
             rb[x] = fill_b;
         }
     }
+}
+
+/* Per pixel, for the columns [xs, xe) of row y: the samples of the frames not done yet
+ * (done_a, done_b: that frame's block was computed; its points are then inside), or the
+ * fill values where either point falls outside its frame. */
+static void pixels(const float *coef_a, const float *coef_b, int w, int h, float c, const float *pu,
+                   const float *pv, int xs, int xe, int y, float fill_a, float fill_b, float *ra,
+                   float *rb, int done_a, int done_b)
+{
+    for (int x = xs; x < xe; x++) {
+        float hx = 0.5f * pu[x - xs], hy = 0.5f * pv[x - xs];
+        spos pa = locate(x, y, c - hx, c - hy), pb = locate(x, y, c + hx, c + hy);
+        if ((done_a || inside(&pa, w, h)) && (done_b || inside(&pb, w, h))) {
+            if (!done_a)
+                ra[x] = sample_at(coef_a, w, h, &pa);
+            if (!done_b)
+                rb[x] = sample_at(coef_b, w, h, &pb);
+        } else { /* a particle here has no partner in the other frame */
+            ra[x] = fill_a;
+            rb[x] = fill_b;
+        }
+    }
+}
+
+/* ---- vector blocks -------------------------------------------------------------------------
+ * The samples of VL consecutive pixels of a row computed together, one pixel per lane of a
+ * GCC/Clang vector: VL = 4 (SSE2, NEON) everywhere, VL = 8 (AVX2) where the CPU has it. Every
+ * lane performs exactly the float operations, in the same order, that sample_at performs for
+ * its pixel, so the blocks give the same bits as the per-pixel code, whatever the block
+ * width and however a row is cut (no contraction into FMAs: ISO C mode, and no FMA in the
+ * targets). */
+#if defined(__GNUC__) && !defined(__clang__)
+/* The helpers taking and returning vectors are always inlined: no call crosses an ABI. */
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
+typedef int32_t v4i __attribute__((vector_size(16)));
+
+#define DB_VL     4
+#define DB_VF     v4f
+#define DB_VI     v4i
+#define DB_(name) name##_4
+#define DB_TARGET
+#if defined(__SSE2__)
+#define DB_ALLZERO(e)                                                                              \
+    (_mm_movemask_epi8(_mm_cmpeq_epi32((__m128i)(e), _mm_setzero_si128())) == 0xFFFF)
+#else
+static inline int allzero4(v4i e)
+{
+    return !(e[0] | e[1] | e[2] | e[3]);
+}
+#define DB_ALLZERO(e) allzero4(e)
+#endif
+#include "deform_block.h"
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DEFORM_AVX2 1
+typedef float v8f __attribute__((vector_size(32)));
+typedef int32_t v8i __attribute__((vector_size(32)));
+#define DB_VL         8
+#define DB_VF         v8f
+#define DB_VI         v8i
+#define DB_(name)     name##_8
+#define DB_TARGET     __attribute__((target("avx2")))
+#define DB_ALLZERO(e) _mm256_testz_si256((__m256i)(e), (__m256i)(e))
+#include "deform_block.h"
+#endif
+
+void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
+                          float *scratch)
+{
+    float *tu = scratch, *tv = scratch + (size_t)p->nx;
+    pred_grid_row(p, y, tu, tv);
+#ifdef DEFORM_AVX2
+    if (__builtin_cpu_supports("avx2"))
+        pred_runs_8(p, tu, tv, x0, x1, u, v);
+    else
+#endif
+        pred_runs_4(p, tu, tv, x0, x1, u, v);
+}
+
+void deform_row_blocks(int vl, const float *coef_a, const float *coef_b, int w, int h,
+                       const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
+                       float *ra, float *rb, float *scratch)
+{
+    const size_t nw = (size_t)(x1 - x0);
+    const float c = (float)p->shift;
+    float *pu = scratch, *pv = pu + nw, *tmp = pv + nw;
+    rpiv_deform_pred_row(p, y, x0, x1, pu, pv, tmp);
+    int x = x0;
+    /* |p| <= maxabs (the predictor is a convex combination of its coefficients): a bounded
+     * predictor keeps the integer conversions of the blocks in range. */
+    if (vl > 0 && 0.5f * p->maxabs * 1.001f + c + 1.0f < 1e6f) {
+#ifdef DEFORM_AVX2
+        if (vl >= 8 && __builtin_cpu_supports("avx2"))
+            x = blocks_8(coef_a, coef_b, w, h, c, pu, pv, x0, x1, y, fill_a, fill_b, ra, rb);
+        else
+#endif
+            x = blocks_4(coef_a, coef_b, w, h, c, pu, pv, x0, x1, y, fill_a, fill_b, ra, rb);
+    }
+    pixels(coef_a, coef_b, w, h, c, pu + (x - x0), pv + (x - x0), x, x1, y, fill_a, fill_b, ra, rb,
+           0, 0);
+}
+
+void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rpiv_deform_pred *p,
+                int x0, int x1, int y, float fill_a, float fill_b, float *ra, float *rb,
+                float *scratch)
+{
+    deform_row_blocks(8, coef_a, coef_b, w, h, p, x0, x1, y, fill_a, fill_b, ra, rb, scratch);
 }
 
 rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int h,

@@ -17,4 +17,21 @@ void deform_row(const float *coef_a, const float *coef_b, int w, int h, const rp
                 int x0, int x1, int y, float fill_a, float fill_b, float *ra, float *rb,
                 float *scratch);
 
+/* deform_row with vector blocks of at most vl pixels: 0 (none, every pixel alone), 4, or 8
+ * (where the CPU has AVX2, else 4). deform_row is vl = 8; all give the same bits. */
+void deform_row_blocks(int vl, const float *coef_a, const float *coef_b, int w, int h,
+                       const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
+                       float *ra, float *rb, float *scratch);
+
+/* The per-pixel code the blocks replaced (same arguments), kept as the reference of the
+ * tests and the benchmark: its tap weights are computed in another order (vweights), so its
+ * results differ from deform_row's in the last bits. The prefilter's and the predictor rows'
+ * references give the same bits as rpiv_deform_prefilter and rpiv_deform_pred_row. */
+void deform_row_ref(const float *coef_a, const float *coef_b, int w, int h,
+                    const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
+                    float *ra, float *rb, float *scratch);
+void deform_prefilter_ref(float *img, int w, int h, int nthreads);
+void deform_pred_row_ref(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
+                         float *scratch);
+
 #endif /* RPIV_SRC_DEFORM_IMPL_H */

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 #include "check.h"
+#include "deform_impl.h"
 #include "piv_testimg.h"
 #include "rpiv/deform.h"
 #include "rpiv/field.h"
@@ -246,6 +247,178 @@ static void deform_is_thread_count_independent(void)
         free(o[k]);
 }
 
+/* A random field on a grid of step d whose predictor changes fast (several px over a few
+ * grid steps, steeper still in one column of nodes), for the vector blocks' tests. */
+static rpiv_field *wild_field(int nx, int ny, double x0, double y0, double d, uint64_t seed)
+{
+    rpiv_field *f = NULL;
+    if (rpiv_field_new(nx, ny, x0, y0, d, d, &f))
+        return NULL;
+    for (int j = 0; j < ny; j++)
+        for (int i = 0; i < nx; i++) {
+            double steep = i == nx / 2 ? 9.0 : 0.0;
+            f->u[j * nx + i] = (float)(6 * ti_rnd(&seed) - 3 + steep);
+            f->v[j * nx + i] = (float)(5 * ti_rnd(&seed) - 2.5 - 0.5 * steep);
+        }
+    return f;
+}
+
+/* The predictor rows by runs of common taps give the bits of the per-pixel code, for any
+ * column range (runs cut anywhere, runs shorter than a vector). */
+static void deform_predictor_rows_match_per_pixel_code(void)
+{
+    enum { W = 157, H = 61 };
+    rpiv_field *f = wild_field(13, 6, 3.7, 4.1, 11.3, 91);
+    rpiv_deform_pred *p = NULL;
+    CHECK(f != NULL);
+    if (!f)
+        return;
+    CHECK_OK(rpiv_deform_pred_new(f, W, H, RPIV_DEFORM_SHIFT, &p));
+    float *s = malloc(sizeof(float) * rpiv_deform_pred_scratch(p));
+    float u[W], v[W], ur[W], vr[W];
+    const int cuts[][2] = {{0, W}, {5, W - 3}, {11, 14}, {W - 1, W}, {40, 47}};
+    int same = 1;
+    for (int y = 0; p && y < H; y += 3)
+        for (int c = 0; c < 5; c++) {
+            int x0 = cuts[c][0], x1 = cuts[c][1];
+            rpiv_deform_pred_row(p, y, x0, x1, u, v, s);
+            deform_pred_row_ref(p, y, x0, x1, ur, vr, s);
+            same &= !memcmp(u, ur, sizeof(float) * (size_t)(x1 - x0)) &&
+                    !memcmp(v, vr, sizeof(float) * (size_t)(x1 - x0));
+        }
+    CHECK(same);
+    free(s);
+    rpiv_deform_pred_free(p);
+    rpiv_field_free(f);
+}
+
+/* deform_row's vector blocks (8 wide where the CPU has AVX2, 4 wide) against its per-pixel
+ * path, the per-pixel code they replaced and rpiv_deform_sample, on random coefficients with
+ * a predictor whose integer part changes inside the rows (by up to 1 within a block, and
+ * more in the steep column), samples near and beyond the borders (fill values), a width that
+ * is not a multiple of the blocks, and rows cut into ranges at arbitrary columns. */
+static void deform_blocks_match_per_pixel_path(void)
+{
+    enum { W = 203, H = 77 };
+    const size_t n = (size_t)W * H;
+    const float fa = 31.5f, fb = -7.25f;
+    float *ca = malloc(sizeof(float) * n), *cb = malloc(sizeof(float) * n), *o[8];
+    uint64_t seed = 2718;
+    for (size_t i = 0; i < n; i++) {
+        ca[i] = (float)(200 * ti_rnd(&seed) - 50);
+        cb[i] = (float)(200 * ti_rnd(&seed) - 50);
+    }
+    for (int k = 0; k < 8; k++)
+        o[k] = malloc(sizeof(float) * n);
+    rpiv_field *f = wild_field(14, 6, 6.2, 5.9, 14.7, 4321);
+    rpiv_deform_pred *p = NULL;
+    CHECK(f != NULL);
+    if (f)
+        CHECK_OK(rpiv_deform_pred_new(f, W, H, RPIV_DEFORM_SHIFT, &p));
+    if (!p)
+        goto out;
+    float *s = malloc(sizeof(float) * deform_row_scratch(p, 0, W));
+    float *pu = malloc(sizeof(float) * W), *pv = malloc(sizeof(float) * W);
+    /* the field is what the test needs: integer parts changing inside blocks of 8, by 1 and
+     * by more, and samples outside the frames */
+    int changes = 0, wide = 0;
+    for (int y = 0; y < H; y++) {
+        rpiv_deform_pred_row(p, y, 0, W, pu, pv, s);
+        for (int x = 0; x + 8 <= W; x += 8) {
+            int lo = 1 << 20, hi = -(1 << 20);
+            for (int j = 0; j < 8; j++) {
+                int fx = (int)floorf(0.25f - 0.5f * pu[x + j]);
+                lo = fx < lo ? fx : lo;
+                hi = fx > hi ? fx : hi;
+            }
+            changes += hi - lo == 1;
+            wide += hi - lo > 1;
+        }
+    }
+    printf("    blocks of 8 with integer parts differing by 1: %d, by more: %d (of %d)\n", changes,
+           wide, H * (W / 8));
+    CHECK(changes > 100 && wide > 10);
+    const int vls[3] = {8, 4, 0};
+    for (int k = 0; k < 3; k++)
+        for (int y = 0; y < H; y++)
+            deform_row_blocks(vls[k], ca, cb, W, H, p, 0, W, y, fa, fb, o[2 * k] + (size_t)y * W,
+                              o[2 * k + 1] + (size_t)y * W, s);
+    CHECK(!memcmp(o[0], o[4], sizeof(float) * n) && !memcmp(o[1], o[5], sizeof(float) * n));
+    CHECK(!memcmp(o[2], o[4], sizeof(float) * n) && !memcmp(o[3], o[5], sizeof(float) * n));
+    /* rows cut into ranges: the same bits */
+    const int cuts[] = {0, 3, 17, 18, 61, 100, 131, 190, 197, W};
+    for (int y = 0; y < H; y++)
+        for (int c = 0; c + 1 < (int)(sizeof cuts / sizeof cuts[0]); c++)
+            deform_row(ca, cb, W, H, p, cuts[c], cuts[c + 1], y, fa, fb, o[6] + (size_t)y * W,
+                       o[7] + (size_t)y * W, s);
+    CHECK(!memcmp(o[0], o[6], sizeof(float) * n) && !memcmp(o[1], o[7], sizeof(float) * n));
+    /* the replaced code and the sampling of the interpolant: last bits only */
+    for (int y = 0; y < H; y++)
+        deform_row_ref(ca, cb, W, H, p, 0, W, y, fa, fb, o[2] + (size_t)y * W, o[3] + (size_t)y * W,
+                       s);
+    /* errors relative to the largest coefficient (the bound of the interpolant: the weights
+     * are convex), 150 */
+    const double cmax = 150;
+    double eref = 0, esam = 0;
+    int nfill = 0, nfill_ref = 0;
+    for (int y = 0; y < H; y++) {
+        rpiv_deform_pred_row(p, y, 0, W, pu, pv, s);
+        for (int x = 0; x < W; x++) {
+            size_t i = (size_t)y * W + (size_t)x;
+            for (int k = 0; k < 2; k++)
+                eref = fmax(eref, fabs((double)o[k][i] - (double)o[k + 2][i]) / cmax);
+            nfill += o[0][i] == fa && o[1][i] == fb;
+            nfill_ref += o[2][i] == fa && o[3][i] == fb;
+            double c = RPIV_DEFORM_SHIFT, hx = 0.5 * (double)pu[x], hy = 0.5 * (double)pv[x];
+            float sa = rpiv_deform_sample(ca, W, H, x + c - hx, y + c - hy, fa);
+            float sb = rpiv_deform_sample(cb, W, H, x + c + hx, y + c + hy, fb);
+            if (sa == fa || sb == fb)
+                continue; /* within rounding of the border the two may choose differently */
+            esam = fmax(esam, fabs((double)o[0][i] - (double)sa) / cmax);
+            esam = fmax(esam, fabs((double)o[1][i] - (double)sb) / cmax);
+        }
+    }
+    printf("    against the replaced code: %.2g, against rpiv_deform_sample: %.2g (relative to the "
+           "largest coefficient); "
+           "%d filled pixels (replaced code %d)\n",
+           eref, esam, nfill, nfill_ref);
+    CHECK(eref < 1e-6 && esam < 1e-6);
+    CHECK(nfill > 100 && nfill == nfill_ref);
+    free(s), free(pu), free(pv);
+out:
+    rpiv_deform_pred_free(p);
+    rpiv_field_free(f);
+    free(ca), free(cb);
+    for (int k = 0; k < 8; k++)
+        free(o[k]);
+}
+
+/* The prefilter (16 rows through 4 x 4 transposed tiles, 8 rows interleaved, the gain within
+ * the recursion, columns swept in slabs of whole rows) gives the bits of the code it
+ * replaced, for sizes around the causal horizon, the tiles and the groups of rows, and any
+ * thread count. */
+static void deform_prefilter_matches_replaced_code(void)
+{
+    const int sizes[][2] = {{203, 77}, {17, 9}, {16, 23}, {5, 40}, {64, 16},
+                            {33, 1},   {1, 19}, {20, 33}, {2, 48}, {19, 47}};
+    uint64_t seed = 1618;
+    int same = 1;
+    for (int k = 0; k < (int)(sizeof sizes / sizeof sizes[0]); k++) {
+        const int w = sizes[k][0], h = sizes[k][1];
+        const size_t n = (size_t)w * (size_t)h;
+        float *a = malloc(sizeof(float) * n), *b = malloc(sizeof(float) * n);
+        float *c = malloc(sizeof(float) * n);
+        for (size_t i = 0; i < n; i++)
+            a[i] = b[i] = c[i] = (float)(300 * ti_rnd(&seed) - 100);
+        rpiv_deform_prefilter(a, w, h, 1);
+        rpiv_deform_prefilter(b, w, h, 3);
+        deform_prefilter_ref(c, w, h, 1);
+        same &= !memcmp(a, c, sizeof(float) * n) && !memcmp(b, c, sizeof(float) * n);
+        free(a), free(b), free(c);
+    }
+    CHECK(same);
+}
+
 int main(void)
 {
     RUN_TEST(deform_bspline_interpolates_pixels_and_reproduces_cubics);
@@ -254,5 +427,8 @@ int main(void)
     RUN_TEST(deform_predictor_interpolates_nodes);
     RUN_TEST(deform_shifts_a_bspline_interpolated_image);
     RUN_TEST(deform_is_thread_count_independent);
+    RUN_TEST(deform_prefilter_matches_replaced_code);
+    RUN_TEST(deform_predictor_rows_match_per_pixel_code);
+    RUN_TEST(deform_blocks_match_per_pixel_path);
     return check_summary();
 }
