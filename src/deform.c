@@ -787,18 +787,20 @@ static inline int allzero4(v4i e)
 }
 #define DB_ALLZERO(e) allzero4(e)
 #endif
+#define DB_GATHER(c, idx) ((v4f){(c)[(idx)[0]], (c)[(idx)[1]], (c)[(idx)[2]], (c)[(idx)[3]]})
 #include "deform_block.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DEFORM_AVX2 1
 typedef float v8f __attribute__((vector_size(32)));
 typedef int32_t v8i __attribute__((vector_size(32)));
-#define DB_VL         8
-#define DB_VF         v8f
-#define DB_VI         v8i
-#define DB_(name)     name##_8
-#define DB_TARGET     __attribute__((target("avx2")))
-#define DB_ALLZERO(e) _mm256_testz_si256((__m256i)(e), (__m256i)(e))
+#define DB_VL             8
+#define DB_VF             v8f
+#define DB_VI             v8i
+#define DB_(name)         name##_8
+#define DB_TARGET         __attribute__((target("avx2")))
+#define DB_ALLZERO(e)     _mm256_testz_si256((__m256i)(e), (__m256i)(e))
+#define DB_GATHER(c, idx) ((v8f)_mm256_i32gather_ps((c), (__m256i)(idx), 4))
 #include "deform_block.h"
 #endif
 

@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* src/deform_block.h - the vector blocks of deform_row, included by src/deform.c once per
  * vector width with DB_VL (lanes), DB_VF / DB_VI (float / int32 vector types of DB_VL lanes),
- * DB_(name) (the suffixed name), DB_TARGET (the function's target attribute) and
- * DB_ALLZERO(e) (1 if every lane of the DB_VI e is 0) defined; it undefines them. Lane j of a block
+ * DB_(name) (the suffixed name), DB_TARGET (the function's target attribute),
+ * DB_ALLZERO(e) (1 if every lane of the DB_VI e is 0) and DB_GATHER(c, idx) (the DB_VF of
+ * c[idx[j]]) defined; it undefines them. Lane j of a block
  * is pixel x + j and performs the float operations of locate, bweights and sample_w for that pixel,
  * in the same order. */
 
@@ -82,9 +83,30 @@ static DB_TARGET __attribute__((noinline)) void DB_(taps_mixed)(const float *bas
     memcpy(out, &r, sizeof r);
 }
 
+/* taps for the blocks whose integer parts spread over more than 1 (a noisy predictor, as in
+ * badly lit parts of an image): every lane's 16 taps fetched by index (idx: the lane's first
+ * tap, counted from c), summed as taps() sums them. */
+static DB_TARGET __attribute__((noinline)) void DB_(taps_gather)(const float *c, size_t sw,
+                                                                 DB_VI idx, const DB_VF wx[4],
+                                                                 const DB_VF wy[4], float *out)
+{
+    DB_VF t[4];
+    for (int k = 0; k < 4; k++) {
+        DB_VF acc = {0};
+        for (int m = 0; m < 4; m++) {
+            DB_VF s = DB_GATHER(c, idx + (int32_t)((size_t)m * sw + (size_t)k));
+            acc = m ? acc + wy[m] * s : wy[m] * s;
+        }
+        t[k] = acc;
+    }
+    DB_VF r = (wx[0] * t[0] + wx[1] * t[1]) + (wx[2] * t[2] + wx[3] * t[3]);
+    memcpy(out, &r, sizeof r);
+}
+
 /* The samples of a frame (coefficients c) at the pixels x..x+DB_VL-1 of row y offset by
- * (ox, oy), into out[0..DB_VL-1], if their integer offsets differ by at most 1 across the
- * block and all their taps lie inside the image; returns 0 (nothing written) otherwise. */
+ * (ox, oy), into out[0..DB_VL-1], if all their taps lie inside the image (contiguous loads
+ * when their integer offsets differ by at most 1 across the block, gathered otherwise);
+ * returns 0 (nothing written) otherwise. */
 ALWAYS_INLINE DB_TARGET int DB_(block)(const float *c, int w, int h, int x, int y, DB_VF ox,
                                        DB_VF oy, float *out)
 {
@@ -101,13 +123,22 @@ ALWAYS_INLINE DB_TARGET int DB_(block)(const float *c, int w, int h, int x, int 
             hy = fy[j] > hy ? fy[j] : hy;
         }
     const int sx = hx - lx, sy = hy - ly;
-    if (sx > 1 || sy > 1 || x + lx - 1 < 0 || x + DB_VL - 1 + hx + 2 > w - 1 || y + ly - 1 < 0 ||
-        y + hy + 2 > h - 1)
+    if (x + lx - 1 < 0 || x + DB_VL - 1 + hx + 2 > w - 1 || y + ly - 1 < 0 || y + hy + 2 > h - 1)
         return 0;
     DB_VF wx[4], wy[4], r;
     DB_(weights)(tx, wx);
     DB_(weights)(ty, wy);
     const size_t sw = (size_t)w;
+    if (sx > 1 || sy > 1) {
+        /* pixel indices fit in int32: images hold fewer than 2^31 pixels (img_check_size) */
+        DB_VI lane;
+        for (int j = 0; j < DB_VL; j++)
+            lane[j] = j;
+        const DB_VI idx = (y - 1 + fy) * (int32_t)w + (x - 1 + fx + lane);
+        const DB_VF cx[4] = {wx[0], wx[1], wx[2], wx[3]}, cy[4] = {wy[0], wy[1], wy[2], wy[3]};
+        DB_(taps_gather)(c, sw, idx, cx, cy, out);
+        return 1;
+    }
     const float *base = c + (size_t)(y + ly - 1) * sw + (size_t)(x + lx - 1);
     if (sx || sy) { /* out of line: the common case keeps its registers */
         const DB_VI mx = fx != lx, my = fy != ly;
@@ -186,3 +217,4 @@ static DB_TARGET void DB_(pred_runs)(const rpiv_deform_pred *p, const float *tu,
 #undef DB_
 #undef DB_TARGET
 #undef DB_ALLZERO
+#undef DB_GATHER
