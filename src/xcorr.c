@@ -171,13 +171,27 @@ KERNEL static void load_pack(float *restrict z, const float *a, size_t stride_a,
     const double n = (double)(n2 / 2);
     const float ma = (float)(s[0] / n), mb = (float)(s[1] / n);
     const v8f m = {ma, mb, ma, mb, ma, mb, ma, mb};
-    v8f sq = {0};
+    /* four accumulators: one would make the loop wait on the latency of each addition */
+    v8f sq = {0}, sq1 = {0}, sq2 = {0}, sq3 = {0};
     size_t k = 0;
+    for (; k + 32 <= n2; k += 32) {
+        v8f v0 = load8(z + k) - m, v1 = load8(z + k + 8) - m;
+        v8f v2 = load8(z + k + 16) - m, v3 = load8(z + k + 24) - m;
+        store8(z + k, v0);
+        store8(z + k + 8, v1);
+        store8(z + k + 16, v2);
+        store8(z + k + 24, v3);
+        sq += v0 * v0;
+        sq1 += v1 * v1;
+        sq2 += v2 * v2;
+        sq3 += v3 * v3;
+    }
     for (; k + 8 <= n2; k += 8) {
         v8f v = load8(z + k) - m;
         store8(z + k, v);
         sq += v * v;
     }
+    sq = (sq + sq1) + (sq2 + sq3);
     e[0] = e[1] = 0;
     for (; k < n2; k++) {
         z[k] -= k & 1 ? mb : ma;

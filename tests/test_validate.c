@@ -166,6 +166,43 @@ static void validate_edge_vectors_in_a_steep_gradient_are_kept(void)
     rpiv_field_free(f);
 }
 
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* A replaced interior vector gets the median of its 8 neighbours (the sorting network's
+ * path), against qsort, over 2000 random neighbourhoods with values drawn from 7 levels, so
+ * that ties are common. */
+static void validate_replacement_is_the_exact_median(void)
+{
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_field_new(3, 3, 0, 0, 1, 1, &f));
+    if (!f)
+        return;
+    uint64_t seed = 0x3187;
+    int bad = 0;
+    for (int t = 0; t < 2000; t++) {
+        float nb[8];
+        int m = 0;
+        for (int k = 0; k < 9; k++) {
+            f->u[k] = (float)(0.25 * (int)(7 * ti_rnd(&seed))) - 0.6187f;
+            f->v[k] = (float)(13.7 * ti_rnd(&seed));
+            f->flag[k] = RPIV_FLAG_VALID;
+            if (k != 4)
+                nb[m++] = f->u[k];
+        }
+        f->flag[4] = RPIV_FLAG_REPLACED;
+        qsort(nb, 8, sizeof *nb, cmp_float);
+        double want = 0.5 * ((double)nb[3] + (double)nb[4]);
+        CHECK_OK(rpiv_validate_replace(f, 0, NULL));
+        bad += (double)f->u[4] != (double)(float)want;
+    }
+    CHECK(bad == 0);
+    rpiv_field_free(f);
+}
+
 int main(void)
 {
     RUN_TEST(validate_keeps_a_smooth_field);
@@ -174,5 +211,6 @@ int main(void)
     RUN_TEST(validate_masked_vectors_are_skipped_and_optionally_filled);
     RUN_TEST(validate_fills_large_holes_and_empty_fields);
     RUN_TEST(validate_edge_vectors_in_a_steep_gradient_are_kept);
+    RUN_TEST(validate_replacement_is_the_exact_median);
     return check_summary();
 }
