@@ -3,43 +3,71 @@
 #include "rpiv/validate.h"
 
 #include <math.h>
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
 #include <stdlib.h>
 #include <string.h>
 
-/* One comparator of a sorting network: v[a] <= v[b] afterwards, without a branch. */
-#define CSWAP(v, a, b)                                                                             \
+/* min and max of two floats as single instructions where SSE is there: written as
+ * conditionals, GCC turns the network's compare-exchanges back into branches. */
+#if defined(__SSE__)
+static inline float min2(float a, float b)
+{
+    return _mm_cvtss_f32(_mm_min_ss(_mm_set_ss(a), _mm_set_ss(b)));
+}
+static inline float max2(float a, float b)
+{
+    return _mm_cvtss_f32(_mm_max_ss(_mm_set_ss(a), _mm_set_ss(b)));
+}
+#else
+static inline float min2(float a, float b)
+{
+    return b < a ? b : a;
+}
+static inline float max2(float a, float b)
+{
+    return b < a ? a : b;
+}
+#endif
+
+/* One comparator of a sorting network on locals: a <= b afterwards. */
+#define CSWAP(a, b)                                                                                \
     do {                                                                                           \
-        float lo_ = v[a] < v[b] ? v[a] : v[b], hi_ = v[a] < v[b] ? v[b] : v[a];                    \
-        v[a] = lo_;                                                                                \
-        v[b] = hi_;                                                                                \
+        float lo_ = min2(a, b), hi_ = max2(a, b);                                                  \
+        a = lo_;                                                                                   \
+        b = hi_;                                                                                   \
     } while (0)
 
 /* Median of v[0..n-1] (n <= 8, reordered in place). A full neighbourhood (n = 8, nearly every
- * vector) is sorted by the optimal 19-comparator network: min/max instructions instead of the
- * unpredictable branches of an insertion sort; the same sorted values, hence the same median. */
+ * vector) goes through the optimal 19-comparator sorting network, branch-free, instead of an
+ * insertion sort's unpredictable branches: the same sorted values (fields hold no NaN), hence
+ * the same median. */
 static double median(float *v, int n)
 {
     if (n == 8) {
-        CSWAP(v, 0, 2);
-        CSWAP(v, 1, 3);
-        CSWAP(v, 4, 6);
-        CSWAP(v, 5, 7);
-        CSWAP(v, 0, 4);
-        CSWAP(v, 1, 5);
-        CSWAP(v, 2, 6);
-        CSWAP(v, 3, 7);
-        CSWAP(v, 0, 1);
-        CSWAP(v, 2, 3);
-        CSWAP(v, 4, 5);
-        CSWAP(v, 6, 7);
-        CSWAP(v, 2, 4);
-        CSWAP(v, 3, 5);
-        CSWAP(v, 1, 4);
-        CSWAP(v, 3, 6);
-        CSWAP(v, 1, 2);
-        CSWAP(v, 3, 4);
-        CSWAP(v, 5, 6);
-        return 0.5 * ((double)v[3] + (double)v[4]);
+        float a0 = v[0], a1 = v[1], a2 = v[2], a3 = v[3], a4 = v[4], a5 = v[5], a6 = v[6],
+              a7 = v[7];
+        CSWAP(a0, a2);
+        CSWAP(a1, a3);
+        CSWAP(a4, a6);
+        CSWAP(a5, a7);
+        CSWAP(a0, a4);
+        CSWAP(a1, a5);
+        CSWAP(a2, a6);
+        CSWAP(a3, a7);
+        CSWAP(a0, a1);
+        CSWAP(a2, a3);
+        CSWAP(a4, a5);
+        CSWAP(a6, a7);
+        CSWAP(a2, a4);
+        CSWAP(a3, a5);
+        CSWAP(a1, a4);
+        CSWAP(a3, a6);
+        CSWAP(a1, a2);
+        CSWAP(a3, a4);
+        CSWAP(a5, a6);
+        return 0.5 * ((double)a3 + (double)a4);
     }
     for (int i = 1; i < n; i++) {
         float x = v[i];
