@@ -461,6 +461,20 @@ void piv_windows(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, 
         return;
     rpiv_xcorr_src xs[2];
     double e[4], pu[2], pv_[2];
+    if (!src->pred && i + 2 < (size_t)ps->nx) {
+        /* Windows read straight from the frames: bring in the columns the next pair adds
+         * (2 steps right of this pair's end). Each of a window's rows is its own stream, more
+         * streams than the hardware prefetcher follows: without this the pass waits on the
+         * last-level cache. */
+        const size_t sw = (size_t)pv->w;
+        const int x0 = ps->ox + (int)(i + 1) * ps->sx + ps->ww, x1 = x0 + 2 * ps->sx;
+        const int y0 = ps->oy + (int)j * ps->sy;
+        for (int y = y0; y < y0 + ps->wh; y++)
+            for (int x = x0; x < x1 && x < pv->w; x += 16) {
+                __builtin_prefetch(src->fa + (size_t)y * sw + (size_t)x);
+                __builtin_prefetch(src->fb + (size_t)y * sw + (size_t)x);
+            }
+    }
     window_src(pv, ps, src, win[0], ws->a, ws->b, &xs[0], &pu[0], &pv_[0]);
     if (n > 1)
         window_src(pv, ps, src, win[1], ws->a2, ws->b2, &xs[1], &pu[1], &pv_[1]);
