@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 # The README's commands. Each does its own set-up: Debian packages, configure, build.
 #   make demo    the main job on the embedded default experiment (Release build)
-#   make test    the whole test suite under ASan+UBSan, then the install/consumer check
+#   make test    the whole test suite under ASan+UBSan, the install/consumer check, valgrind
+#                over the quick unit programs, then the fuzz targets
 #   make bench   the benchmarks (Release build), printing ratios
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 WERROR ?= OFF
@@ -9,7 +10,8 @@ DEMO_ARGS ?=
 FUZZ_SECONDS ?= 30
 CMAKE ?= cmake
 
-.PHONY: all deps build build-test demo test install-check fuzz bench memcheck format lint clean
+.PHONY: all deps build build-test demo test install-check fuzz bench memcheck memcheck-quick \
+	format lint clean
 
 all: build
 
@@ -33,6 +35,7 @@ test: build-test
 	    UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	    ctest -j $(JOBS) --output-on-failure
 	$(MAKE) install-check
+	$(MAKE) memcheck-quick
 	$(MAKE) fuzz
 
 # libFuzzer targets (clang, ASan+UBSan), each run FUZZ_SECONDS on its seed corpus.
@@ -49,10 +52,20 @@ bench: deps
 	$(CMAKE) --build build -j $(JOBS)
 	scripts/run-bench build
 
-memcheck: deps
+build-memcheck: deps
 	$(CMAKE) -S . -B build-memcheck -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_C_FLAGS_DEBUG=-g -O1" >/dev/null
 	$(CMAKE) --build build-memcheck -j $(JOBS)
-	cd build-memcheck && ctest -L unit -T memcheck --output-on-failure
+
+# valgrind (uninitialised reads, invalid accesses, leaks; --error-exitcode fails the test) over
+# every unit program: about 18 minutes here, so not part of `make test`.
+memcheck: build-memcheck
+	cd build-memcheck && ctest -L unit -T memcheck -j $(JOBS) --output-on-failure
+
+# The same over the unit programs that take seconds under valgrind (all but the demo, the
+# calibration, the CCM and the ensemble tests): about 1.5 minutes, part of `make test`.
+memcheck-quick: build-memcheck
+	cd build-memcheck && ctest -L unit -E 'test_(demo|calib|ccm|ensemble)$$' -T memcheck \
+	    -j $(JOBS) --output-on-failure
 
 format:
 	clang-format -i include/rpiv/*.h src/*.c src/*.h app/*.c app/*.h tests/*.c tests/*.h bench/*.c 2>/dev/null || true
