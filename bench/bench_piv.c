@@ -24,6 +24,9 @@
 #include "rpiv/piv.h"
 
 #include <fftw3.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <omp.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -223,6 +226,17 @@ static int env_int(const char *name, int def)
 
 /* ---- cases (run in a child process) ------------------------------------------------------ */
 
+/* As the rpiv program does (app/rpiv.c): frames freed and loaded again stay in the heap. Set
+ * in the child, so that it does not inherit the parent's retained blocks (written there, they
+ * would be copied on write). */
+static void keep_large_blocks(void)
+{
+#if defined(__GLIBC__) && defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
+    mallopt(M_MMAP_THRESHOLD, 1 << 30);
+    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
+}
+
 static int case_run(int threads)
 {
     int repeats = env_int("BENCH_REPEATS", 5);
@@ -297,6 +311,7 @@ static rpiv_status sink(void *user, size_t i, const rpiv_field *f)
 
 static int case_one_pair(int threads)
 {
+    keep_large_blocks();
     rpiv_pairs *pairs = pairs_of(1);
     rpiv_piv *pv = NULL;
     rpiv_piv_params prm = rpiv_piv_params_default();
@@ -320,6 +335,7 @@ static int case_one_pair(int threads)
 
 static int case_ensemble(int threads, int n)
 {
+    keep_large_blocks();
     rpiv_pairs *pairs = pairs_of(n);
     rpiv_piv *pv = NULL;
     rpiv_field *f = NULL;
