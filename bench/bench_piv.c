@@ -218,6 +218,53 @@ static double fft_bound_r2c(const rpiv_piv *pv, int threads, int repeats, double
     return bench_median(t, repeats);
 }
 
+/* One FFTW transform of each kind the engine could use, per window size: microseconds per
+ * transform (FFTW_ESTIMATE plans, cached buffers, one thread). Why the engine packs windows
+ * into complex transforms: FFTW's complex codelets are SIMD, its real ones mostly not. */
+static void fft_kinds(void)
+{
+    const int sizes[2] = {32, 64};
+    for (int k = 0; k < 2; k++) {
+        int n = sizes[k], reps = 4000000 / (n * n);
+        size_t nn = (size_t)n * (size_t)n;
+        float *r = fftwf_malloc(nn * sizeof *r);
+        fftwf_complex *c = fftwf_malloc(nn * sizeof *c), *z = fftwf_malloc(nn * sizeof *z);
+        for (size_t i = 0; i < nn; i++) {
+            r[i] = (float)((i * 7919) % 113);
+            z[i][0] = r[i];
+            z[i][1] = (float)((i * 104729) % 127);
+        }
+        fftwf_plan f = fftwf_plan_dft_r2c_2d(n, n, r, c, FFTW_ESTIMATE);
+        fftwf_plan b = fftwf_plan_dft_c2r_2d(n, n, c, r, FFTW_ESTIMATE);
+        fftwf_plan cz = fftwf_plan_dft_2d(n, n, z, z, FFTW_FORWARD, FFTW_ESTIMATE);
+        double us[3];
+        for (int kind = 0; kind < 3; kind++) {
+            double t0 = bench_now();
+            for (int i = 0; i < reps; i++) {
+                if (kind == 0)
+                    fftwf_execute_dft_r2c(f, r, c);
+                else if (kind == 1)
+                    fftwf_execute_dft_c2r(b, c, r);
+                else
+                    fftwf_execute_dft(cz, z, z);
+                r[0] = z[0][0] = 1.0f; /* keep the values bounded */
+            }
+            us[kind] = 1e6 * (bench_now() - t0) / reps;
+            if (kind == 0) /* c2r destroys its input: give it a spectrum again */
+                fftwf_execute_dft_r2c(f, r, c);
+        }
+        printf("#   FFTW %dx%d, one transform: r2c %.2f us, c2r %.2f us, complex %.2f us -> per "
+               "window: 2 r2c + 1 c2r %.2f us, packed 1.5 complex %.2f us\n",
+               n, n, us[0], us[1], us[2], 2 * us[0] + us[1], 1.5 * us[2]);
+        fftwf_destroy_plan(f);
+        fftwf_destroy_plan(b);
+        fftwf_destroy_plan(cz);
+        fftwf_free(r);
+        fftwf_free(c);
+        fftwf_free(z);
+    }
+}
+
 static int env_int(const char *name, int def)
 {
     const char *s = getenv(name);
@@ -408,6 +455,7 @@ int main(void)
     printf("# %d synthetic 16-bit %dx%d pairs written in %.1f s; reference = bare FFTs of the "
            "run (same FFTW plans, same count)\n",
            NDISTINCT, W, H, bench_now() - t0);
+    fft_kinds();
     bench_columns();
     bad |= in_child(run1, 1, 0);
     if (maxt >= 2)
