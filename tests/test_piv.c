@@ -245,27 +245,36 @@ static void piv_lamb_oseen_vortex_has_few_outliers(void)
 
 /* ---- determinism ---------------------------------------------------------------------------- */
 
+/* The same bits with 1, 2 and 3 threads (3: an odd split of the deformation strips and of the
+ * window pairs among threads), on an odd number of grid columns (a lone window per row). */
 static void piv_results_identical_for_1_and_2_threads(void)
 {
-    double c[2] = {120.3, 101.9};
-    ti_params tp = base(240, 208, 31);
+    double c[2] = {128.3, 101.9};
+    ti_params tp = base(256, 208, 31);
     tp.noise = 0.02;
     pair p;
     pair_make(&p, &tp, oseen, c);
-    rpiv_piv_params p1 = rpiv_piv_params_default(), p2 = p1;
+    rpiv_piv_params p1 = rpiv_piv_params_default();
+    rpiv_field *f1 = NULL;
     p1.threads = 1;
-    p2.threads = 2;
-    rpiv_field *f1 = run(&p1, &p), *f2 = run(&p2, &p);
-    if (f1 && f2) {
-        size_t n = (size_t)f1->nx * (size_t)f1->ny;
-        CHECK(f1->nx == f2->nx && f1->ny == f2->ny);
-        CHECK(!memcmp(f1->u, f2->u, n * sizeof(float)) && !memcmp(f1->v, f2->v, n * sizeof(float)));
-        CHECK(!memcmp(f1->flag, f2->flag, n));
-        CHECK(!memcmp(f1->peak_ratio, f2->peak_ratio, n * sizeof(float)));
-        CHECK(!memcmp(f1->corr, f2->corr, n * sizeof(float)));
+    f1 = run(&p1, &p);
+    CHECK(f1 && f1->nx % 2 == 1);
+    for (int t = 2; t <= 3 && f1; t++) {
+        rpiv_piv_params pt = p1;
+        pt.threads = t;
+        rpiv_field *f2 = run(&pt, &p);
+        if (f2) {
+            size_t n = (size_t)f1->nx * (size_t)f1->ny;
+            CHECK(f1->nx == f2->nx && f1->ny == f2->ny);
+            CHECK(!memcmp(f1->u, f2->u, n * sizeof(float)) &&
+                  !memcmp(f1->v, f2->v, n * sizeof(float)));
+            CHECK(!memcmp(f1->flag, f2->flag, n));
+            CHECK(!memcmp(f1->peak_ratio, f2->peak_ratio, n * sizeof(float)));
+            CHECK(!memcmp(f1->corr, f2->corr, n * sizeof(float)));
+        }
+        rpiv_field_free(f2);
     }
     rpiv_field_free(f1);
-    rpiv_field_free(f2);
     pair_free(&p);
 }
 
