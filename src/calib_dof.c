@@ -199,8 +199,8 @@ static double parabola_vertex(const double *z, const double *g, size_t n, double
             m++;
         }
     if (m < 3)
-        return NAN;
-    double zc = 0.5 * (zlo + zhi), vertex = NAN;
+        return (double)NAN;
+    double zc = 0.5 * (zlo + zhi), vertex = (double)NAN;
     gsl_matrix *X = gsl_matrix_alloc(m, 3), *cov = gsl_matrix_alloc(3, 3);
     gsl_vector *y = gsl_vector_alloc(m), *c = gsl_vector_alloc(3);
     gsl_multifit_linear_workspace *ws = gsl_multifit_linear_alloc(m, 3);
@@ -273,12 +273,12 @@ static rpiv_status focus_analyse(rpiv_calib_focus *c, int m, const char *what)
     if (!isfinite(c->zop))
         c->zop = c->zmid;
     /* secondary widths, for comparison (docs/calib.md) */
-    c->dof_raw = NAN;
+    c->dof_raw = (double)NAN;
     for (size_t i = 0; i < n; i++)
         v[i] = fit[i] / c->inv_max;
     if (crossings(c->z, v, n, k, &lo, &hi))
         c->dof_raw = hi - lo;
-    c->dof_contrast = NAN;
+    c->dof_contrast = (double)NAN;
     for (size_t i = 0; i < n; i++)
         v[i] = 1 - c->istar[i];
     if ((st = local_quad(c->z, v, n, m, fit)))
@@ -476,7 +476,7 @@ static double box_mean(const dof_img *im, int r0, int r1, double cx, double cy, 
 {
     double x0 = cx - lx / 2, y0 = cy - ly / 2;
     if (lx > im->w || ly > r1 - r0)
-        return NAN;
+        return (double)NAN;
     x0 = fmin(fmax(x0, -0.5), im->w - 0.5 - lx);
     y0 = fmin(fmax(y0, r0 - 0.5), r1 - 0.5 - ly);
     int i0 = (int)floor(x0 + 0.5), i1 = (int)ceil(x0 + lx - 0.5);

@@ -21,7 +21,7 @@ rpiv_calib_render_params rpiv_calib_render_params_default(void)
 {
     return (rpiv_calib_render_params){.angle_deg = 45,
                                       .foot_px = 40.3187,
-                                      .x_foot = NAN,
+                                      .x_foot = (double)NAN,
                                       .plate_height_m = 0,
                                       .scale_px_m = 0,
                                       .dark = 100,

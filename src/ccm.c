@@ -646,7 +646,7 @@ static double zmax_minus(double x, void *u)
     double z;
     if (rpiv_ccm_sheet_zmax(c->s, x, c->p, &z)) {
         c->failed = 1;
-        return GSL_NAN;
+        return (double)GSL_NAN;
     }
     return z - c->target;
 }

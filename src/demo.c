@@ -146,7 +146,7 @@ double demo_vol_eval(const demo_ctx *c, int i, int j, double z)
 {
     size_t idx = (size_t)j * (size_t)c->nx + (size_t)i;
     if (!c->fluid[idx] || !(z >= 0 && z <= 1))
-        return NAN;
+        return (double)NAN;
     size_t nk = c->nz + 2, plane = (size_t)c->nx * (size_t)c->ny;
     double u[258];
     for (size_t k = 0; k < nk; k++)
@@ -155,8 +155,8 @@ double demo_vol_eval(const demo_ctx *c, int i, int j, double z)
      * spline" reconstruction); made per call: 17 knots cost less than caching 5000 splines */
     gsl_spline *sp = gsl_spline_alloc(gsl_interp_cspline, nk);
     if (!sp)
-        return NAN;
-    double v = NAN;
+        return (double)NAN;
+    double v = (double)NAN;
     if (gsl_spline_init(sp, c->zk, u, nk) == GSL_SUCCESS)
         v = gsl_spline_eval(sp, z, NULL);
     gsl_spline_free(sp);
@@ -168,14 +168,14 @@ double demo_field_at_y(const demo_ctx *c, const rpiv_field *f, int i, double yst
     /* row coordinate of ystar on the grid */
     double t = (ystar - c->ys[0]) / (c->ys[1] - c->ys[0]);
     if (!(t >= 0 && t <= c->ny - 1))
-        return NAN;
+        return (double)NAN;
     int j0 = (int)floor(t);
     if (j0 >= c->ny - 1)
         j0 = c->ny - 2;
     double a = t - j0;
     size_t k0 = (size_t)j0 * (size_t)c->nx + (size_t)i, k1 = k0 + (size_t)c->nx;
     if (!c->fluid[k0] || !c->fluid[k1])
-        return NAN;
+        return (double)NAN;
     return ((1 - a) * (double)f->u[k0] + a * (double)f->u[k1]) / c->bulk_px;
 }
 

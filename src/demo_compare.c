@@ -22,7 +22,7 @@ static double vol_at_y(const demo_ctx *c, int i, double ystar, double z)
 {
     double t = (ystar - c->ys[0]) / (c->ys[1] - c->ys[0]);
     if (!(t >= 0 && t <= c->ny - 1))
-        return NAN;
+        return (double)NAN;
     int j0 = (int)floor(t);
     if (j0 >= c->ny - 1)
         j0 = c->ny - 2;
@@ -73,12 +73,12 @@ static double e1_column(const demo_ctx *c, int i, double z, double *aref, double
         n++;
     }
     if (n < 2)
-        return NAN;
+        return (double)NAN;
     rpiv_profile ref = {n, al, aref}, cmp = {n, al, acmp};
     rpiv_compare r;
     if (rpiv_profile_compare(&ref, &cmp, &r) != RPIV_OK) {
         rpiv_errclear();
-        return NAN;
+        return (double)NAN;
     }
     return r.e1;
 }
@@ -88,7 +88,7 @@ static double e1_along_x(const demo_ctx *c, const double *ref, const double *cmp
 {
     double *al = malloc((size_t)c->nx * 3 * sizeof *al);
     if (!al)
-        return NAN;
+        return (double)NAN;
     double *r = al + c->nx, *m = r + c->nx;
     size_t n = 0;
     for (int i = 0; i < c->nx; i++)
@@ -98,7 +98,7 @@ static double e1_along_x(const demo_ctx *c, const double *ref, const double *cmp
             m[n] = cmp[i];
             n++;
         }
-    double e1 = NAN;
+    double e1 = (double)NAN;
     if (n >= 2) {
         rpiv_profile pr = {n, al, r}, pc = {n, al, m};
         rpiv_compare res;
@@ -146,12 +146,12 @@ static rpiv_status columns(demo_ctx *c)
     unsigned char *wall = core + c->nx, *above = wall + c->nx;
     for (int i = 0; i < c->nx; i++) {
         rpiv_sheet_metrics m, ml, mr;
-        c->czinf[i] = c->czmax[i] = c->czsup[i] = NAN;
-        c->e1inf[i] = c->e1max[i] = c->e1sup[i] = NAN;
+        c->czinf[i] = c->czmax[i] = c->czsup[i] = (double)NAN;
+        c->e1inf[i] = c->e1max[i] = c->e1sup[i] = (double)NAN;
         c->col_ok[i] = sheet_metrics(c, c->xs[i], &m) && sheet_metrics(c, c->xs[i] - half, &ml) &&
                        sheet_metrics(c, c->xs[i] + half, &mr);
         c->ur_mid[i] = demo_field_at_y(c, c->rfield, i, 0.5);
-        c->up_mid[i] = NAN;
+        c->up_mid[i] = (double)NAN;
         if (!c->col_ok[i])
             continue;
         c->czinf[i] = m.zinf;
@@ -231,7 +231,7 @@ static rpiv_status model(demo_ctx *c)
         return st;
     double z[NZ_CURVE], u[NZ_CURVE];
     for (int i = 0; i < c->nx; i++) {
-        c->umodel[i] = NAN;
+        c->umodel[i] = (double)NAN;
         if (!c->col_ok[i])
             continue;
         for (int k = 0; k < NZ_CURVE; k++) {
@@ -292,7 +292,7 @@ static void convergence(demo_ctx *c)
 static rpiv_status invert(demo_ctx *c)
 {
     rpiv_demo_result *r = c->res;
-    r->e1_assoc = r->e1_corr = NAN;
+    r->e1_assoc = r->e1_corr = (double)NAN;
     size_t n = 0;
     double *xs = malloc(2 * (size_t)c->nx * sizeof *xs);
     if (!xs)

@@ -142,7 +142,7 @@ static rpiv_status choose_sheet(demo_ctx *c)
     } else {
         r->sheet_incl_deg = 0;
         r->sheet_de_dx = 0;
-        r->sheet_x_zop = NAN;
+        r->sheet_x_zop = (double)NAN;
     }
     demo_note(c, "  R-PIV synthesis uses %s", r->sheet_note);
     return RPIV_OK;
@@ -181,7 +181,7 @@ rpiv_status demo_optics(demo_ctx *c)
             c->me[k] = m.e;
         } else {
             rpiv_errclear(); /* a dark station or one that does not fall to a quarter */
-            c->mzinf[k] = c->mzmax[k] = c->mzsup[k] = c->me[k] = NAN;
+            c->mzinf[k] = c->mzmax[k] = c->mzsup[k] = c->me[k] = (double)NAN;
         }
     }
     c->kfig11 = nearest(t->xstar, n, X_FIG11);

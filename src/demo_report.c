@@ -39,7 +39,7 @@ static rpiv_status lines(demo_ctx *c, const char *name, const char *title, const
     /* room above the data for the legend (drawn in the top right corner) */
     rpiv_plot_opts oo = o ? *o : rpiv_plot_opts_default();
     if (!(oo.ymin < oo.ymax)) {
-        double lo = INFINITY, hi = -INFINITY;
+        double lo = (double)INFINITY, hi = -(double)INFINITY;
         for (size_t k = 0; k < m; k++)
             for (size_t i = 0; i < s[k].n; i++)
                 if (isfinite(s[k].x[i]) && isfinite(s[k].y[i])) {
@@ -236,7 +236,7 @@ static rpiv_status quiver(demo_ctx *c, const char *name, const char *title, cons
     double umax = 0;
     for (size_t k = 0; k < (size_t)c->nx * (size_t)c->ny; k++)
         if (f->flag[k] != RPIV_FLAG_MASKED)
-            umax = fmax(umax, hypot(f->u[k], f->v[k]));
+            umax = fmax(umax, hypot((double)f->u[k], (double)f->v[k]));
     if (umax > 0)
         o.arrow_scale = 0.9 * o.stride * c->gdx / umax;
     char path[RPIV_PATH_MAX];
@@ -300,7 +300,7 @@ static rpiv_status plot_image(demo_ctx *c)
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++)
             z[(size_t)y * (size_t)w + (size_t)x] =
-                c->sample->px[(size_t)y * (size_t)c->sample->w + (size_t)x];
+                (double)c->sample->px[(size_t)y * (size_t)c->sample->w + (size_t)x];
     rpiv_plot_opts o = rpiv_plot_opts_default();
     o.cmap = RPIV_PLOT_CMAP_GRAY;
     o.zlabel = "counts";
@@ -488,6 +488,8 @@ static void html_text(FILE *f, const char *s)
         fputs("</code>", f);
 }
 
+/* fmt is the printf format its callers (r_h, r_p) were given: checked there. */
+static void r_vfmt(char *buf, size_t size, const char *fmt, va_list ap) RPIV_PRINTF(3, 0);
 static void r_vfmt(char *buf, size_t size, const char *fmt, va_list ap)
 {
     vsnprintf(buf, size, fmt, ap);

@@ -487,7 +487,7 @@ rpiv_status demo_rpiv(demo_ctx *c)
          * step says why */
         rpiv_errclear();
         st = RPIV_OK;
-        cmp.e1 = NAN;
+        cmp.e1 = (double)NAN;
     }
     if (st)
         goto out_clear;

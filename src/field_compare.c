@@ -70,9 +70,9 @@ out_free:
 static double component(const rpiv_field *f, size_t k, rpiv_component c)
 {
     if (c == RPIV_COMPONENT_U)
-        return f->u[k];
+        return (double)f->u[k];
     if (c == RPIV_COMPONENT_V)
-        return f->v[k];
+        return (double)f->v[k];
     return hypot((double)f->u[k], (double)f->v[k]);
 }
 

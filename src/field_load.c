@@ -116,7 +116,7 @@ static rpiv_status infer_axis(const double *v, size_t n, double *o0, double *ste
     qsort(s, n, sizeof *s, cmp_double);
     double span = s[n - 1] - s[0];
     double tol = 1e-6 * fmax(1.0, fmax(fabs(s[0]), fabs(s[n - 1])));
-    double gap = INFINITY;
+    double gap = (double)INFINITY;
     for (size_t k = 1; k < n; k++) {
         double d = s[k] - s[k - 1];
         if (d > tol && d < gap)

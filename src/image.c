@@ -99,11 +99,11 @@ rpiv_status rpiv_image_copy(const rpiv_image *im, rpiv_image **out)
 
 rpiv_image_stats rpiv_image_stats_of(const rpiv_image *im)
 {
-    rpiv_image_stats s = {im->px[0], im->px[0], 0.0};
+    rpiv_image_stats s = {(double)im->px[0], (double)im->px[0], 0.0};
     size_t n = (size_t)im->w * (size_t)im->h;
     double sum = 0.0;
     for (size_t i = 0; i < n; i++) {
-        double v = im->px[i];
+        double v = (double)im->px[i];
         if (v < s.min)
             s.min = v;
         if (v > s.max)

@@ -18,6 +18,9 @@ typedef struct tctx {
     int corrupt; /* a decoder warned that coded rows were cut short or too long */
 } tctx;
 
+/* libtiff hands its handlers a printf format and its arguments. */
+static int on_error(TIFF *t, void *user, const char *module, const char *fmt, va_list ap)
+    RPIV_PRINTF(4, 0);
 static int on_error(TIFF *t, void *user, const char *module, const char *fmt, va_list ap)
 {
     (void)t;
@@ -28,6 +31,8 @@ static int on_error(TIFF *t, void *user, const char *module, const char *fmt, va
     return 1; /* handled: the global handler is not called */
 }
 
+static int on_warning(TIFF *t, void *user, const char *module, const char *fmt, va_list ap)
+    RPIV_PRINTF(4, 0);
 static int on_warning(TIFF *t, void *user, const char *module, const char *fmt, va_list ap)
 {
     (void)t, (void)module;
@@ -112,7 +117,7 @@ static double sample(const unsigned char *row, uint64_t k, int bps, int isfloat)
         if (isfloat) {
             float f;
             memcpy(&f, row + 4 * k, 4);
-            return f;
+            return (double)f;
         }
         uint32_t v;
         memcpy(&v, row + 4 * k, 4);
@@ -413,7 +418,7 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     }
     if (ti.nch == 3) {
         for (size_t i = 0; i < npx; i++)
-            im->px[i] = img_luma(rgb[i], rgb[npx + i], rgb[2 * npx + i]);
+            im->px[i] = img_luma((double)rgb[i], (double)rgb[npx + i], (double)rgb[2 * npx + i]);
         *warned = 1;
     } else if (ti.photo == PHOTOMETRIC_PALETTE) {
         st = palette_lut(t, path, &ti, &lut);

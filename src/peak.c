@@ -75,7 +75,7 @@ static void centroid3x3(const float *p, int w, int h, int i, int j, double *dx, 
     double s = 0, sx = 0, sy = 0;
     for (int dj = -1; dj <= 1; dj++)
         for (int di = -1; di <= 1; di++) {
-            double c = p[(size_t)wrap(j + dj, h) * (size_t)w + (size_t)wrap(i + di, w)];
+            double c = (double)p[(size_t)wrap(j + dj, h) * (size_t)w + (size_t)wrap(i + di, w)];
             if (!isfinite(c)) {
                 *ok = 0;
                 return;
@@ -181,9 +181,11 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
         oky = okx;
     } else {
         const float *row = plane + (size_t)bj * (size_t)w;
-        fx = rpiv_peak_fit3(row[wrap(bi - 1, w)], best, row[wrap(bi + 1, w)], method, &okx);
-        fy = rpiv_peak_fit3(plane[(size_t)wrap(bj - 1, h) * (size_t)w + (size_t)bi], best,
-                            plane[(size_t)wrap(bj + 1, h) * (size_t)w + (size_t)bi], method, &oky);
+        fx = rpiv_peak_fit3((double)row[wrap(bi - 1, w)], (double)best,
+                            (double)row[wrap(bi + 1, w)], method, &okx);
+        fy = rpiv_peak_fit3(
+            (double)plane[(size_t)wrap(bj - 1, h) * (size_t)w + (size_t)bi], (double)best,
+            (double)plane[(size_t)wrap(bj + 1, h) * (size_t)w + (size_t)bi], method, &oky);
     }
     out->fit_ok = okx && oky;
     out->dx = out->ix + (out->fit_ok ? fx : 0);

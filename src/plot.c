@@ -223,8 +223,8 @@ static void zrange(const double *z, size_t n, const rpiv_plot_opts *o, double *l
         *hi = o->zmax;
         return;
     }
-    *lo = INFINITY;
-    *hi = -INFINITY;
+    *lo = (double)INFINITY;
+    *hi = -(double)INFINITY;
     for (size_t k = 0; k < n; k++)
         if (isfinite(z[k])) {
             *lo = fmin(*lo, z[k]);
@@ -416,8 +416,8 @@ static rpiv_status draw_quiver(const void *vctx, const rpiv_plot_opts *o)
             int layer = f->flag[k] == RPIV_FLAG_REPLACED ? 2 : 0;
             if (f->flag[k] == RPIV_FLAG_MASKED)
                 continue;
-            uv[layer][q] = f->u[k];
-            uv[layer + 1][q] = f->v[k];
+            uv[layer][q] = (double)f->u[k];
+            uv[layer + 1][q] = (double)f->v[k];
         }
     double scale = o->arrow_scale;
     if (scale <= 0)
@@ -545,7 +545,8 @@ rpiv_status rpiv_plot_lines(const char *path, const char *title, const char *xla
     resolve_auto(&o, RPIV_PLOT_UP, RPIV_PLOT_FREE);
     if (nseries == 0)
         return rpiv_fail(RPIV_EINVAL, "%s: no series to plot", path);
-    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+    double x0 = (double)INFINITY, x1 = -(double)INFINITY, y0 = (double)INFINITY,
+           y1 = -(double)INFINITY;
     for (size_t k = 0; k < nseries; k++) {
         size_t good = 0;
         for (size_t q = 0; q < series[k].n; q++) {

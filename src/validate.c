@@ -174,8 +174,8 @@ rpiv_status rpiv_validate_median(rpiv_field *f, double threshold, double eps, si
             int m = gather(f, ok, i, j, nu, nv);
             if (m < 2)
                 continue;
-            if (residual(f->u[k], nu, m, eps) > threshold ||
-                residual(f->v[k], nv, m, eps) > threshold)
+            if (residual((double)f->u[k], nu, m, eps) > threshold ||
+                residual((double)f->v[k], nv, m, eps) > threshold)
                 rej[k] = 1;
         }
     for (size_t k = 0; k < n; k++)

@@ -282,7 +282,7 @@ static void sheet_plate_edges_detected(void)
     rpiv_calib_sheet_params p = rpiv_calib_sheet_params_default();
     p.geom.dark = rp.dark;
     p.geom.angle_deg = 0; /* detect */
-    shot.foot_px = NAN;
+    shot.foot_px = (double)NAN;
     rpiv_calib_sheet_result *r = NULL;
     CHECK_OK(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r));
     if (r) {
@@ -485,7 +485,7 @@ static void sheet_errors_have_clear_statuses(void)
     rp.background = 0.1 * rp.level;
     sp = default_selfsim();
     CHECK_OK(render_plates(&sp, &rp, xf, 1, 560, 8, &im, &s2));
-    s2.foot_px = NAN;
+    s2.foot_px = (double)NAN;
     CHECK_OK(rpiv_calib_sheet_run(&p, &cam, &ch, &s2, 1, NULL, &r));
     if (r) {
         printf("  plate darker than the floor: foot %.3f px (%.4f)\n", r->plate[0].foot_px,
@@ -501,7 +501,7 @@ static void sheet_errors_have_clear_statuses(void)
         lcg = lcg * 6364136223846793005UL + 1442695040888963407UL;
         blank->px[i] = (float)(100 + (double)(lcg >> 40) / (double)(1UL << 24));
     }
-    shot.foot_px = NAN;
+    shot.foot_px = (double)NAN;
     CHECK_FAILS(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
     CHECK(strstr(rpiv_errmsg(), "cannot detect the plate foot") != NULL);
     printf("  foot in noise: %s\n", rpiv_errmsg());
@@ -594,7 +594,7 @@ static void dof_case(const char *name, rpiv_camera cam, double noise, double slo
         return;
     rpiv_calib_dof_params p = rpiv_calib_dof_params_default();
     p.geom.dark = rp.dark;
-    rpiv_calib_shot shot = {im, rp.foot_px, NAN};
+    rpiv_calib_shot shot = {im, rp.foot_px, (double)NAN};
     rpiv_calib_dof_result *r = NULL;
     CHECK_OK(rpiv_calib_dof_run(&p, &cam, &ch, &shot, 1, NULL, &r));
     double dof_ref, zc_ref;
@@ -659,7 +659,7 @@ static void dof_pooled_shots_with_detected_feet(void)
     }
     rpiv_calib_dof_params p = rpiv_calib_dof_params_default();
     p.geom.dark = rp.dark;
-    rpiv_calib_shot shots[2] = {{a, NAN, NAN}, {b, NAN, NAN}};
+    rpiv_calib_shot shots[2] = {{a, (double)NAN, (double)NAN}, {b, (double)NAN, (double)NAN}};
     rpiv_calib_dof_result *r = NULL;
     CHECK_OK(rpiv_calib_dof_run(&p, &cam, &ch, shots, 2, NULL, &r));
     rpiv_calib_focus mc;
@@ -732,7 +732,7 @@ static void dof_errors_have_clear_statuses(void)
     rpiv_image *im = img_new(560, 24);
     for (size_t i = 0; im && i < 560 * 24; i++)
         im->px[i] = 2000;
-    rpiv_calib_shot shot = {im, rp.foot_px, NAN};
+    rpiv_calib_shot shot = {im, rp.foot_px, (double)NAN};
     CHECK_FAILS(rpiv_calib_dof_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
     CHECK(r == NULL && strstr(rpiv_errmsg(), "blank") != NULL);
     img_free(im);
@@ -802,7 +802,7 @@ static void geometry_and_parameter_errors(void)
     /* the angle detected from a plate said to be 1 m high is out of range */
     p.geom.angle_deg = 0;
     p.geom.plate_height_m = 1;
-    shot.foot_px = NAN;
+    shot.foot_px = (double)NAN;
     CHECK_FAILS(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
     CHECK(strstr(rpiv_errmsg(), "detected plate angle") != NULL);
     p.geom.angle_deg = 45;
@@ -820,7 +820,7 @@ static void geometry_and_parameter_errors(void)
     /* a plate that starts at the image's right edge */
     rp.foot_px = 553.4;
     CHECK_OK(render_plates(&sp, &rp, xf, 1, 560, 8, &im, &shot));
-    shot.foot_px = NAN;
+    shot.foot_px = (double)NAN;
     CHECK_FAILS(rpiv_calib_sheet_run(&p, &cam, &ch, &shot, 1, NULL, &r), RPIV_ENUMERIC);
     CHECK(strstr(rpiv_errmsg(), "too close to the image edge") != NULL);
     img_free(im);
@@ -864,7 +864,7 @@ static void geometry_and_parameter_errors(void)
     if (t) {
         rpiv_calib_dof_params dp = rpiv_calib_dof_params_default();
         dp.geom.dark = rd.dark;
-        rpiv_calib_shot ts = {t, rd.foot_px, NAN};
+        rpiv_calib_shot ts = {t, rd.foot_px, (double)NAN};
         rpiv_calib_dof_result *dr = NULL;
         CHECK_FAILS(rpiv_calib_dof_run(&dp, &cam, &ch, &ts, 1, NULL, &dr), RPIV_ENUMERIC);
         CHECK(strstr(rpiv_errmsg(), "columns of dots") != NULL);

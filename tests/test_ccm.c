@@ -259,7 +259,7 @@ static void peak_errors(void)
     CHECK_OK(rpiv_ccm_corr_add(c, (rpiv_ccm_gauss){1, 1, 0, 0}));
     CHECK_OK(rpiv_ccm_corr_add(c, (rpiv_ccm_gauss){1, 1, 9000.5, 0}));
     CHECK_FAILS(rpiv_ccm_corr_peak(c, &P, &pk), RPIV_ELIMIT);
-    c->g[2].dx = NAN;
+    c->g[2].dx = (double)NAN;
     CHECK_FAILS(rpiv_ccm_corr_peak(c, &P, &pk), RPIV_ENUMERIC);
     rpiv_ccm_corr_free(c);
     rpiv_ccm_corr_free(NULL);
@@ -823,7 +823,7 @@ static void parameter_checks(void)
             p.utab = 3;
             break;
         case 7:
-            p.epsrel = NAN;
+            p.epsrel = (double)NAN;
             break;
         default:
             p.gl_points = 101;
@@ -845,7 +845,7 @@ static void parameter_checks(void)
             m.dp_m = -1e-6;
             break;
         case 2:
-            m.scale_px = INFINITY;
+            m.scale_px = (double)INFINITY;
             break;
         case 3:
             m.nbreaks = RPIV_CCM_MAX_BREAKS + 1;
@@ -882,7 +882,7 @@ static void parameter_checks(void)
             sc.kind = (rpiv_ccm_kind)9;
             break;
         case 1:
-            sc.zop_star = NAN;
+            sc.zop_star = (double)NAN;
             break;
         case 2:
             sc.xlo = sc.xhi;
@@ -928,7 +928,7 @@ static void parameter_checks(void)
     CHECK_OK(rpiv_ccm_sheet_zmax(s, 3.3, &P, &z));
     CHECK_NEAR(z, 3.3 * 0.5 / 6.3, 1e-8);
     /* a velocity profile that is not finite cannot be tabulated */
-    static const double nan_u = NAN;
+    static const double nan_u = (double)NAN;
     m.u = (rpiv_ccm_func){rpiv_ccm_const_fn, &nan_u};
     CHECK_FAILS(rpiv_ccm_scenario_run(&sc, &m, NULL, &P, 1, NULL, &t), RPIV_EINVAL);
     /* a negative presence law */
@@ -939,7 +939,7 @@ static void parameter_checks(void)
     rpiv_ccm_mc_result *r = NULL;
     CHECK_FAILS(rpiv_ccm_mc_run(&m, &P, &mc, NULL, &r), RPIV_EINVAL);
     /* curves of fewer than 2 points or with NaN */
-    const double x1[2] = {0, 1}, nanv[2] = {0, NAN};
+    const double x1[2] = {0, 1}, nanv[2] = {0, (double)NAN};
     rpiv_ccm_curve *c = NULL;
     CHECK_FAILS(rpiv_ccm_curve_new(x1, x1, 1, &c), RPIV_EINVAL);
     CHECK_FAILS(rpiv_ccm_curve_new(x1, nanv, 2, &c), RPIV_EINVAL);
@@ -1054,7 +1054,7 @@ static void error_paths(void)
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
     rpiv_ccm_invert_result *ir = NULL;
     CHECK_FAILS(rpiv_ccm_invert(&m, s, xs, us, NULL, 4, &ip, &P, &stop, &ir), RPIV_EINTR);
-    us[2] = NAN;
+    us[2] = (double)NAN;
     CHECK_FAILS(rpiv_ccm_invert(&m, s, xs, us, NULL, 4, &ip, &P, NULL, &ir), RPIV_EINVAL);
     ip.lambda = -1;
     CHECK_FAILS(rpiv_ccm_invert_params_check(&ip), RPIV_EINVAL);

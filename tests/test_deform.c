@@ -176,7 +176,7 @@ static void shift_errors(double d_tau, double *e_bspline, double *e_bilinear)
     for (int y = 8; y < H - 8; y++)
         for (int x = 8; x < W - 8; x++) {
             size_t i = (size_t)y * W + (size_t)x;
-            double r = ref[i], da = (double)oa[i] - r, db = (double)ob[i] - r;
+            double r = (double)ref[i], da = (double)oa[i] - r, db = (double)ob[i] - r;
             double X = x - 0.5 * d[0], Y = y - 0.5 * d[1], tx = X - floor(X), ty = Y - floor(Y);
             size_t k = (size_t)floor(Y) * W + (size_t)floor(X);
             double bl = (1 - ty) * ((1 - tx) * (double)a[k] + tx * (double)a[k + 1]) +

@@ -252,7 +252,7 @@ static void demo_params_check_names_the_field(void)
     bad[n].p.ppiv_planes = 17, bad[n++].field = "P-PIV planes"; /* reaches z* = 1.0625 */
     bad[n].p.ppiv_slab = 0, bad[n++].field = "ppiv_slab";
     bad[n].p.optics_dx = 0, bad[n++].field = "optics stations";
-    bad[n].p.profile_x = NAN, bad[n++].field = "profile_x";
+    bad[n].p.profile_x = (double)NAN, bad[n++].field = "profile_x";
     bad[n].p.wall_z = 1.5, bad[n++].field = "wall_z";
     bad[n].p.snap[1] = 1, bad[n++].field = "snap[1]";
     bad[n].p.nsnap = RPIV_DEMO_MAX_SNAP + 1, bad[n++].field = "nsnap";

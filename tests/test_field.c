@@ -86,7 +86,7 @@ static void field_new_rejects_bad_grids(void)
     CHECK(f == NULL);
     CHECK_FAILS(rpiv_field_new(3, 3, 0, 0, 0, 1, &f), RPIV_EINVAL);
     CHECK_FAILS(rpiv_field_new(3, 3, 0, 0, 1, -2, &f), RPIV_EINVAL);
-    CHECK_FAILS(rpiv_field_new(3, 3, NAN, 0, 1, 1, &f), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_field_new(3, 3, (double)NAN, 0, 1, 1, &f), RPIV_EINVAL);
 }
 
 static void field_copy_is_deep_and_equal(void)

@@ -121,7 +121,7 @@ static int image_ok(const rpiv_image *im)
         return 0;
     double top = im->bits <= 16 ? ldexp(1.0, im->bits) - 1.0 : 3.4e38;
     for (size_t i = 0; i < (size_t)im->w * (size_t)im->h; i++) {
-        double v = im->px[i];
+        double v = (double)im->px[i];
         if (!isfinite(v) || (im->bits <= 16 && (v < 0 || v > top * (1 + 1e-6))))
             return 0;
     }

@@ -858,7 +858,7 @@ static void bmp24_and_jpeg(void)
     CHECK(im && im->w == W && im->h == H && im->bits == 8);
     double maxerr = 0;
     for (int i = 0; im && i < W * H; i++)
-        maxerr = fmax(maxerr, fabs(im->px[i] - grey[i]));
+        maxerr = fmax(maxerr, fabs((double)(im->px[i] - grey[i])));
     CHECK(maxerr <= 3.0);
     rpiv_image_free(im);
     CHECK(stbi_write_jpg(tu_path("rgb.jpg"), W, H, 3, rgb, 100));
@@ -866,7 +866,8 @@ static void bmp24_and_jpeg(void)
     CHECK(im && warned == 1);
     maxerr = 0;
     for (int i = 0; im && i < W * H; i++)
-        maxerr = fmax(maxerr, fabs(im->px[i] - luma(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2])));
+        maxerr = fmax(maxerr,
+                      fabs((double)(im->px[i] - luma(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]))));
     CHECK(maxerr <= 4.0);
     printf("    (JPEG q100 max error: %.2f grey levels)\n", maxerr);
     rpiv_image_free(im);

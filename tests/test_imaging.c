@@ -44,7 +44,7 @@ static void bad_camera_values_are_refused(void)
     c.fnumber = 0;
     CHECK_FAILS(rpiv_camera_check(&c), RPIV_EINVAL);
     c = rpiv_camera_default();
-    c.magnification = NAN;
+    c.magnification = (double)NAN;
     CHECK_FAILS(rpiv_camera_check(&c), RPIV_EINVAL);
     rpiv_particles p = rpiv_particles_default();
     p.dp_sigma_m = 2 * p.dp_m;

@@ -151,7 +151,7 @@ static void peak_flat_plane_reports_failed_fit(void)
     CHECK(pk.dx == pk.ix && pk.dy == pk.iy);
     int ok = 1;
     CHECK(rpiv_peak_fit3(1, -1, 1, RPIV_SUBPIXEL_PARABOLA, &ok) == 0 && !ok);
-    CHECK(rpiv_peak_fit3(NAN, 1, 0.5, RPIV_SUBPIXEL_GAUSS, &ok) == 0 && !ok);
+    CHECK(rpiv_peak_fit3((double)NAN, 1, 0.5, RPIV_SUBPIXEL_GAUSS, &ok) == 0 && !ok);
     /* Gaussian with a negative neighbour falls back to the parabola */
     CHECK_NEAR(rpiv_peak_fit3(-0.1, 1, 0.3, RPIV_SUBPIXEL_GAUSS, &ok),
                (-0.1 - 0.3) / (2 * (-0.1 - 2 + 0.3)), 1e-12);

@@ -160,7 +160,7 @@ static double sine_amplitude(const rpiv_field *f)
     for (int j = 0; j < f->ny; j++)
         for (int i = 0; i < f->nx; i++) {
             double y = f->y0 + j * f->dy, s = sin(2 * M_PI * y / 64), c = cos(2 * M_PI * y / 64);
-            double u = f->u[(size_t)j * (size_t)f->nx + (size_t)i];
+            double u = (double)f->u[(size_t)j * (size_t)f->nx + (size_t)i];
             ss += s * s;
             cc += c * c;
             sc += s * c;
@@ -297,8 +297,8 @@ static void piv_grid_and_peak_values(void)
         CHECK(f->dx == 16 && f->dy == 16);
         double cmin = 1, rmin = 1e9;
         for (int k = 0; k < f->nx * f->ny; k++) {
-            cmin = fmin(cmin, f->corr[k]);
-            rmin = fmin(rmin, f->peak_ratio[k]);
+            cmin = fmin(cmin, (double)f->corr[k]);
+            rmin = fmin(rmin, (double)f->peak_ratio[k]);
         }
         /* noise-free deformed windows correlate almost perfectly */
         CHECK(cmin > 0.9 && cmin <= 1.0);

@@ -159,7 +159,7 @@ static void lines_writes_png_with_legend(void)
     CHECK_OK(rpiv_plot_lines(tpath("lines2.png"), NULL, NULL, NULL, s, 1, &o));
     CHECK(png_size(tpath("lines2.png"), &w, &h, &ink) && w == 400 && h == 1000);
     CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", s, 0, NULL), RPIV_EINVAL);
-    double nan2[2] = {NAN, NAN};
+    double nan2[2] = {(double)NAN, (double)NAN};
     rpiv_plot_series bad = {nan2, nan2, 2, "all nan", RPIV_PLOT_LINE};
     CHECK_FAILS(rpiv_plot_lines(tpath("bad.png"), "t", "x", "y", &bad, 1, NULL), RPIV_EINVAL);
     CHECK(strstr(rpiv_errmsg(), "all nan") != NULL);

@@ -64,7 +64,7 @@ static void moments(const rpiv_image *im, int x0, int x1, int y0, int y1, double
     double s = 0, sx = 0, sy = 0, sxx = 0, syy = 0;
     for (int y = y0; y <= y1; y++)
         for (int x = x0; x <= x1; x++) {
-            double v = im->px[(size_t)y * (size_t)im->w + (size_t)x];
+            double v = (double)im->px[(size_t)y * (size_t)im->w + (size_t)x];
             s += v;
             sx += v * x;
             sy += v * y;
@@ -630,7 +630,7 @@ static void noise_has_poisson_and_read_statistics(void)
         CHECK_OK(rpiv_synth_pair(s, 0, a, b));
         double m = 0, v = 0, at100 = 0;
         for (int i = 0; i < w * h; i++) {
-            double x = a->px[i];
+            double x = (double)a->px[i];
             m += x;
             at100 += x == 100;
             CHECK(x == floor(x));
@@ -850,7 +850,7 @@ static void bad_inputs_fail_with_codes(void)
     e = quiet_experiment(64, 64);
     rpiv_flow f = {RPIV_FLOW_OSEEN, 6, 0, 0, 0, 0, 0, 0};
     CHECK_FAILS(rpiv_synth_new(&e, &f, &s), RPIV_EINVAL);
-    f.b = NAN;
+    f.b = (double)NAN;
     CHECK_FAILS(rpiv_synth_new(&e, &f, &s), RPIV_EINVAL);
     /* P(z) files */
     char missing[300];
