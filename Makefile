@@ -39,8 +39,9 @@ test: build-test
 	$(MAKE) fuzz
 
 # libFuzzer targets (clang, ASan+UBSan), each run FUZZ_SECONDS on its seed corpus.
+# The library is built with clang here: with WERROR=ON (CI) its warnings fail the build too.
 fuzz: deps
-	scripts/run-fuzz $(FUZZ_SECONDS)
+	RPIV_WERROR=$(WERROR) scripts/run-fuzz $(FUZZ_SECONDS)
 
 # Install into a temporary prefix and build a consumer with pkg-config and with CMake.
 install-check: deps
