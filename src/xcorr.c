@@ -127,20 +127,18 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws)
 /* The glue around the transforms is written with GCC/Clang vector extensions in
  * xcorr_glue.h, included twice: 8 floats (4 complex) at a time for CPUs with AVX2, chosen at
  * run time, and 4 at a time (SSE2, NEON) otherwise; both give the same bits (the header
- * says why). */
-#if defined(__GNUC__) && !defined(__clang__)
-/* the vector helpers are static and inlined: no call crosses an ABI */
-#pragma GCC diagnostic ignored "-Wpsabi"
-#endif
-#define SHUF __builtin_shufflevector
-
-/* The cross-spectra (cross_pack): spectra f0 and f1 of packed pairs a + i b -> t = c0 S0 +
- * i c1 S1, where S = conj(A) B is the cross-spectrum of a pair. With P = F(k) and R = F(-k), A(k) =
- * (P + conj R) / 2 and B(k) = (P - conj R) / 2i, so that Re S = (Re R Im P + Im R Re P) / 2,   Im S
- * = (|R|^2 - |P|^2) / 4. S is Hermitian (its inverse transform is real), so the inverse transform
- * of t carries the correlation of pair 0 in its real part and that of pair 1 in its imaginary part.
- * The DC term is zeroed: exact mean removal. A lone pair passes f1 = f0 with c1 = 0. The spectra
+ * says why).
+ *
+ * The cross-spectra (cross_pack): from the spectra f0 and f1 of packed pairs a + i b,
+ * t = c0 S0 + i c1 S1, where S = conj(A) B is the cross-spectrum of a pair. With P = F(k)
+ * and R = F(-k),
+ *     A(k) = (P + conj R) / 2,   B(k) = (P - conj R) / 2i,   so that
+ *     Re S = (Re R Im P + Im R Re P) / 2,   Im S = (|R|^2 - |P|^2) / 4.
+ * S is Hermitian (its inverse transform is real), so the inverse transform of t carries the
+ * correlation of pair 0 in its real part and that of pair 1 in its imaginary part. The DC
+ * term is zeroed: exact mean removal. A lone pair passes f1 = f0 with c1 = 0. The spectra
  * hold one spare complex after their end (read, never used, by the row reversal). */
+#define SHUF __builtin_shufflevector
 
 typedef float v4f __attribute__((vector_size(16)));
 typedef float v4fu __attribute__((vector_size(16), aligned(4), may_alias));
