@@ -5,7 +5,7 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    rpiv_image_format f = fuzz_magic(data, size);
+    rpiv_image_format f = rpiv_image_format_of_bytes(data, size);
     return fuzz_image_input(data, size, f == RPIV_IMAGE_JPEG ? f : RPIV_IMAGE_BMP,
                             f == RPIV_IMAGE_JPEG ? ".jpg" : ".bmp");
 }

@@ -11,23 +11,6 @@
 #include "fuzz.h"
 #include "rpiv/image.h"
 
-/* The format of the first bytes, as rpiv_image_format_of would detect it. */
-static inline rpiv_image_format fuzz_magic(const uint8_t *m, size_t n)
-{
-    if (n >= 4 && ((m[0] == 'I' && m[1] == 'I' && (m[2] == 42 || m[2] == 43) && m[3] == 0) ||
-                   (m[0] == 'M' && m[1] == 'M' && m[2] == 0 && (m[3] == 42 || m[3] == 43))))
-        return RPIV_IMAGE_TIFF;
-    if (n >= 8 && memcmp(m, "\x89PNG\r\n\x1a\n", 8) == 0)
-        return RPIV_IMAGE_PNG;
-    if (n >= 2 && m[0] == 'P' && (m[1] == '2' || m[1] == '5'))
-        return RPIV_IMAGE_PGM;
-    if (n >= 2 && m[0] == 'B' && m[1] == 'M')
-        return RPIV_IMAGE_BMP;
-    if (n >= 3 && m[0] == 0xFF && m[1] == 0xD8 && m[2] == 0xFF)
-        return RPIV_IMAGE_JPEG;
-    return RPIV_IMAGE_UNKNOWN;
-}
-
 static inline void fuzz_load_page(const char *path, int page)
 {
     rpiv_image *im = (rpiv_image *)&im; /* must be reset to NULL on failure */
@@ -55,7 +38,7 @@ static inline int fuzz_image_input(const uint8_t *data, size_t size, rpiv_image_
         rpiv_init();
         ready = 1;
     }
-    if (fuzz_magic(data, size) != want)
+    if (rpiv_image_format_of_bytes(data, size) != want)
         return 0;
     const char *path = fuzz_file(data, size, suffix);
     if (!path)

@@ -116,7 +116,7 @@ rpiv_image_stats rpiv_image_stats_of(const rpiv_image *im)
 
 /* ---- format detection ------------------------------------------------------------------ */
 
-static rpiv_image_format detect(const unsigned char *m, size_t n)
+rpiv_image_format rpiv_image_format_of_bytes(const unsigned char *m, size_t n)
 {
     if (n >= 4 && ((m[0] == 'I' && m[1] == 'I' && (m[2] == 42 || m[2] == 43) && m[3] == 0) ||
                    (m[0] == 'M' && m[1] == 'M' && m[2] == 0 && (m[3] == 42 || m[3] == 43))))
@@ -173,7 +173,7 @@ static rpiv_status read_magic(const char *path, rpiv_image_format *fmt, FILE **f
         fclose(f);
         return rpiv_fail(RPIV_EIO, "%s: cannot read: %s", path, strerror(errno));
     }
-    *fmt = detect(m, n);
+    *fmt = rpiv_image_format_of_bytes(m, n);
     if (*fmt == RPIV_IMAGE_UNKNOWN) {
         fclose(f);
         return rpiv_fail(RPIV_EFORMAT, "%s: unknown image format (not TIFF, PNG, PGM, BMP or JPEG)",

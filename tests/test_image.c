@@ -930,6 +930,22 @@ static void format_detection_ignores_names(void)
     CHECK(back && back->px[19] == im->px[19]);
     rpiv_image_free(back);
     rpiv_image_free(im);
+    /* the same detection on bytes in memory; a magic cut short is unknown */
+    const struct {
+        const char *b;
+        size_t n;
+        rpiv_image_format f;
+    } mem[] = {{"II*\0", 4, RPIV_IMAGE_TIFF},
+               {"MM\0+", 4, RPIV_IMAGE_TIFF},
+               {"\x89PNG\r\n\x1a\n", 8, RPIV_IMAGE_PNG},
+               {"\x89PNG\r\n\x1a", 7, RPIV_IMAGE_UNKNOWN},
+               {"P5", 2, RPIV_IMAGE_PGM},
+               {"P6", 2, RPIV_IMAGE_UNKNOWN},
+               {"BM", 2, RPIV_IMAGE_BMP},
+               {"\xff\xd8\xff", 3, RPIV_IMAGE_JPEG},
+               {"\xff\xd8", 2, RPIV_IMAGE_UNKNOWN}};
+    for (size_t k = 0; k < sizeof mem / sizeof mem[0]; k++)
+        CHECK(rpiv_image_format_of_bytes((const unsigned char *)mem[k].b, mem[k].n) == mem[k].f);
 }
 
 /* Real one-component JPEG: a lossless crop (jpegtran -crop 96x64+640+480) of PIVlab's

@@ -37,6 +37,10 @@ typedef enum rpiv_image_format {
  * RPIV_EFORMAT (zero-byte file or unknown magic), each naming the file. */
 RPIV_NODISCARD rpiv_status rpiv_image_format_of(const char *path, rpiv_image_format *fmt);
 
+/* The format of the first n bytes of an image (RPIV_IMAGE_UNKNOWN if none matches): the
+ * detection rpiv_image_format_of applies to a file's start. */
+rpiv_image_format rpiv_image_format_of_bytes(const unsigned char *bytes, size_t n);
+
 /* A short name for a format: "TIFF", "PNG", "PGM", "BMP", "JPEG" or "unknown". */
 const char *rpiv_image_format_name(rpiv_image_format fmt);
 
