@@ -15,6 +15,7 @@ struct rpiv_xcorr {
     size_t n;       /* pixels per window */
     fftwf_plan fwd; /* c2c forward, h x w, in place */
     fftwf_plan inv; /* c2c backward, h x w, in place */
+    int width;      /* vector width of the glue, 4 or 8 floats (glue_width) */
 };
 
 /* The private buffers behind rpiv_xcorr_work's opaque pointers: complex, n each. */
@@ -22,6 +23,8 @@ typedef struct xc_bufs {
     fftwf_complex *z0, *z1; /* packed windows a + i b, then their spectra */
     fftwf_complex *t;       /* the two cross-spectra packed, then the two planes */
 } xc_bufs;
+
+static int glue_width(int vl);
 
 rpiv_status rpiv_xcorr_new(int w, int h, rpiv_xcorr **out)
 {
@@ -34,6 +37,7 @@ rpiv_status rpiv_xcorr_new(int w, int h, rpiv_xcorr **out)
     x->w = w;
     x->h = h;
     x->n = (size_t)w * (size_t)h;
+    x->width = glue_width(0);
     fftwf_complex *c = fftwf_malloc(x->n * sizeof *c);
     if (c) {
         /* FFTW's row-major n0 x n1 is h rows of w */
@@ -177,49 +181,23 @@ typedef float v8fu __attribute__((vector_size(32), aligned(4), may_alias));
 #include "xcorr_glue.h"
 #endif
 
-#ifdef XCORR_AVX2
-/* 1 to take the 8-wide glue (the CPU has AVX2). */
-static int wide(void)
-{
-    return __builtin_cpu_supports("avx2");
-}
-#endif
-
-static void load_pack(int vl, float *restrict z, const float *a, size_t stride_a, const float *b,
-                      size_t stride_b, int w, int h, double e[2])
+/* The glue's width: 8 where the CPU has AVX2 (and it is built), else 4; a request (vl = 4 or
+ * 8, from the tests) is honoured as far as the CPU allows. */
+static int glue_width(int vl)
 {
 #ifdef XCORR_AVX2
-    if (vl != 4 && wide()) {
-        load_pack_8(z, a, stride_a, b, stride_b, w, h, e);
-        return;
-    }
+    if (vl != 4 && __builtin_cpu_supports("avx2"))
+        return 8;
 #endif
-    load_pack_4(z, a, stride_a, b, stride_b, w, h, e);
+    (void)vl;
+    return 4;
 }
 
-static void cross_pack(int vl, const float *f0, const float *f1, float *restrict t, int w, int h,
-                       float c0, float c1)
-{
 #ifdef XCORR_AVX2
-    if (vl != 4 && wide()) {
-        cross_pack_8(f0, f1, t, w, h, c0, c1);
-        return;
-    }
+#define GLUE(vl, name, ...) ((vl) == 8 ? name##_8(__VA_ARGS__) : name##_4(__VA_ARGS__))
+#else
+#define GLUE(vl, name, ...) ((void)(vl), name##_4(__VA_ARGS__))
 #endif
-    cross_pack_4(f0, f1, t, w, h, c0, c1);
-}
-
-static void unpack(int vl, const float *t, size_t n, float s0, float s1, float *restrict plane0,
-                   float *restrict plane1)
-{
-#ifdef XCORR_AVX2
-    if (vl != 4 && wide()) {
-        unpack_8(t, n, s0, s1, plane0, plane1);
-        return;
-    }
-#endif
-    unpack_4(t, n, s0, s1, plane0, plane1);
-}
 
 /* The spectrum scale of a pair: 1 / (n sqrt(ea eb)), so that both packed planes come out as
  * correlation coefficients (neither pair's rounding swamps a weaker partner's plane); 0 for
@@ -239,19 +217,20 @@ void xcorr_run_pairs_vl(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const rpiv_xco
                         int count, int mode, double *e, int vl)
 {
     xc_bufs *bf = ws->priv;
-    const int two = count > 1;
+    const int two = count > 1, width = vl ? glue_width(vl) : x->width;
     float back[2] = {0, 0}, c[2] = {0, 0};
     fftwf_complex *z[2] = {bf->z0, bf->z1};
     for (int k = 0; k < (two ? 2 : 1); k++) {
-        load_pack(vl, (float *)z[k], src[k].a, src[k].stride_a, src[k].b, src[k].stride_b, x->w,
-                  x->h, e + 2 * k);
+        GLUE(width, load_pack, (float *)z[k], src[k].a, src[k].stride_a, src[k].b, src[k].stride_b,
+             x->w, x->h, e + 2 * k);
         fftwf_execute_dft(x->fwd, z[k], z[k]);
         c[k] = pair_scale(x, e + 2 * k, mode, &back[k]);
     }
-    cross_pack(vl, (const float *)bf->z0, (const float *)(two ? bf->z1 : bf->z0), (float *)bf->t,
-               x->w, x->h, c[0], c[1]);
+    GLUE(width, cross_pack, (const float *)bf->z0, (const float *)(two ? bf->z1 : bf->z0),
+         (float *)bf->t, x->w, x->h, c[0], c[1]);
     fftwf_execute_dft(x->inv, bf->t, bf->t);
-    unpack(vl, (const float *)bf->t, x->n, back[0], back[1], ws->plane, two ? ws->plane2 : NULL);
+    GLUE(width, unpack, (const float *)bf->t, x->n, back[0], back[1], ws->plane,
+         two ? ws->plane2 : NULL);
 }
 
 void rpiv_xcorr_run_pairs(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const rpiv_xcorr_src *src,
