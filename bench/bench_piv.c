@@ -106,11 +106,13 @@ static uint64_t field_sum(const rpiv_field *f)
     return bench_checksum(bench_checksum(0, f->u, n), f->v, n);
 }
 
-/* The bare FFTs of a run of plan pv: per pass and row of windows, one forward complex
- * transform per window (a + i b packed) and one inverse per two windows (two cross-spectra
- * packed), in place, with FFTW_ESTIMATE plans (those of rpiv_xcorr), rows split among
- * `threads`. ms. */
-static double fft_bound(const rpiv_piv *pv, int threads, int repeats, double *cpu_ms)
+/* The bare FFTs of a run of plan pv, FFTW_ESTIMATE plans on cached buffers, rows of windows
+ * split among `threads`. As the engine runs them (conventional = 0): per pass and row, one
+ * forward complex transform per window (a + i b packed) and one inverse per two windows (two
+ * cross-spectra packed), in place. For comparison only (conventional = 1): 2 r2c + 1 c2r per
+ * window, what rpiv ran before it packed windows. ms (CPU time in *cpu_ms). */
+static double fft_bound(const rpiv_piv *pv, int threads, int repeats, int conventional,
+                        double *cpu_ms)
 {
     const rpiv_piv_params *p = rpiv_piv_params_of(pv);
     double t[16], tc[16];
@@ -123,27 +125,45 @@ static double fft_bound(const rpiv_piv *pv, int threads, int repeats, double *cp
             int ww = p->win_w[k], wh = p->win_h[k], nx = g->nx, ny = g->ny;
             rpiv_field_free(g);
             size_t nc = (size_t)ww * (size_t)wh;
+            float *in[64];
             fftwf_complex *z[64][2];
-            for (int th = 0; th < threads; th++)
-                for (int q = 0; q < 2; q++) {
+            for (int th = 0; th < threads; th++) {
+                in[th] = fftwf_malloc(nc * sizeof(float));
+                for (int q = 0; q < 2; q++)
                     z[th][q] = fftwf_malloc(nc * sizeof(fftwf_complex));
-                    for (size_t i = 0; i < nc; i++) {
-                        z[th][q][i][0] = (float)((i * 7919) % 113);
+                for (size_t i = 0; i < nc; i++) {
+                    in[th][i] = (float)((i * 7919) % 113);
+                    for (int q = 0; q < 2; q++) {
+                        z[th][q][i][0] = in[th][i];
                         z[th][q][i][1] = (float)((i * 104729) % 127);
                     }
                 }
-            fftwf_plan fwd =
-                fftwf_plan_dft_2d(wh, ww, z[0][0], z[0][0], FFTW_FORWARD, FFTW_ESTIMATE);
-            fftwf_plan inv =
-                fftwf_plan_dft_2d(wh, ww, z[0][1], z[0][1], FFTW_BACKWARD, FFTW_ESTIMATE);
+            }
+            fftwf_plan fwd, inv;
+            if (conventional) {
+                fwd = fftwf_plan_dft_r2c_2d(wh, ww, in[0], z[0][0], FFTW_ESTIMATE);
+                inv = fftwf_plan_dft_c2r_2d(wh, ww, z[0][1], in[0], FFTW_ESTIMATE);
+            } else {
+                fwd = fftwf_plan_dft_2d(wh, ww, z[0][0], z[0][0], FFTW_FORWARD, FFTW_ESTIMATE);
+                inv = fftwf_plan_dft_2d(wh, ww, z[0][1], z[0][1], FFTW_BACKWARD, FFTW_ESTIMATE);
+            }
             double t0 = bench_now(), c0 = bench_cpu();
 #pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
             for (int row = 0; row < ny; row++) {
                 int th = omp_get_thread_num();
                 for (int i = 0; i < nx; i += 2) {
-                    fftwf_execute_dft(fwd, z[th][0], z[th][0]);
-                    if (i + 1 < nx)
-                        fftwf_execute_dft(fwd, z[th][1], z[th][1]);
+                    const int nwin = i + 1 < nx ? 2 : 1;
+                    if (conventional) {
+                        for (int q = 0; q < nwin; q++) {
+                            fftwf_execute_dft_r2c(fwd, in[th], z[th][0]);
+                            fftwf_execute_dft_r2c(fwd, in[th], z[th][1]);
+                            fftwf_execute_dft_c2r(inv, z[th][1], in[th]);
+                            in[th][0] = 1.0f; /* keep the values bounded */
+                        }
+                        continue;
+                    }
+                    for (int q = 0; q < nwin; q++)
+                        fftwf_execute_dft(fwd, z[th][q], z[th][q]);
                     fftwf_execute_dft(inv, z[th][1], z[th][1]);
                     z[th][0][0][0] = z[th][1][0][0] = 1.0f; /* keep the values bounded */
                 }
@@ -152,62 +172,10 @@ static double fft_bound(const rpiv_piv *pv, int threads, int repeats, double *cp
             ctotal += bench_cpu() - c0;
             fftwf_destroy_plan(fwd);
             fftwf_destroy_plan(inv);
-            for (int th = 0; th < threads; th++)
-                for (int q = 0; q < 2; q++)
-                    fftwf_free(z[th][q]);
-        }
-        t[r] = 1e3 * total;
-        tc[r] = 1e3 * ctotal;
-    }
-    if (cpu_ms)
-        *cpu_ms = bench_median(tc, repeats);
-    return bench_median(t, repeats);
-}
-
-/* For comparison only: the FFTs the conventional scheme would need for the same windows, 2 r2c
- * + 1 c2r per window and pass (FFTW_ESTIMATE plans, cached buffers), what rpiv ran before it
- * packed two window pairs per complex transform. ms (CPU time in *cpu_ms). */
-static double fft_bound_r2c(const rpiv_piv *pv, int threads, int repeats, double *cpu_ms)
-{
-    const rpiv_piv_params *p = rpiv_piv_params_of(pv);
-    double t[16], tc[16];
-    for (int r = 0; r < repeats; r++) {
-        double total = 0, ctotal = 0;
-        for (int k = 0; k < p->npass; k++) {
-            rpiv_field *g = NULL;
-            if (rpiv_piv_grid(pv, k, &g))
-                return -1;
-            int ww = p->win_w[k], wh = p->win_h[k];
-            long nwin = (long)g->nx * g->ny;
-            rpiv_field_free(g);
-            size_t nr = (size_t)ww * (size_t)wh, nc = (size_t)(ww / 2 + 1) * (size_t)wh;
-            float *in[64];
-            fftwf_complex *ca[64], *cb[64];
-            for (int th = 0; th < threads; th++) {
-                in[th] = fftwf_malloc(nr * sizeof(float));
-                ca[th] = fftwf_malloc(nc * sizeof(fftwf_complex));
-                cb[th] = fftwf_malloc(nc * sizeof(fftwf_complex));
-                for (size_t i = 0; i < nr; i++)
-                    in[th][i] = (float)((i * 7919) % 113);
-            }
-            fftwf_plan fwd = fftwf_plan_dft_r2c_2d(wh, ww, in[0], ca[0], FFTW_ESTIMATE);
-            fftwf_plan inv = fftwf_plan_dft_c2r_2d(wh, ww, cb[0], in[0], FFTW_ESTIMATE);
-            double t0 = bench_now(), c0 = bench_cpu();
-#pragma omp parallel for schedule(dynamic, 8) num_threads(threads)
-            for (long win = 0; win < nwin; win++) {
-                int th = omp_get_thread_num();
-                fftwf_execute_dft_r2c(fwd, in[th], ca[th]);
-                fftwf_execute_dft_r2c(fwd, in[th], cb[th]);
-                fftwf_execute_dft_c2r(inv, cb[th], in[th]);
-            }
-            total += bench_now() - t0;
-            ctotal += bench_cpu() - c0;
-            fftwf_destroy_plan(fwd);
-            fftwf_destroy_plan(inv);
             for (int th = 0; th < threads; th++) {
                 fftwf_free(in[th]);
-                fftwf_free(ca[th]);
-                fftwf_free(cb[th]);
+                for (int q = 0; q < 2; q++)
+                    fftwf_free(z[th][q]);
             }
         }
         t[r] = 1e3 * total;
@@ -324,13 +292,14 @@ static int case_run(int threads)
         for (int k = 0; k < 3; k++)
             rpiv_field_free(fk[k]);
     }
-    double fft_cpu = 0, run = bench_median(t, repeats), fft = fft_bound(pv, threads, 3, &fft_cpu);
+    double fft_cpu = 0, run = bench_median(t, repeats),
+           fft = fft_bound(pv, threads, 3, 0, &fft_cpu);
     double run_cpu = bench_median(tc, repeats);
     bench_line("piv_3pass", W, H, threads, run, fft, sum);
     printf("#   CPU time (all threads): run %.1f ms, bare FFTs %.1f ms, ratio %.2f\n", run_cpu,
            fft_cpu, run_cpu / fft_cpu);
     double conv_cpu = 0;
-    fft_bound_r2c(pv, threads, 3, &conv_cpu);
+    fft_bound(pv, threads, 3, 1, &conv_cpu);
     printf("#   for comparison, the conventional 2 r2c + 1 c2r per window: bare FFTs %.1f ms CPU, "
            "run / those %.2f\n",
            conv_cpu, run_cpu / conv_cpu);
@@ -397,7 +366,7 @@ static int case_ensemble(int threads, int n)
     double ms = 1e3 * (bench_now() - t0), err = rms_error(f);
     char name[32];
     snprintf(name, sizeof name, "ensemble_%d", n);
-    bench_line(name, W, H, threads, ms, n * fft_bound(pv, threads, 1, NULL), field_sum(f));
+    bench_line(name, W, H, threads, ms, n * fft_bound(pv, threads, 1, 0, NULL), field_sum(f));
     printf("#   %.2f pairs/s (each pair read and correlated once per pass, 3 passes); RMS "
            "error %.4f px; peak RSS %.0f MB (target < 300 MB)%s\n",
            1e3 * n / ms, err, bench_maxrss_mb(),
