@@ -7,6 +7,7 @@
 #include "rpiv/field.h"
 
 #include <stdio.h>
+#include <sys/types.h>
 
 /* A file being written under a temporary name in the folder of its final path. */
 typedef struct atomic_file {
@@ -37,6 +38,12 @@ RPIV_NODISCARD rpiv_status field_write_vtk(const rpiv_field *f, const rpiv_meta 
                                            const char *path);
 RPIV_NODISCARD rpiv_status field_save_nc(const rpiv_field *f, const rpiv_meta *meta,
                                          const char *path);
+
+/* The next line of a text file into *line (getline), counting *lineno: its length, -1 at the
+ * end, or -2 with *st set (RPIV_EFORMAT, "path:line: NUL byte") when the line holds a NUL
+ * byte: a binary file, which the string functions would read only up to the NUL. */
+ssize_t text_getline(FILE *fp, char **line, size_t *cap, const char *path, long *lineno,
+                     rpiv_status *st);
 
 /* 1 when the field carries physical units (both scale and dt set). */
 int field_has_phys(const rpiv_field *f);

@@ -97,6 +97,20 @@ static int split_numbers(char *s, const char *path, long lineno, double *vals, r
     return nc;
 }
 
+ssize_t text_getline(FILE *fp, char **line, size_t *cap, const char *path, long *lineno,
+                     rpiv_status *st)
+{
+    ssize_t len = getline(line, cap, fp);
+    if (len < 0)
+        return -1;
+    ++*lineno;
+    if (memchr(*line, '\0', (size_t)len)) {
+        *st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, *lineno);
+        return -2;
+    }
+    return len;
+}
+
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
@@ -231,12 +245,7 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
     double scale = 0, dt = 0;
     rpiv_status st = RPIV_OK;
     ssize_t len;
-    while ((len = getline(&line, &cap, fp)) >= 0) {
-        lineno++;
-        if (memchr(line, '\0', (size_t)len)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, lineno);
-            goto out_free;
-        }
+    while ((len = text_getline(fp, &line, &cap, path, &lineno, &st)) >= 0) {
         char *s = line + strspn(line, " \t\r\n");
         if (*s == '#') {
             if (r.n == 0)
@@ -293,6 +302,8 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
         r.cc[k] = is_rpiv ? (float)val[6] : 0.0f;
         r.line[k] = lineno;
     }
+    if (len == -2)
+        goto out_free;
     if (ferror(fp)) {
         st = rpiv_fail(RPIV_EIO, "%s: read error: %s", path, strerror(errno));
         goto out_free;
@@ -330,12 +341,7 @@ rpiv_status rpiv_text_columns(const char *path, int *ncol)
     long lineno = 0;
     rpiv_status st = rpiv_fail(RPIV_EFORMAT, "%s: no data lines", path);
     ssize_t len;
-    while ((len = getline(&line, &cap, fp)) >= 0) {
-        lineno++;
-        if (memchr(line, '\0', (size_t)len)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, lineno);
-            break;
-        }
+    while ((len = text_getline(fp, &line, &cap, path, &lineno, &st)) >= 0) {
         char *s = line + strspn(line, " \t\r\n");
         if (*s == '#' || *s == '\0')
             continue;
@@ -369,12 +375,7 @@ rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out)
         goto out_close;
     }
     ssize_t len;
-    while ((len = getline(&line, &cap, fp)) >= 0) {
-        lineno++;
-        if (memchr(line, '\0', (size_t)len)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, lineno);
-            goto out_close;
-        }
+    while ((len = text_getline(fp, &line, &cap, path, &lineno, &st)) >= 0) {
         char *s = line + strspn(line, " \t\r\n");
         if (*s == '#' || *s == '\0')
             continue;
@@ -416,6 +417,8 @@ rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out)
         p->value[p->n] = val[1];
         p->n++;
     }
+    if (len == -2)
+        goto out_close;
     if (ferror(fp)) {
         st = rpiv_fail(RPIV_EIO, "%s: read error: %s", path, strerror(errno));
         goto out_close;

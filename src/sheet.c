@@ -51,24 +51,20 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
     char *line = NULL;
     size_t cap = 0, lcap = 0;
     ssize_t len;
-    int lineno = 0, magic = 0;
+    long lineno = 0;
+    int magic = 0;
     rpiv_status st = RPIV_OK;
-    while ((len = getline(&line, &lcap, fp)) >= 0) {
-        lineno++;
+    while ((len = text_getline(fp, &line, &lcap, path, &lineno, &st)) >= 0) {
         char key[32];
         double v, a, b;
         int used = 0;
-        if (memchr(line, '\0', (size_t)len)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: NUL byte: not a text file", path, lineno);
-            goto out;
-        }
         if (line[0] == '#') {
             if (strstr(line, "rpiv-sheet"))
                 magic = 1;
             else if (sscanf(line, "# %31s %lf", key, &v) == 2) {
                 if (!isfinite(v) && (!strcmp(key, "e0") || !strcmp(key, "e1") ||
                                      !strcmp(key, "zm0") || !strcmp(key, "zm1"))) {
-                    st = rpiv_fail(RPIV_EFORMAT, "%s:%d: %s is %g, not a finite number", path,
+                    st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: %s is %g, not a finite number", path,
                                    lineno, key, v);
                     goto out;
                 }
@@ -87,17 +83,18 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
             continue;
         if (sscanf(line, "%lf %lf %n", &a, &b, &used) != 2 || line[used] != '\0' || !isfinite(a) ||
             !(b >= 0 && b <= 1.0001)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: expected 'zplus I' (two numbers) with 0 <= I <= 1",
-                           path, lineno);
+            st =
+                rpiv_fail(RPIV_EFORMAT, "%s:%ld: expected 'zplus I' (two numbers) with 0 <= I <= 1",
+                          path, lineno);
             goto out;
         }
         if (s->n && a <= s->zp[s->n - 1]) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: zplus not increasing", path, lineno);
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: zplus not increasing", path, lineno);
             goto out;
         }
         /* the interpolation divides by the step: it must be a finite number */
         if (s->n && !isfinite(a - s->zp[s->n - 1])) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: zplus %g is too far from the previous row's %g",
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: zplus %g is too far from the previous row's %g",
                            path, lineno, a, s->zp[s->n - 1]);
             goto out;
         }
@@ -120,6 +117,8 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
         s->in[s->n] = b;
         s->n++;
     }
+    if (len == -2)
+        goto out;
     if (!magic)
         st =
             rpiv_fail(RPIV_EFORMAT, "%s: not an rpiv sheet profile (no '# rpiv-sheet' line)", path);
