@@ -74,6 +74,40 @@ out:
     rpiv_xcorr_free(x);
 }
 
+/* The direct circular correlation of two w x h windows, in double: the largest |difference|
+ * from plane; *maxr gets the largest |R| (maxr may be NULL). */
+static double direct_error_abs(const float *a, const float *b, int w, int h, const float *plane,
+                               double *maxr)
+{
+    double ma = 0, mb = 0, maxerr = 0, mr = 0;
+    for (int i = 0; i < w * h; i++) {
+        ma += (double)a[i] / (double)(w * h);
+        mb += (double)b[i] / (double)(w * h);
+    }
+    for (int sy = 0; sy < h; sy++)
+        for (int sx = 0; sx < w; sx++) {
+            double r = 0;
+            for (int j = 0; j < h; j++)
+                for (int i = 0; i < w; i++)
+                    r += ((double)a[j * w + i] - ma) *
+                         ((double)b[((j + sy) % h) * w + (i + sx) % w] - mb);
+            double e = fabs((double)plane[sy * w + sx] - r);
+            maxerr = e > maxerr ? e : maxerr;
+            mr = fabs(r) > mr ? fabs(r) : mr;
+        }
+    if (maxr)
+        *maxr = mr;
+    return maxerr;
+}
+
+/* The same, relative to the largest |R|. */
+static double direct_error(const float *a, const float *b, int w, int h, const float *plane)
+{
+    double maxr;
+    double e = direct_error_abs(a, b, w, h, plane, &maxr);
+    return e / maxr;
+}
+
 /* The raw plane equals the direct circular sum R(s) = sum_x a'(x) b'(x + s) on a
  * non-square window, element by element: orientation and sign convention. */
 static void xcorr_raw_plane_equals_direct_sum(void)
@@ -103,44 +137,11 @@ static void xcorr_raw_plane_equals_direct_sum(void)
     }
     CHECK_NEAR(ea, ea2, 1e-5 * ea2);
     CHECK_NEAR(eb, eb2, 1e-5 * eb2);
-    double maxerr = 0;
-    for (int sy = 0; sy < H; sy++)
-        for (int sx = 0; sx < W; sx++) {
-            double r = 0;
-            for (int j = 0; j < H; j++)
-                for (int i = 0; i < W; i++)
-                    r += ((double)a[j * W + i] - ma) *
-                         ((double)b[((j + sy) % H) * W + (i + sx) % W] - mb);
-            double e = fabs((double)ws->plane[sy * W + sx] - r);
-            maxerr = e > maxerr ? e : maxerr;
-        }
+    double maxerr = direct_error_abs(a, b, W, H, ws->plane, NULL);
     CHECK(maxerr < 1e-4);
 out:
     rpiv_xcorr_work_free(ws);
     rpiv_xcorr_free(x);
-}
-
-/* The direct circular correlation of two w x h windows, in double: largest |difference| from
- * plane, relative to the largest |R|. */
-static double direct_error(const float *a, const float *b, int w, int h, const float *plane)
-{
-    double ma = 0, mb = 0, maxerr = 0, maxr = 0;
-    for (int i = 0; i < w * h; i++) {
-        ma += (double)a[i] / (double)(w * h);
-        mb += (double)b[i] / (double)(w * h);
-    }
-    for (int sy = 0; sy < h; sy++)
-        for (int sx = 0; sx < w; sx++) {
-            double r = 0;
-            for (int j = 0; j < h; j++)
-                for (int i = 0; i < w; i++)
-                    r += ((double)a[j * w + i] - ma) *
-                         ((double)b[((j + sy) % h) * w + (i + sx) % w] - mb);
-            double e = fabs((double)plane[sy * w + sx] - r);
-            maxerr = e > maxerr ? e : maxerr;
-            maxr = fabs(r) > maxr ? fabs(r) : maxr;
-        }
-    return maxerr / maxr;
 }
 
 /* Two window pairs packed in one set of transforms give each its own plane and energies,
