@@ -350,18 +350,6 @@ typedef struct ck_header {
     char series[256], plan[768];
 } ck_header;
 
-static uint64_t fnv(uint64_t h, const void *p, size_t n)
-{
-    const unsigned char *c = p;
-    for (size_t i = 0; i < n; i++) {
-        h ^= c[i];
-        h *= 1099511628211ULL;
-    }
-    return h;
-}
-
-#define FNV0 1469598103934665603ULL
-
 static void ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
 {
     static const char *const sub[] = {"gauss", "parabola", "centroid"};
@@ -369,12 +357,12 @@ static void ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     const rpiv_pairs *pp = b->pairs;
     const rpiv_piv_params *p = rpiv_piv_params_of(pv);
     memset(id, 0, sizeof *id);
-    uint64_t h = fnv(FNV0, &pp->n, sizeof pp->n);
+    uint64_t h = piv_hash(PIV_HASH0, &pp->n, sizeof pp->n);
     for (size_t i = 0; i < pp->n; i++) {
-        h = fnv(h, pp->pair[i].path_a, strlen(pp->pair[i].path_a) + 1);
+        h = piv_hash(h, pp->pair[i].path_a, strlen(pp->pair[i].path_a) + 1);
         if (pp->pair[i].path_b)
-            h = fnv(h, pp->pair[i].path_b, strlen(pp->pair[i].path_b) + 1);
-        h = fnv(h, "|", 1);
+            h = piv_hash(h, pp->pair[i].path_b, strlen(pp->pair[i].path_b) + 1);
+        h = piv_hash(h, "|", 1);
     }
     id->series_hash = h;
     snprintf(id->series, sizeof id->series, "%zu pairs, %s ... %s", pp->n, pp->pair[0].path_a,
@@ -391,13 +379,13 @@ static void ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
              p->roi[3], p->mask[0] ? p->mask : "none");
     size_t npx = (size_t)pv->w * (size_t)pv->h;
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
-    h = fnv(FNV0, id->plan, strlen(id->plan));
-    h = fnv(h, exact, sizeof exact);
+    h = piv_hash(PIV_HASH0, id->plan, strlen(id->plan));
+    h = piv_hash(h, exact, sizeof exact);
     if (pv->mask)
-        h = fnv(h, pv->mask, npx);
+        h = piv_hash(h, pv->mask, npx);
     if (pv->bga) {
-        h = fnv(h, pv->bga, npx * sizeof *pv->bga);
-        h = fnv(h, pv->bgb, npx * sizeof *pv->bgb);
+        h = piv_hash(h, pv->bga, npx * sizeof *pv->bga);
+        h = piv_hash(h, pv->bgb, npx * sizeof *pv->bgb);
     }
     id->plan_hash = h;
 }
@@ -413,14 +401,14 @@ static void put(ck_io *io, const void *p, size_t n)
 {
     if (!io->bad && n && fwrite(p, 1, n, io->fp) != n)
         io->bad = 1;
-    io->h = fnv(io->h, p, n);
+    io->h = piv_hash(io->h, p, n);
 }
 
 static int get(ck_io *io, void *p, size_t n)
 {
     if (io->bad || (n && fread(p, 1, n, io->fp) != n))
         return !(io->bad = 1);
-    io->h = fnv(io->h, p, n);
+    io->h = piv_hash(io->h, p, n);
     return 1;
 }
 
@@ -471,7 +459,7 @@ static rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, i
         return rpiv_fail(RPIV_ENOMEM, "checkpoint: out of memory");
     snprintf(tmp, len, "%s.tmp%ld", b->ckpt, (long)getpid());
     rpiv_status st = RPIV_OK;
-    ck_io io = {fopen(tmp, "wb"), FNV0, 0};
+    ck_io io = {fopen(tmp, "wb"), PIV_HASH0, 0};
     if (!io.fp) {
         st = rpiv_fail(RPIV_EIO, "%s: cannot write checkpoint: %s", b->ckpt, strerror(errno));
         goto out_free;
@@ -564,7 +552,7 @@ static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id, cons
     *pred = NULL;
     *e = NULL;
     const char *path = b->ckpt;
-    ck_io io = {fopen(path, "rb"), FNV0, 0};
+    ck_io io = {fopen(path, "rb"), PIV_HASH0, 0};
     if (!io.fp)
         return errno == ENOENT ? ck_missing(b, user_path)
                                : rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));

@@ -27,8 +27,7 @@ struct rpiv_ensemble {
     size_t npairs;
 };
 
-/* FNV-1a over bytes. */
-static uint64_t fnv(uint64_t h, const void *p, size_t n)
+uint64_t piv_hash(uint64_t h, const void *p, size_t n)
 {
     const unsigned char *c = p;
     for (size_t i = 0; i < n; i++) {
@@ -40,15 +39,15 @@ static uint64_t fnv(uint64_t h, const void *p, size_t n)
 
 static uint64_t field_hash(const rpiv_field *f)
 {
-    uint64_t h = 1469598103934665603ULL;
+    uint64_t h = PIV_HASH0;
     if (!f)
         return h;
     size_t n = (size_t)f->nx * (size_t)f->ny;
     int dims[2] = {f->nx, f->ny};
-    h = fnv(h, dims, sizeof dims);
-    h = fnv(h, f->u, n * sizeof *f->u);
-    h = fnv(h, f->v, n * sizeof *f->v);
-    return fnv(h, f->flag, n);
+    h = piv_hash(h, dims, sizeof dims);
+    h = piv_hash(h, f->u, n * sizeof *f->u);
+    h = piv_hash(h, f->v, n * sizeof *f->v);
+    return piv_hash(h, f->flag, n);
 }
 
 void rpiv_ensemble_free(rpiv_ensemble *e)
@@ -234,7 +233,7 @@ rpiv_status rpiv_ensemble_save(const rpiv_ensemble *e, const char *path)
 {
     file_header hd;
     header_of(e, &hd);
-    hd.data_hash = fnv(1469598103934665603ULL, e->data, e->n * sizeof *e->data);
+    hd.data_hash = piv_hash(PIV_HASH0, e->data, e->n * sizeof *e->data);
     size_t len = strlen(path);
     char *tmp = malloc(len + 16);
     if (!tmp)
@@ -300,7 +299,7 @@ rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path)
         st = rpiv_fail(RPIV_EFORMAT, "%s: truncated", path);
         goto out_close;
     }
-    if (fnv(1469598103934665603ULL, buf, e->n * sizeof *buf) != hd.data_hash) {
+    if (piv_hash(PIV_HASH0, buf, e->n * sizeof *buf) != hd.data_hash) {
         st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt (checksum mismatch)", path);
         goto out_close;
     }
