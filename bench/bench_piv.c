@@ -15,7 +15,8 @@
  *                second and peak RSS.
  * Every case checks its result: RMS error against the known displacement must be <= 0.012
  * px per component, otherwise the line is marked FAILED and the exit status is 1.
- * Environment: BENCH_ENSEMBLE_PAIRS=N (default 100), BENCH_REPEATS=R (default 5). */
+ * Environment: BENCH_ENSEMBLE_PAIRS=N (default 100), BENCH_REPEATS=R (default 5, at most 16),
+ * BENCH_ONLY=1 (only the one-thread run, for a profiler). */
 #include "bench.h"
 
 #include "../tests/piv_testimg.h"
@@ -426,11 +427,15 @@ int main(void)
            NDISTINCT, W, H, bench_now() - t0);
     fft_kinds();
     bench_columns();
+    /* BENCH_ONLY=1: only the one-thread run (for a profiler) */
+    const int only = env_int("BENCH_ONLY", 0);
     bad |= in_child(run1, 1, 0);
-    if (maxt >= 2)
+    if (maxt >= 2 && !only)
         bad |= in_child(run1, 2, 0);
-    bad |= in_child(one1, maxt, 0);
-    bad |= in_child(case_ensemble, maxt, nens);
+    if (!only) {
+        bad |= in_child(one1, maxt, 0);
+        bad |= in_child(case_ensemble, maxt, nens);
+    }
     char pa[128], pb[128];
     for (int i = 0; i < NDISTINCT; i++) {
         pair_paths(i, pa, pb, sizeof pa);

@@ -90,7 +90,7 @@ rpiv_status rpiv_xcorr_work_new(const rpiv_xcorr *x, rpiv_xcorr_work **out)
     /* one spare complex after each spectrum: see cross_pack */
     bf->z0 = fftwf_malloc((x->n + 1) * sizeof(fftwf_complex));
     bf->z1 = fftwf_malloc((x->n + 1) * sizeof(fftwf_complex));
-    bf->t = fftwf_malloc(x->n * sizeof(fftwf_complex));
+    bf->t = fftwf_malloc((x->n + 1) * sizeof(fftwf_complex)); /* spare: cross_pack */
     if (bf->z0 && bf->z1) {
         memset(bf->z0 + x->n, 0, sizeof(fftwf_complex));
         memset(bf->z1 + x->n, 0, sizeof(fftwf_complex));
@@ -141,7 +141,8 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws)
  * S is Hermitian (its inverse transform is real), so the inverse transform of t carries the
  * correlation of pair 0 in its real part and that of pair 1 in its imaginary part. The DC
  * term is zeroed: exact mean removal. A lone pair passes f1 = f0 with c1 = 0. The spectra
- * hold one spare complex after their end (read, never used, by the row reversal). */
+ * hold one spare complex after their end (read, never used, by the row reversal); so does t
+ * (written, never used, by the halved loop). */
 #define SHUF __builtin_shufflevector
 
 typedef float v4f __attribute__((vector_size(16)));

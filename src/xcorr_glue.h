@@ -92,25 +92,43 @@ static XG_TARGET void XG_(load_pack)(float *restrict z, const float *a, size_t s
 }
 
 /* Spectra f0 and f1 of packed pairs a + i b -> t = c0 S0 + i c1 S1 (see cross_pack in
- * xcorr.c for the formulas), XG_VL / 2 complex at a time where the width allows. */
+ * xcorr.c for the formulas), XG_VL / 2 complex at a time where the width allows.
+ *
+ * S0 and S1 are Hermitian, so t(-k) = c0 conj S0(k) + i c1 conj S1(k): where w is a multiple
+ * of 4 and h even, rows 0 and h/2 (their own partners) are computed whole, and each row ky of
+ * 1 .. h/2 - 1 also writes its partner row h - ky, half the arithmetic and reads. The values
+ * are the bits computing row h - ky itself would give: there P and R trade places, the
+ * products are the same, Re S's sum is commutative and Im S is negated exactly. A partner
+ * row is written reversed, so the vector at kx = 0 reaches one complex past the row's end
+ * (its column 0 is stored apart): into row h - ky + 1, written afterwards because ky goes
+ * down, or for ky = 1 into the spare complex after t. */
 static XG_TARGET void XG_(cross_pack)(const float *f0, const float *f1, float *restrict t, int w,
                                       int h, float c0, float c1)
 {
     const size_t sw = 2 * (size_t)w; /* floats per spectrum row */
     const int nc = XG_VL / 2;        /* complex per vector */
     const float a0 = 0.5f * c0, b0 = 0.25f * c0, a1 = 0.5f * c1, b1 = 0.25f * c1;
-    XG_VF ca, cb;
+    XG_VF ca, cb, da, db; /* t(k) = ca m0 + cb m1, t(-k) = da m0 + db m1 */
     for (int l = 0; l < XG_VL; l += 2) {
         ca[l] = a0;
         ca[l + 1] = b0;
         cb[l] = -b1;
         cb[l + 1] = a1;
+        da[l] = a0;
+        da[l + 1] = -b0;
+        db[l] = b1;
+        db[l + 1] = a1;
     }
-    for (int ky = 0; ky < h; ky++) {
+    const int half = w % 4 == 0 && h % 2 == 0;
+    const int nrows = half ? h / 2 + 1 : h;
+    for (int r = 0; r < nrows; r++) {
+        /* halved: rows 0, h/2, then h/2 - 1 down to 1 with their partners */
+        const int ky = !half ? r : r == 0 ? 0 : r == 1 ? h / 2 : h / 2 + 1 - r;
+        const int pair = half && r >= 2;
         const size_t kr = (size_t)(ky ? h - ky : 0);
         const float *p0 = f0 + (size_t)ky * sw, *q0 = f0 + kr * sw;
         const float *p1 = f1 + (size_t)ky * sw, *q1 = f1 + kr * sw;
-        float *tr = t + (size_t)ky * sw;
+        float *tr = t + (size_t)ky * sw, *tp = t + kr * sw;
         int kx = 0;
         if (w % 4 == 0)
             for (; kx < w; kx += nc) {
@@ -130,15 +148,23 @@ static XG_TARGET void XG_(cross_pack)(const float *f0, const float *f1, float *r
                 /* m0 = (Re S0, Im S0) x 2 and x 4, m1 = (Im S1, Re S1) likewise */
                 XG_VF m0 = XG_PE(x0, y0) + XG_PO(x0, y0), m1 = XG_PE(y1, x1) + XG_PO(y1, x1);
                 XG_ST(tr + 2 * kx, ca * m0 + cb * m1);
+                if (pair) {
+                    XG_VF u = XG_REV(da * m0 + db * m1);
+                    XG_ST(tp + o, u);
+                    if (!kx) {
+                        tp[0] = u[XG_VL - 2];
+                        tp[1] = u[XG_VL - 1];
+                    }
+                }
             }
         for (; kx < w; kx++) { /* widths that are not a multiple of 4 */
-            const size_t i = 2 * (size_t)kx, r = 2 * (size_t)(kx ? w - kx : 0);
-            float pr = p0[i], pi = p0[i + 1], rr = q0[r], ri = q0[r + 1];
+            const size_t i = 2 * (size_t)kx, rx = 2 * (size_t)(kx ? w - kx : 0);
+            float pr = p0[i], pi = p0[i + 1], rr = q0[rx], ri = q0[rx + 1];
             float sr0 = rr * pi + ri * pr, si0 = (rr * rr - pr * pr) + (ri * ri - pi * pi);
             pr = p1[i];
             pi = p1[i + 1];
-            rr = q1[r];
-            ri = q1[r + 1];
+            rr = q1[rx];
+            ri = q1[rx + 1];
             float sr1 = rr * pi + ri * pr, si1 = (rr * rr - pr * pr) + (ri * ri - pi * pi);
             tr[i] = a0 * sr0 - b1 * si1;
             tr[i + 1] = b0 * si0 + a1 * sr1;
