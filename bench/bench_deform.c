@@ -123,6 +123,18 @@ int main(int argc, char **argv)
     bad |= memcmp(ca, o[0], n * sizeof *ca) || memcmp(cb, o[1], n * sizeof *cb);
     line("prefilter-pair", thr, mnew, mref, reps, 2.0 * (double)n,
          bench_checksum(bench_checksum(0, ca, n), cb, n));
+    /* the same through deform_prefilter_pair (what the engine calls: with 1 or 2 threads, a
+     * frame per thread, rows and causal columns in one sweep) */
+    for (int r = 0; r < reps; r++) {
+        memcpy(ca, a, n * sizeof *ca);
+        memcpy(cb, b, n * sizeof *cb);
+        double t0 = bench_now();
+        deform_prefilter_pair(ca, cb, W, H, thr);
+        mnew[r] = 1e3 * (bench_now() - t0);
+    }
+    bad |= memcmp(ca, o[0], n * sizeof *ca) || memcmp(cb, o[1], n * sizeof *cb);
+    line("prefilter-fused", thr, mnew, mref, reps, 2.0 * (double)n,
+         bench_checksum(bench_checksum(0, ca, n), cb, n));
 
     /* predictor rows alone */
     for (int r = 0; r < reps; r++) {

@@ -370,6 +370,82 @@ void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
     free(acc);
 }
 
+#if TROWS
+/* Prefilter a whole frame (w >= 2, h > HORIZON) on one thread in two sweeps over its memory
+ * instead of three: down the frame, each group of rows is filtered along the rows and then,
+ * still in cache, advanced by the causal column recursion; then the anticausal column
+ * recursion up the frame. acc holds w doubles. Every value gets the arithmetic of
+ * rpiv_deform_prefilter (the row pass of prefilter_rows_t / prefilter_lines, the column
+ * pass of prefilter_slab over all columns). */
+static void prefilter_fused(float *img, int w, int h, double *acc)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    const size_t sw = (size_t)w;
+    const int n16 = h / TROWS;
+    int done = 0, next = 0; /* rows filtered along x; next row of the column recursion */
+    for (int gi = 0; done < h; gi++) {
+        if (gi < n16) {
+            prefilter_rows_t(img, w, TROWS * gi);
+            done += TROWS;
+        } else {
+            const int nl = done + LINES <= h ? LINES : h - done;
+            prefilter_lines(img, w, done, nl);
+            done += nl;
+        }
+        if (!next && done >= HORIZON) {
+            double zk = 1;
+            for (int i = 0; i < w; i++)
+                acc[i] = 0;
+            for (int k = 0; k < HORIZON; k++) {
+                const float *row = img + (size_t)k * sw;
+                for (int i = 0; i < w; i++)
+                    acc[i] += zk * (double)row[i];
+                zk *= POLE;
+            }
+            for (int i = 0; i < w; i++)
+                img[i] = (float)(GAIN * acc[i]);
+            next = 1;
+        }
+        for (; next && next < done; next++) {
+            float *cur = img + (size_t)next * sw;
+            const float *prev = cur - sw;
+            for (int i = 0; i < w; i++)
+                cur[i] = g * cur[i] + z * prev[i];
+        }
+    }
+    float *last = img + (size_t)(h - 1) * sw, *before = last - sw;
+    for (int i = 0; i < w; i++)
+        last[i] =
+            (float)((POLE / (POLE * POLE - 1.0)) * ((double)last[i] + POLE * (double)before[i]));
+    for (int k = h - 2; k >= 0; k--) {
+        float *cur = img + (size_t)k * sw;
+        const float *nx = cur + sw;
+        for (int i = 0; i < w; i++)
+            cur[i] = z * (nx[i] - cur[i]);
+    }
+}
+#endif
+
+void deform_prefilter_pair(float *a, float *b, int w, int h, int nthreads)
+{
+    const int nt = nthr(nthreads);
+    double *acc = NULL;
+#if TROWS
+    /* up to two threads: a frame each, fused; more: each frame split between all of them */
+    if (nt <= 2 && w >= 2 && h > HORIZON)
+        acc = malloc(2 * (size_t)w * sizeof *acc);
+    if (acc) {
+#pragma omp parallel for schedule(static) num_threads(nt)
+        for (int k = 0; k < 2; k++)
+            prefilter_fused(k ? b : a, w, h, acc + (size_t)k * (size_t)w);
+        free(acc);
+        return;
+    }
+#endif
+    rpiv_deform_prefilter(a, w, h, nt);
+    rpiv_deform_prefilter(b, w, h, nt);
+}
+
 /* Cubic B-spline weights for taps -1, 0, 1, 2 at fraction t in [0, 1). */
 static inline void bweights(float t, float wt[4])
 {

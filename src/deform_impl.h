@@ -31,6 +31,10 @@ void deform_row_ref(const float *coef_a, const float *coef_b, int w, int h,
                     const rpiv_deform_pred *p, int x0, int x1, int y, float fill_a, float fill_b,
                     float *ra, float *rb, float *scratch);
 void deform_prefilter_ref(float *img, int w, int h, int nthreads);
+
+/* rpiv_deform_prefilter of both frames of a pair, the same bits; with one or two threads, a
+ * frame per thread in two sweeps over its memory instead of three. */
+void deform_prefilter_pair(float *a, float *b, int w, int h, int nthreads);
 void deform_pred_row_ref(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
                          float *scratch);
 

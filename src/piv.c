@@ -369,8 +369,7 @@ rpiv_status piv_prepare(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_s
         return RPIV_OK;
     }
     if (pv->state == PIV_RAW) {
-        rpiv_deform_prefilter(pv->ia, pv->w, pv->h, pv->nthreads);
-        rpiv_deform_prefilter(pv->ib, pv->w, pv->h, pv->nthreads);
+        deform_prefilter_pair(pv->ia, pv->ib, pv->w, pv->h, pv->nthreads);
         pv->state = PIV_COEF;
     }
     return RPIV_OK;

@@ -396,11 +396,11 @@ out:
 /* The prefilter (16 rows through 4 x 4 transposed tiles, 8 rows interleaved, the gain within
  * the recursion, columns swept in slabs of whole rows) gives the bits of the code it
  * replaced, for sizes around the causal horizon, the tiles and the groups of rows, and any
- * thread count. */
+ * thread count; so does the pair's prefilter (rows and causal columns in one sweep). */
 static void deform_prefilter_matches_replaced_code(void)
 {
-    const int sizes[][2] = {{203, 77}, {17, 9}, {16, 23}, {5, 40}, {64, 16},
-                            {33, 1},   {1, 19}, {20, 33}, {2, 48}, {19, 47}};
+    const int sizes[][2] = {{203, 77}, {17, 9}, {16, 23}, {5, 40},  {64, 16}, {33, 1}, {1, 19},
+                            {20, 33},  {2, 48}, {19, 47}, {37, 16}, {37, 17}, {9, 45}};
     uint64_t seed = 1618;
     int same = 1;
     for (int k = 0; k < (int)(sizeof sizes / sizeof sizes[0]); k++) {
@@ -414,6 +414,20 @@ static void deform_prefilter_matches_replaced_code(void)
         rpiv_deform_prefilter(b, w, h, 3);
         deform_prefilter_ref(c, w, h, 1);
         same &= !memcmp(a, c, sizeof(float) * n) && !memcmp(b, c, sizeof(float) * n);
+        /* a pair, fused on one and two threads, split on three */
+        for (int nt = 1; nt <= 3; nt++) {
+            for (size_t i = 0; i < n; i++)
+                a[i] = b[i] = c[i] = (float)(300 * ti_rnd(&seed) - 100);
+            for (size_t i = 0; i < n; i++)
+                b[i] = 0.37f * a[i] + 41.0f;
+            float *d = malloc(sizeof(float) * n);
+            memcpy(d, b, sizeof(float) * n);
+            deform_prefilter_pair(a, b, w, h, nt);
+            deform_prefilter_ref(c, w, h, 1);
+            deform_prefilter_ref(d, w, h, 1);
+            same &= !memcmp(a, c, sizeof(float) * n) && !memcmp(b, d, sizeof(float) * n);
+            free(d);
+        }
         free(a), free(b), free(c);
     }
     CHECK(same);
