@@ -6,6 +6,27 @@
 
 #include <math.h>
 #include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+/* Four floats in a vector register (GCC/Clang vector extension; SSE2 on x86-64, NEON on
+ * arm64), for the short maxima the compiler does not vectorise by itself. */
+typedef float v4f __attribute__((vector_size(16)));
+typedef int32_t v4i __attribute__((vector_size(16)));
+
+static inline v4f load4(const float *p)
+{
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* Lane by lane r > m ? r : m: a NaN in r never enters, as in the scalar form. */
+static inline v4f vmax(v4f r, v4f m)
+{
+    v4i k = r > m;
+    return (v4f)((k & (v4i)r) | (~k & (v4i)m));
+}
 
 double rpiv_peak_fit3(double cm, double c0, double cp, rpiv_subpixel method, int *ok)
 {
@@ -93,7 +114,8 @@ static void centroid3x3(const float *p, int w, int h, int i, int j, double *dx, 
 
 /* Column maxima over every row: cm[i] = the first of the largest values of column i (rows in
  * order; NaNs never enter; -inf if none), element-wise over whole rows so that the compiler
- * vectorises it. The usual widths get their own copy with the width known. */
+ * vectorises it. The usual widths get their own copy with the width known (the maxima then
+ * stay in registers). */
 static inline void colmax_w(const float *restrict plane, int w, int h, float *restrict cm)
 {
     for (int i = 0; i < w; i++)
@@ -120,15 +142,17 @@ RPIV_KERNEL static void colmax_all(const float *restrict plane, int w, int h, fl
  * +0 and -0, the one the search found first, as a serial search would). */
 static float max_index(const float *v, int n, int *at)
 {
-    float lane[8] = {-INFINITY, -INFINITY, -INFINITY, -INFINITY,
-                     -INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    const v4f ninf = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    v4f a = ninf, b = ninf;
     int i = 0;
-    for (; i + 8 <= n; i += 8)
-        for (int k = 0; k < 8; k++)
-            lane[k] = v[i + k] > lane[k] ? v[i + k] : lane[k];
+    for (; i + 8 <= n; i += 8) {
+        a = vmax(load4(v + i), a);
+        b = vmax(load4(v + i + 4), b);
+    }
+    a = vmax(b, a);
     float m = -INFINITY;
-    for (int k = 0; k < 8; k++)
-        m = lane[k] > m ? lane[k] : m;
+    for (int k = 0; k < 4; k++)
+        m = a[k] > m ? a[k] : m;
     for (; i < n; i++)
         m = v[i] > m ? v[i] : m;
     *at = -1;
@@ -207,11 +231,39 @@ static float second_scan(const float *plane, int w, int h, int bi, int bj, int f
     return second;
 }
 
+/* m[8 b + l] = the largest value of column s[b] + l (l < 8, b < nb) over the rows away from
+ * row bj (circular distance > ex); -inf if none. Two rows at a time into two sets of lanes
+ * (two chains of maxima). */
+static void far_max8(const float *plane, int w, int h, int bj, const int *s, int nb, float *m)
+{
+    const int ex = RPIV_PEAK_EXCLUDE;
+    const v4f ninf = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    v4f a[4] = {ninf, ninf, ninf, ninf}, b[4] = {ninf, ninf, ninf, ninf};
+    int k = ex + 1;
+    for (; k < h - ex; k += 2) {
+        int j0 = bj + k < h ? bj + k : bj + k - h, j1 = j0 + 1 < h ? j0 + 1 : 0;
+        if (k + 1 == h - ex)
+            j1 = j0; /* the last row, odd one out: again into b */
+        const float *r0 = plane + (size_t)j0 * (size_t)w, *r1 = plane + (size_t)j1 * (size_t)w;
+        for (int q = 0; q < nb; q++) {
+            a[2 * q] = vmax(load4(r0 + s[q]), a[2 * q]);
+            a[2 * q + 1] = vmax(load4(r0 + s[q] + 4), a[2 * q + 1]);
+            b[2 * q] = vmax(load4(r1 + s[q]), b[2 * q]);
+            b[2 * q + 1] = vmax(load4(r1 + s[q] + 4), b[2 * q + 1]);
+        }
+    }
+    for (int q = 0; q < 2 * nb; q++) {
+        v4f v = vmax(b[q], a[q]);
+        memcpy(m + 4 * q, &v, sizeof v);
+    }
+}
+
 /* The second peak of the whole plane (2 ex + 1 < h), the first peak at (bi, bj); cm holds
- * the column maxima over all rows and is overwritten. The same value, bit for bit, as
- * second_scan, and when the highest value outside the neighbourhood is a local maximum, the
- * same copy of it (+0 or -0) as the search of column maxima over the rows away from the
- * first peak, then the near rows, that this replaced. */
+ * the column maxima over all rows and is overwritten. The result, bit for bit, of the search
+ * this replaced (tests/test_peak_ref.h): the highest value m2 outside the neighbourhood,
+ * from column maxima over the rows away from the first peak, then over the near rows in the
+ * columns away from it (as that search took them: of +0 and -0, the first in that order),
+ * if the first place holding it is a local maximum; otherwise second_scan's value. */
 static float second_full(const float *plane, int w, int h, int bi, int bj, float *cm)
 {
     const int ex = RPIV_PEAK_EXCLUDE, nx = 2 * ex + 1 < w ? 2 * ex + 1 : w;
@@ -220,12 +272,23 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
     int xc[2 * RPIV_PEAK_EXCLUDE + 1];
     for (int d = 0; d < nx; d++)
         xc[d] = nx < w ? wrap(bi - ex + d, w) : d;
-    for (int d = 0; d < nx; d++)
-        cm[xc[d]] = -INFINITY;
-    for (int k = ex + 1; k < h - ex; k++) {
-        const float *row = plane + (size_t)wrap(bj + k - h, h) * (size_t)w;
+    if (nx < w && w >= 8) {
+        /* the excluded columns lie in the 8 from s[0], or (wrapping) in the first and last 8 */
+        float mf[16];
+        int wraps = bi - ex < 0 || bi + ex >= w, s[2] = {0, w - 8};
+        if (!wraps)
+            s[0] = bi - ex < w - 8 ? bi - ex : w - 8;
+        far_max8(plane, w, h, bj, s, 1 + wraps, mf);
         for (int d = 0; d < nx; d++)
-            cm[xc[d]] = row[xc[d]] > cm[xc[d]] ? row[xc[d]] : cm[xc[d]];
+            cm[xc[d]] = xc[d] - s[0] < 8 ? mf[xc[d] - s[0]] : mf[8 + xc[d] - s[1]];
+    } else {
+        for (int d = 0; d < nx; d++)
+            cm[xc[d]] = -INFINITY;
+        for (int k = ex + 1; k < h - ex; k++) {
+            const float *row = plane + (size_t)wrap(bj + k - h, h) * (size_t)w;
+            for (int d = 0; d < nx; d++)
+                cm[xc[d]] = row[xc[d]] > cm[xc[d]] ? row[xc[d]] : cm[xc[d]];
+        }
     }
     int i2, j2 = -1;
     float m2 = max_index(cm, w, &i2);
@@ -257,13 +320,13 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
      * wide is not near the first peak's (shift_of(2, 5) is -3): the plain search then. */
     if (nx == w)
         return second_scan(plane, w, h, bi, bj, 1, NULL, h, NULL, w);
-    float cu[4096], t = -INFINITY;
-    for (int i = 0; i < w; i++)
-        cu[i] = cm[i];
-    cu[i2] = -INFINITY;
-    for (int tries = 0; tries < 8 && !(t > -INFINITY); tries++) {
-        int c;
-        float v = max_index(cu, w, &c);
+    float t = -INFINITY, held[8];
+    int tried[8], ntried = 0, c = i2;
+    while (ntried < 8 && !(t > -INFINITY)) {
+        held[ntried] = cm[c]; /* set aside while the next column is sought */
+        tried[ntried++] = c;
+        cm[c] = -INFINITY;
+        float v = max_index(cm, w, &c);
         if (c < 0)
             break;
         int xcol = near(c, bi, w, ex);
@@ -273,7 +336,10 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
                     t = v;
                 break;
             }
-        cu[c] = -INFINITY;
+    }
+    while (ntried > 0) {
+        ntried--;
+        cm[tried[ntried]] = held[ntried];
     }
     if (!(t > -INFINITY))
         return second_scan(plane, w, h, bi, bj, 1, NULL, h, NULL, w);
@@ -287,8 +353,8 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
             float v = plane[(size_t)j * (size_t)w + (size_t)i];
             if (!(v >= t) || (xcol && near(j, bj, h, ex)) || !local_max(plane, w, h, i, j))
                 continue;
-            if (v > best || (v == best && j < sj)) { /* of equal values, the first in raster
-                                                         order (columns come in order) */
+            /* of equal values the first in raster order (the columns come in order) */
+            if (v > best || (v == best && j < sj)) {
                 best = v;
                 sj = j;
             }
