@@ -231,31 +231,28 @@ static float second_scan(const float *plane, int w, int h, int bi, int bj, int f
     return second;
 }
 
-/* m[8 b + l] = the largest value of column s[b] + l (l < 8, b < nb) over the rows away from
- * row bj (circular distance > ex); -inf if none. Two rows at a time into two sets of lanes
- * (two chains of maxima). */
-static void far_max8(const float *plane, int w, int h, int bj, const int *s, int nb, float *m)
+/* m[l] = the largest value of column s0 + l, m[4 + l] that of column s1 + l (l < 4), over the
+ * rows away from row bj (circular distance > ex); -inf if none. Two rows at a time into two
+ * sets of lanes (two chains of maxima). */
+static void far_max8(const float *plane, int w, int h, int bj, int s0, int s1, float *m)
 {
     const int ex = RPIV_PEAK_EXCLUDE;
     const v4f ninf = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
-    v4f a[4] = {ninf, ninf, ninf, ninf}, b[4] = {ninf, ninf, ninf, ninf};
-    int k = ex + 1;
-    for (; k < h - ex; k += 2) {
+    v4f a0 = ninf, a1 = ninf, b0 = ninf, b1 = ninf;
+    for (int k = ex + 1; k < h - ex; k += 2) {
         int j0 = bj + k < h ? bj + k : bj + k - h, j1 = j0 + 1 < h ? j0 + 1 : 0;
         if (k + 1 == h - ex)
             j1 = j0; /* the last row, odd one out: again into b */
         const float *r0 = plane + (size_t)j0 * (size_t)w, *r1 = plane + (size_t)j1 * (size_t)w;
-        for (int q = 0; q < nb; q++) {
-            a[2 * q] = vmax(load4(r0 + s[q]), a[2 * q]);
-            a[2 * q + 1] = vmax(load4(r0 + s[q] + 4), a[2 * q + 1]);
-            b[2 * q] = vmax(load4(r1 + s[q]), b[2 * q]);
-            b[2 * q + 1] = vmax(load4(r1 + s[q] + 4), b[2 * q + 1]);
-        }
+        a0 = vmax(load4(r0 + s0), a0);
+        a1 = vmax(load4(r0 + s1), a1);
+        b0 = vmax(load4(r1 + s0), b0);
+        b1 = vmax(load4(r1 + s1), b1);
     }
-    for (int q = 0; q < 2 * nb; q++) {
-        v4f v = vmax(b[q], a[q]);
-        memcpy(m + 4 * q, &v, sizeof v);
-    }
+    a0 = vmax(b0, a0);
+    a1 = vmax(b1, a1);
+    memcpy(m, &a0, sizeof a0);
+    memcpy(m + 4, &a1, sizeof a1);
 }
 
 /* The second peak of the whole plane (2 ex + 1 < h), the first peak at (bi, bj); cm holds
@@ -273,14 +270,15 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
     for (int d = 0; d < nx; d++)
         xc[d] = nx < w ? wrap(bi - ex + d, w) : d;
     if (nx < w && w >= 8) {
-        /* the excluded columns lie in the 8 from s[0], or (wrapping) in the first and last 8 */
-        float mf[16];
-        int wraps = bi - ex < 0 || bi + ex >= w, s[2] = {0, w - 8};
-        if (!wraps)
-            s[0] = bi - ex < w - 8 ? bi - ex : w - 8;
-        far_max8(plane, w, h, bj, s, 1 + wraps, mf);
+        /* the excluded columns lie in the 8 from s0, or (wrapping) in the first and last 4 */
+        float mf[8];
+        int wraps = bi - ex < 0 || bi + ex >= w, s0 = bi - ex < w - 8 ? bi - ex : w - 8;
+        if (wraps)
+            s0 = 0;
+        int s1 = wraps ? w - 4 : s0 + 4;
+        far_max8(plane, w, h, bj, s0, s1, mf);
         for (int d = 0; d < nx; d++)
-            cm[xc[d]] = xc[d] - s[0] < 8 ? mf[xc[d] - s[0]] : mf[8 + xc[d] - s[1]];
+            cm[xc[d]] = xc[d] - s0 < 4 ? mf[xc[d] - s0] : mf[4 + xc[d] - s1];
     } else {
         for (int d = 0; d < nx; d++)
             cm[xc[d]] = -INFINITY;
