@@ -8,6 +8,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
 
 /* Four floats in a vector register (GCC/Clang vector extension; SSE2 on x86-64, NEON on
  * arm64), for the short maxima the compiler does not vectorise by itself. */
@@ -21,11 +24,16 @@ static inline v4f load4(const float *p)
     return v;
 }
 
-/* Lane by lane r > m ? r : m: a NaN in r never enters, as in the scalar form. */
+/* Lane by lane r > m ? r : m: a NaN in r never enters, as in the scalar form. SSE's maxps
+ * is exactly that (its first operand if greater, else the second). */
 static inline v4f vmax(v4f r, v4f m)
 {
+#if defined(__SSE__)
+    return (v4f)_mm_max_ps((__m128)r, (__m128)m);
+#else
     v4i k = r > m;
     return (v4f)((k & (v4i)r) | (~k & (v4i)m));
+#endif
 }
 
 double rpiv_peak_fit3(double cm, double c0, double cp, rpiv_subpixel method, int *ok)
