@@ -183,8 +183,9 @@ static int irand(int n)
  * outside the neighbourhood is not a local maximum), 4 a broad peak alone (no local maximum
  * outside), 5 all equal, 6 +0 / -0 / -1 (signed zeros tie), 7 two equal peaks, 8 a kind of
  * 0-3 with NaN, +inf, -inf sprinkled, 9 a constant with one NaN or inf, 10 a correlation-like
- * sharp peak with several noise peaks of equal height. */
-enum { KINDS = 11 };
+ * sharp peak with several noise peaks of equal height, 11 a peak whose flank tops a background
+ * of +0, -0 and -1 (the highest local maxima outside are zeros of both signs). */
+enum { KINDS = 12 };
 
 static void make_plane(float *p, int w, int h, int kind)
 {
@@ -253,6 +254,18 @@ static void make_plane(float *p, int w, int h, int kind)
             p[irand(n)] = c[irand(4)];
         break;
     }
+    case 11: {
+        const float c[] = {0.0f, -0.0f, -1.0f};
+        for (int j = 0; j < h; j++)
+            for (int i = 0; i < w; i++) {
+                double dx = i - x0, dy = j - y0;
+                dx -= w * round(dx / w);
+                dy -= h * round(dy / h);
+                double v = exp(-(dx * dx + dy * dy) / (2 * 1.3 * 1.3));
+                p[j * w + i] = v > 0.04 ? (float)v : c[irand(3)];
+            }
+        break;
+    }
     default: {
         const float c[] = {NAN, INFINITY, -INFINITY};
         for (int k = 0; k < n; k++)
@@ -269,7 +282,8 @@ static void make_plane(float *p, int w, int h, int kind)
 static void peak_find_matches_reference_bit_for_bit(void)
 {
     const int sizes[][2] = {{32, 32}, {64, 64}, {16, 24}, {24, 16}, {5, 5}, {4, 4},
-                            {3, 3},   {6, 6},   {7, 5},   {5, 7},   {3, 8}, {8, 3}};
+                            {3, 3},   {6, 6},   {7, 5},   {5, 7},   {3, 8}, {8, 3},
+                            {8, 8},   {9, 12},  {12, 9},  {33, 31}, {6, 9}, {5, 16}};
     const int nsizes = (int)(sizeof sizes / sizeof sizes[0]);
     static float p[64 * 64];
     int bad = 0, cases = 0, nonfinite = 0, fits = 0;
