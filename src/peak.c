@@ -6,6 +6,35 @@
 
 #include <math.h>
 #include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
+/* Four floats in a vector register (GCC/Clang vector extension; SSE2 on x86-64, NEON on
+ * arm64), for the short maxima the compiler does not vectorise by itself. */
+typedef float v4f __attribute__((vector_size(16)));
+typedef int32_t v4i __attribute__((vector_size(16)));
+
+static inline v4f load4(const float *p)
+{
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* Lane by lane r > m ? r : m: a NaN in r never enters, as in the scalar form. SSE's maxps
+ * is exactly that (its first operand if greater, else the second). */
+static inline v4f vmax(v4f r, v4f m)
+{
+#if defined(__SSE__)
+    return (v4f)_mm_max_ps((__m128)r, (__m128)m);
+#else
+    v4i k = r > m;
+    return (v4f)((k & (v4i)r) | (~k & (v4i)m));
+#endif
+}
 
 double rpiv_peak_fit3(double cm, double c0, double cp, rpiv_subpixel method, int *ok)
 {
@@ -91,32 +120,56 @@ static void centroid3x3(const float *p, int w, int h, int i, int j, double *dx, 
     *dy = *ok ? sy / s : 0;
 }
 
-/* Column maxima: cm[i] = max over the rows j of [j0, j1) (taken modulo h) of plane(i, j),
- * for the columns of the segments [a0, a1) and [b0, b1); element-wise over whole rows, so
- * the compiler vectorises it, instead of one serial chain of compares. */
-RPIV_KERNEL static void colmax_rows(const float *plane, int w, int h, int j0, int j1, int a0,
-                                    int a1, int b0, int b1, float *cm)
+/* Column maxima over every row: cm[i] = the first of the largest values of column i (rows in
+ * order; NaNs never enter; -inf if none), element-wise over whole rows so that the compiler
+ * vectorises it. The usual widths get their own copy with the width known (the maxima then
+ * stay in registers). */
+static inline void colmax_w(const float *restrict plane, int w, int h, float *restrict cm)
 {
-    for (int jj = j0; jj < j1; jj++) {
-        const float *row = plane + (size_t)wrap(jj % h, h) * (size_t)w;
-        for (int i = a0; i < a1; i++)
-            cm[i] = row[i] > cm[i] ? row[i] : cm[i];
-        for (int i = b0; i < b1; i++)
+    for (int i = 0; i < w; i++)
+        cm[i] = -INFINITY;
+    for (int j = 0; j < h; j++) {
+        const float *row = plane + (size_t)j * (size_t)w;
+        for (int i = 0; i < w; i++)
             cm[i] = row[i] > cm[i] ? row[i] : cm[i];
     }
 }
 
-/* The largest of v[0..n-1] and its first index (-1 if none). */
+RPIV_KERNEL static void colmax_all(const float *restrict plane, int w, int h, float *restrict cm)
+{
+    if (w == 32)
+        colmax_w(plane, 32, h, cm);
+    else if (w == 64)
+        colmax_w(plane, 64, h, cm);
+    else
+        colmax_w(plane, w, h, cm);
+}
+
+/* The largest of v[0..n-1] (no NaN) and its first index; -inf and -1 if all are -inf. The
+ * largest by lanes (vectorised), then the first element equal to it, returned as stored (of
+ * +0 and -0, the one the search found first, as a serial search would). */
 static float max_index(const float *v, int n, int *at)
 {
+    const v4f ninf = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    v4f a = ninf, b = ninf;
+    int i = 0;
+    for (; i + 8 <= n; i += 8) {
+        a = vmax(load4(v + i), a);
+        b = vmax(load4(v + i + 4), b);
+    }
+    a = vmax(b, a);
     float m = -INFINITY;
+    for (int k = 0; k < 4; k++)
+        m = a[k] > m ? a[k] : m;
+    for (; i < n; i++)
+        m = v[i] > m ? v[i] : m;
     *at = -1;
-    for (int i = 0; i < n; i++)
-        if (v[i] > m) {
-            m = v[i];
-            *at = i;
-        }
-    return m;
+    if (!(m > -INFINITY))
+        return m;
+    for (i = 0; v[i] != m; i++)
+        ;
+    *at = i;
+    return v[i];
 }
 
 /* The indices of an axis of n whose shift is within -r..r (all if r <= 0), in index order. */
@@ -129,6 +182,191 @@ static int axis_indices(int n, int r, int *idx)
             idx[m++] = i;
     }
     return m;
+}
+
+/* 3-point fit of method in x and in y through (bi, bj) of value best (finite); the Gaussian
+ * fit takes log(best) once for both axes (rpiv_peak_fit3's operations otherwise). */
+static void fit_xy(const float *plane, int w, int h, int bi, int bj, float best,
+                   rpiv_subpixel method, double *fx, double *fy, int *okx, int *oky)
+{
+    const float *row = plane + (size_t)bj * (size_t)w;
+    double c[2][3] = {{(double)row[wrap(bi - 1, w)], (double)best, (double)row[wrap(bi + 1, w)]},
+                      {(double)plane[(size_t)wrap(bj - 1, h) * (size_t)w + (size_t)bi],
+                       (double)best,
+                       (double)plane[(size_t)wrap(bj + 1, h) * (size_t)w + (size_t)bi]}};
+    double *f[2] = {fx, fy}, l0 = 0;
+    int *ok[2] = {okx, oky}, have_l0 = 0;
+    for (int a = 0; a < 2; a++) {
+        double cm = c[a][0], c0 = c[a][1], cp = c[a][2];
+        *ok[a] = 0;
+        *f[a] = 0;
+        if (method != RPIV_SUBPIXEL_GAUSS || !isfinite(cm) || !isfinite(cp) || !(cm > 0) ||
+            !(c0 > 0) || !(cp > 0)) {
+            *f[a] = rpiv_peak_fit3(cm, c0, cp, method, ok[a]);
+            continue;
+        }
+        if (!have_l0) {
+            l0 = log(c0);
+            have_l0 = 1;
+        }
+        double lm = log(cm), lp = log(cp), den = 2 * (lm - 2 * l0 + lp);
+        if (!(den < 0))
+            continue;
+        *ok[a] = 1;
+        *f[a] = (lm - lp) / den;
+    }
+}
+
+/* The second peak by the definition: the highest local maximum outside the first peak's
+ * neighbourhood, over the rows rows[0..nr-1] and columns cols[0..nc-1] (all if full), in
+ * raster order (of equal values, the first). -inf if none. */
+static float second_scan(const float *plane, int w, int h, int bi, int bj, int full,
+                         const int *rows, int nr, const int *cols, int nc)
+{
+    const int ex = RPIV_PEAK_EXCLUDE;
+    float second = -INFINITY;
+    for (int jj = 0; jj < nr; jj++) {
+        int j = full ? jj : rows[jj];
+        int ny = near(j, bj, h, ex);
+        const float *row = plane + (size_t)j * (size_t)w;
+        for (int ii = 0; ii < nc; ii++) {
+            int i = full ? ii : cols[ii];
+            if (!(row[i] > second) || (ny && near(i, bi, w, ex)) || !local_max(plane, w, h, i, j))
+                continue;
+            second = row[i];
+        }
+    }
+    return second;
+}
+
+/* m[l] = the largest value of column s0 + l, m[4 + l] that of column s1 + l (l < 4), over the
+ * rows away from row bj (circular distance > ex); -inf if none. Two rows at a time into two
+ * sets of lanes (two chains of maxima). */
+static void far_max8(const float *plane, int w, int h, int bj, int s0, int s1, float *m)
+{
+    const int ex = RPIV_PEAK_EXCLUDE;
+    const v4f ninf = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    v4f a0 = ninf, a1 = ninf, b0 = ninf, b1 = ninf;
+    for (int k = ex + 1; k < h - ex; k += 2) {
+        int j0 = bj + k < h ? bj + k : bj + k - h, j1 = j0 + 1 < h ? j0 + 1 : 0;
+        if (k + 1 == h - ex)
+            j1 = j0; /* the last row, odd one out: again into b */
+        const float *r0 = plane + (size_t)j0 * (size_t)w, *r1 = plane + (size_t)j1 * (size_t)w;
+        a0 = vmax(load4(r0 + s0), a0);
+        a1 = vmax(load4(r0 + s1), a1);
+        b0 = vmax(load4(r1 + s0), b0);
+        b1 = vmax(load4(r1 + s1), b1);
+    }
+    a0 = vmax(b0, a0);
+    a1 = vmax(b1, a1);
+    memcpy(m, &a0, sizeof a0);
+    memcpy(m + 4, &a1, sizeof a1);
+}
+
+/* The second peak of the whole plane (2 ex + 1 < h), the first peak at (bi, bj); cm holds
+ * the column maxima over all rows and is overwritten. The result, bit for bit, of the search
+ * this replaced (tests/test_peak_ref.h): the highest value m2 outside the neighbourhood,
+ * from column maxima over the rows away from the first peak, then over the near rows in the
+ * columns away from it (as that search took them: of +0 and -0, the first in that order),
+ * if the first place holding it is a local maximum; otherwise second_scan's value. */
+static float second_full(const float *plane, int w, int h, int bi, int bj, float *cm)
+{
+    const int ex = RPIV_PEAK_EXCLUDE, nx = 2 * ex + 1 < w ? 2 * ex + 1 : w;
+    /* the maxima outside the neighbourhood: in the columns of the neighbourhood (all of them
+     * if w <= 2 ex + 1), over the rows away from it; elsewhere, the column maxima */
+    int xc[2 * RPIV_PEAK_EXCLUDE + 1];
+    for (int d = 0; d < nx; d++)
+        xc[d] = nx < w ? wrap(bi - ex + d, w) : d;
+    if (nx < w && w >= 8) {
+        /* the excluded columns lie in the 8 from s0, or (wrapping) in the first and last 4 */
+        float mf[8];
+        int wraps = bi - ex < 0 || bi + ex >= w, s0 = bi - ex < w - 8 ? bi - ex : w - 8;
+        if (wraps)
+            s0 = 0;
+        int s1 = wraps ? w - 4 : s0 + 4;
+        far_max8(plane, w, h, bj, s0, s1, mf);
+        for (int d = 0; d < nx; d++)
+            cm[xc[d]] = xc[d] - s0 < 4 ? mf[xc[d] - s0] : mf[4 + xc[d] - s1];
+    } else {
+        for (int d = 0; d < nx; d++)
+            cm[xc[d]] = -INFINITY;
+        for (int k = ex + 1; k < h - ex; k++) {
+            const float *row = plane + (size_t)wrap(bj + k - h, h) * (size_t)w;
+            for (int d = 0; d < nx; d++)
+                cm[xc[d]] = row[xc[d]] > cm[xc[d]] ? row[xc[d]] : cm[xc[d]];
+        }
+    }
+    int i2, j2 = -1;
+    float m2 = max_index(cm, w, &i2);
+    if (i2 < 0)
+        return -INFINITY;
+    int xi2 = near(i2, bi, w, ex);
+    for (int j = 0; j < h; j++)
+        if (plane[(size_t)j * (size_t)w + (size_t)i2] == m2 && !(xi2 && near(j, bj, h, ex))) {
+            j2 = j;
+            break;
+        }
+    if (j2 < 0)
+        return -INFINITY; /* not reached: m2 is a value outside the neighbourhood */
+    if (local_max(plane, w, h, i2, j2)) {
+        if (m2 == 0) { /* the first zero of the column from the row after the neighbourhood */
+            int n = xi2 ? h - 2 * ex - 1 : h;
+            for (int k = 0; k < n; k++) {
+                float v = plane[(size_t)((bj + ex + 1 + k) % h) * (size_t)w + (size_t)i2];
+                if (v == m2)
+                    return v;
+            }
+        }
+        return m2;
+    }
+    /* m2 is on the flank of the first peak. Some local maximum of value t: the largest value
+     * of the next columns, by decreasing column maximum; then every value >= t outside the
+     * neighbourhood, in the columns whose maximum reaches t, is a candidate. When w <= 2 ex +
+     * 1, cm holds the maxima over the far rows in every column, but one column of a plane 5
+     * wide is not near the first peak's (shift_of(2, 5) is -3): the plain search then. */
+    if (nx == w)
+        return second_scan(plane, w, h, bi, bj, 1, NULL, h, NULL, w);
+    float t = -INFINITY, held[8];
+    int tried[8], ntried = 0, c = i2;
+    while (ntried < 8 && !(t > -INFINITY)) {
+        held[ntried] = cm[c]; /* set aside while the next column is sought */
+        tried[ntried++] = c;
+        cm[c] = -INFINITY;
+        float v = max_index(cm, w, &c);
+        if (c < 0)
+            break;
+        int xcol = near(c, bi, w, ex);
+        for (int j = 0; j < h; j++)
+            if (plane[(size_t)j * (size_t)w + (size_t)c] == v && !(xcol && near(j, bj, h, ex))) {
+                if (local_max(plane, w, h, c, j))
+                    t = v;
+                break;
+            }
+    }
+    while (ntried > 0) {
+        ntried--;
+        cm[tried[ntried]] = held[ntried];
+    }
+    if (!(t > -INFINITY))
+        return second_scan(plane, w, h, bi, bj, 1, NULL, h, NULL, w);
+    float best = -INFINITY;
+    int sj = h;
+    for (int i = 0; i < w; i++) {
+        if (!(cm[i] >= t))
+            continue;
+        int xcol = near(i, bi, w, ex);
+        for (int j = 0; j < h; j++) {
+            float v = plane[(size_t)j * (size_t)w + (size_t)i];
+            if (!(v >= t) || (xcol && near(j, bj, h, ex)) || !local_max(plane, w, h, i, j))
+                continue;
+            /* of equal values the first in raster order (the columns come in order) */
+            if (v > best || (v == best && j < sj)) {
+                best = v;
+                sj = j;
+            }
+        }
+    }
+    return best;
 }
 
 void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpixel method,
@@ -146,9 +384,7 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
     float cm[4096];
     if (full) {
         /* column maxima, then the best column, then its first row holding the maximum */
-        for (int i = 0; i < w; i++)
-            cm[i] = -INFINITY;
-        colmax_rows(plane, w, h, 0, h, 0, w, 0, 0, cm);
+        colmax_all(plane, w, h, cm);
         best = max_index(cm, w, &bi);
         for (int j = 0; j < h && bi >= 0; j++)
             if (plane[(size_t)j * (size_t)w + (size_t)bi] == best) {
@@ -180,64 +416,18 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
         centroid3x3(plane, w, h, bi, bj, &fx, &fy, &okx);
         oky = okx;
     } else {
-        const float *row = plane + (size_t)bj * (size_t)w;
-        fx = rpiv_peak_fit3((double)row[wrap(bi - 1, w)], (double)best,
-                            (double)row[wrap(bi + 1, w)], method, &okx);
-        fy = rpiv_peak_fit3(
-            (double)plane[(size_t)wrap(bj - 1, h) * (size_t)w + (size_t)bi], (double)best,
-            (double)plane[(size_t)wrap(bj + 1, h) * (size_t)w + (size_t)bi], method, &oky);
+        fit_xy(plane, w, h, bi, bj, best, method, &fx, &fy, &okx, &oky);
     }
     out->fit_ok = okx && oky;
     out->dx = out->ix + (out->fit_ok ? fx : 0);
     out->dy = out->iy + (out->fit_ok ? fy : 0);
 
-    /* second peak: the highest local maximum outside the first peak's neighbourhood. The
-     * highest value outside it usually is one (a noise peak); if not, every value above the
-     * best local maximum so far is examined. */
-    const int ex = RPIV_PEAK_EXCLUDE;
-    float second = -INFINITY;
-    int done = 0;
-    if (full && 2 * ex + 1 < h) {
-        /* column maxima over the rows away from the first peak, and over the rows near it
-         * but only in the columns away from it */
-        for (int i = 0; i < w; i++)
-            cm[i] = -INFINITY;
-        colmax_rows(plane, w, h, bj + ex + 1, bj + h - ex, 0, w, 0, 0, cm);
-        if (2 * ex + 1 < w) {
-            int lo = bi - ex, hi = bi + ex + 1; /* excluded columns: [lo, hi) modulo w */
-            int a0 = 0, a1 = lo, b0 = hi, b1 = w;
-            if (lo < 0)
-                a0 = a1 = 0, b0 = hi, b1 = lo + w;
-            else if (hi > w)
-                a0 = hi - w, a1 = lo, b0 = b1 = 0;
-            colmax_rows(plane, w, h, bj - ex + h, bj + ex + 1 + h, a0, a1, b0, b1, cm);
-        }
-        int i2, j2 = -1;
-        float m2 = max_index(cm, w, &i2);
-        for (int j = 0; j < h && i2 >= 0; j++)
-            if (plane[(size_t)j * (size_t)w + (size_t)i2] == m2 &&
-                !(near(j, bj, h, ex) && near(i2, bi, w, ex))) {
-                j2 = j;
-                break;
-            }
-        if (j2 < 0) {
-            done = 1; /* nothing outside the neighbourhood */
-        } else if (local_max(plane, w, h, i2, j2)) {
-            second = m2;
-            done = 1;
-        }
-    }
-    for (int jj = 0; jj < nr && !done; jj++) {
-        int j = full ? jj : rows[jj];
-        int ny = near(j, bj, h, ex);
-        const float *row = plane + (size_t)j * (size_t)w;
-        for (int ii = 0; ii < nc; ii++) {
-            int i = full ? ii : cols[ii];
-            if (!(row[i] > second) || (ny && near(i, bi, w, ex)) || !local_max(plane, w, h, i, j))
-                continue;
-            second = row[i];
-        }
-    }
+    /* second peak: the highest local maximum outside the first peak's neighbourhood */
+    float second;
+    if (full && 2 * RPIV_PEAK_EXCLUDE + 1 < h)
+        second = second_full(plane, w, h, bi, bj, cm);
+    else
+        second = second_scan(plane, w, h, bi, bj, full, rows, nr, cols, nc);
     int found = second > -INFINITY;
     out->second = found ? second : 0;
     if (found && second > 0 && best < RPIV_PEAK_RATIO_MAX * second)

@@ -1,7 +1,9 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 #include "check.h"
 #include "rpiv/peak.h"
+#include "test_peak_ref.h"
 
+#include <stdint.h>
 #include <string.h>
 
 enum { W = 32, H = 24 };
@@ -158,6 +160,165 @@ static void peak_flat_plane_reports_failed_fit(void)
     CHECK(ok);
 }
 
+/* ---- the search against the reference (tests/test_peak_ref.h), bit for bit ---- */
+
+static uint64_t rng = 0x51c3a7e90d2b6f48ULL;
+
+static double urand(void) /* uniform in [0, 1) (splitmix64) */
+{
+    uint64_t z = (rng += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+
+static int irand(int n)
+{
+    return (int)(urand() * n);
+}
+
+/* The kinds of plane: 0 uniform noise, 1 few levels (ties everywhere), 2 a peak anywhere
+ * (corners: wrap) over noise, 3 a broad peak whose flank tops the noise (the highest value
+ * outside the neighbourhood is not a local maximum), 4 a broad peak alone (no local maximum
+ * outside), 5 all equal, 6 +0 / -0 / -1 (signed zeros tie), 7 two equal peaks, 8 a kind of
+ * 0-3 with NaN, +inf, -inf sprinkled, 9 a constant with one NaN or inf, 10 a correlation-like
+ * sharp peak with several noise peaks of equal height, 11 a peak whose flank tops a background
+ * of +0, -0 and -1 (the highest local maxima outside are zeros of both signs). */
+enum { KINDS = 12 };
+
+static void make_plane(float *p, int w, int h, int kind)
+{
+    int n = w * h;
+    double x0 = urand() * w, y0 = urand() * h, s = 0.6 + 1.5 * urand();
+    switch (kind) {
+    case 0:
+        for (int k = 0; k < n; k++)
+            p[k] = (float)(2 * urand() - 0.7);
+        break;
+    case 1: {
+        int lv = 2 + irand(3);
+        for (int k = 0; k < n; k++)
+            p[k] = (float)(irand(lv) - 1) * 0.3187f;
+        break;
+    }
+    case 2:
+    case 3:
+    case 4:
+    case 7:
+    case 10:
+        if (kind == 3)
+            s = 1.7 + 1.5 * urand();
+        if (kind == 4)
+            s = 0.25 * (w < h ? w : h) + 2 * urand();
+        for (int j = 0; j < h; j++)
+            for (int i = 0; i < w; i++) {
+                double dx = i - x0, dy = j - y0;
+                dx -= w * round(dx / w);
+                dy -= h * round(dy / h);
+                double v = exp(-(dx * dx + dy * dy) / (2 * s * s));
+                if (kind == 7) {
+                    double ex = i - fmod(x0 + w / 2.0, w), ey = j - y0;
+                    ex -= w * round(ex / w);
+                    ey -= h * round(ey / h);
+                    v += exp(-(ex * ex + ey * ey) / (2 * s * s));
+                }
+                double noise = kind == 4 ? 0 : (kind == 3 ? 0.05 : 0.2) * urand();
+                p[j * w + i] = (float)(v + noise);
+            }
+        if (kind == 7 || kind == 10) /* quantise: equal peaks and equal noise maxima */
+            for (int k = 0; k < n; k++)
+                p[k] = roundf(p[k] * 8) / 8;
+        if (kind == 10)
+            for (int r = 0; r < 4; r++)
+                p[irand(n)] = 0.375f;
+        break;
+    case 5: {
+        const float c[] = {0.25f, 0.0f, -0.0f, -1.5f, -INFINITY, INFINITY, NAN};
+        float v = c[irand(7)];
+        for (int k = 0; k < n; k++)
+            p[k] = v;
+        break;
+    }
+    case 6: {
+        const float c[] = {0.0f, -0.0f, -1.0f};
+        for (int k = 0; k < n; k++)
+            p[k] = c[irand(3)];
+        break;
+    }
+    case 8: {
+        make_plane(p, w, h, irand(4));
+        const float c[] = {NAN, INFINITY, -INFINITY, -NAN};
+        int m = 1 + irand(n / 4 + 1);
+        for (int r = 0; r < m; r++)
+            p[irand(n)] = c[irand(4)];
+        break;
+    }
+    case 11: {
+        const float c[] = {0.0f, -0.0f, -1.0f};
+        for (int j = 0; j < h; j++)
+            for (int i = 0; i < w; i++) {
+                double dx = i - x0, dy = j - y0;
+                dx -= w * round(dx / w);
+                dy -= h * round(dy / h);
+                double v = exp(-(dx * dx + dy * dy) / (2 * 1.3 * 1.3));
+                p[j * w + i] = v > 0.04 ? (float)v : c[irand(3)];
+            }
+        break;
+    }
+    default: {
+        const float c[] = {NAN, INFINITY, -INFINITY};
+        for (int k = 0; k < n; k++)
+            p[k] = 0.1187f;
+        p[irand(n)] = c[irand(3)];
+        break;
+    }
+    }
+}
+
+/* Every field of rpiv_peak_find's result the same bits as peak_find_ref's, on planes of
+ * every kind and size, for every method and search range (whole plane, ranges smaller and
+ * larger than half the plane). */
+static void peak_find_matches_reference_bit_for_bit(void)
+{
+    const int sizes[][2] = {{32, 32}, {64, 64}, {16, 24}, {24, 16}, {5, 5}, {4, 4},
+                            {3, 3},   {6, 6},   {7, 5},   {5, 7},   {3, 8}, {8, 3},
+                            {8, 8},   {9, 12},  {12, 9},  {33, 31}, {6, 9}, {5, 16}};
+    const int nsizes = (int)(sizeof sizes / sizeof sizes[0]);
+    static float p[64 * 64];
+    int bad = 0, cases = 0, nonfinite = 0, fits = 0;
+    for (int rep = 0; rep < 40; rep++)
+        for (int z = 0; z < nsizes; z++)
+            for (int kind = 0; kind < KINDS; kind++) {
+                int w = sizes[z][0], h = sizes[z][1];
+                make_plane(p, w, h, kind);
+                const int ranges[] = {0, -3, 1, 2, 3, w / 4, w / 2, h / 2, 100};
+                for (int m = 0; m < 3; m++)
+                    for (int r = 0; r < 9; r++) {
+                        rpiv_peak a, b;
+                        memset(&a, 0x5a, sizeof a);
+                        memset(&b, 0xa5, sizeof b);
+                        peak_find_ref(p, w, h, ranges[r], (rpiv_subpixel)m, &a);
+                        rpiv_peak_find(p, w, h, ranges[r], (rpiv_subpixel)m, &b);
+                        cases++;
+                        fits += a.fit_ok;
+                        nonfinite += kind >= 8;
+                        if (!peak_same(&a, &b) && bad++ < 5)
+                            fprintf(stderr,
+                                    "%dx%d kind %d method %d max_shift %d: new (%d %d %a %a %a "
+                                    "%a %a %d) ref (%d %d %a %a %a %a %a %d)\n",
+                                    w, h, kind, m, ranges[r], b.ix, b.iy, b.dx, b.dy,
+                                    (double)b.value, (double)b.second, (double)b.ratio, b.fit_ok,
+                                    a.ix, a.iy, a.dx, a.dy, (double)a.value, (double)a.second,
+                                    (double)a.ratio, a.fit_ok);
+                    }
+            }
+    CHECK(bad == 0);
+    CHECK(cases == 40 * nsizes * KINDS * 27);
+    CHECK(fits > cases / 4 && fits < cases); /* both outcomes of the fit were compared */
+    CHECK(nonfinite > 0);
+}
+
 int main(void)
 {
     RUN_TEST(peak_gauss3_is_exact_on_a_gaussian);
@@ -168,5 +329,6 @@ int main(void)
     RUN_TEST(peak_second_peak_is_a_local_maximum);
     RUN_TEST(peak_search_range_is_honoured);
     RUN_TEST(peak_flat_plane_reports_failed_fit);
+    RUN_TEST(peak_find_matches_reference_bit_for_bit);
     return check_summary();
 }
