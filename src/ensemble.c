@@ -102,10 +102,11 @@ out_free:
     return st;
 }
 
-static void add_plane(void *ctx, const float *plane, size_t win, double ea, double eb, double pu,
-                      double pv_)
+static void add_plane(void *ctx, const float *plane, const float *colmax, size_t win, double ea,
+                      double eb, double pu, double pv_)
 {
     rpiv_ensemble *e = ctx;
+    (void)colmax;
     float *sum = e->data + win * e->plane, *energy = e->data + e->nwin * e->plane;
     (void)pu;
     (void)pv_;
@@ -187,7 +188,7 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
         }
         double pu, pv_;
         piv_window_shift(ps, &src, win, &pu, &pv_);
-        piv_vector(pv, ps, e->data + win * e->plane, (double)energy[2 * win],
+        piv_vector(pv, ps, e->data + win * e->plane, NULL, (double)energy[2 * win],
                    (double)energy[2 * win + 1], pu, pv_, f, win);
     }
     if ((st = piv_validate(pv, f))) {

@@ -369,8 +369,9 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
     return best;
 }
 
-void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpixel method,
-                    rpiv_peak *out)
+/* rpiv_peak_find, with the column maxima colmax of the plane given (full plane) or not. */
+static void peak_find(const float *plane, int w, int h, int max_shift, const float *colmax,
+                      rpiv_subpixel method, rpiv_peak *out)
 {
     int full = max_shift <= 0 || (max_shift >= w / 2 && max_shift >= h / 2);
     int rows[4096], cols[4096], nr = h, nc = w;
@@ -384,7 +385,10 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
     float cm[4096];
     if (full) {
         /* column maxima, then the best column, then its first row holding the maximum */
-        colmax_all(plane, w, h, cm);
+        if (colmax)
+            memcpy(cm, colmax, (size_t)w * sizeof *cm);
+        else
+            colmax_all(plane, w, h, cm);
         best = max_index(cm, w, &bi);
         for (int j = 0; j < h && bi >= 0; j++)
             if (plane[(size_t)j * (size_t)w + (size_t)bi] == best) {
@@ -427,9 +431,22 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
     if (full && 2 * RPIV_PEAK_EXCLUDE + 1 < h)
         second = second_full(plane, w, h, bi, bj, cm);
     else
-        second = second_scan(plane, w, h, bi, bj, full, rows, nr, cols, nc);
+        second =
+            second_scan(plane, w, h, bi, bj, full, full ? NULL : rows, nr, full ? NULL : cols, nc);
     int found = second > -INFINITY;
     out->second = found ? second : 0;
     if (found && second > 0 && best < RPIV_PEAK_RATIO_MAX * second)
         out->ratio = best / second;
+}
+
+void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpixel method,
+                    rpiv_peak *out)
+{
+    peak_find(plane, w, h, max_shift, NULL, method, out);
+}
+
+void rpiv_peak_find_cm(const float *plane, int w, int h, const float *colmax, rpiv_subpixel method,
+                       rpiv_peak *out)
+{
+    peak_find(plane, w, h, 0, colmax, method, out);
 }

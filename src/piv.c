@@ -478,9 +478,9 @@ void piv_windows(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, 
     if (n > 1)
         window_src(pv, ps, src, win[1], ws->a2, ws->b2, &xs[1], &pu[1], &pv_[1]);
     rpiv_xcorr_run_pairs(ps->xc, ws, xs, n, RPIV_XCORR_RAW, e);
-    fn(ctx, ws->plane, win[0], e[0], e[1], pu[0], pv_[0]);
+    fn(ctx, ws->plane, ws->colmax, win[0], e[0], e[1], pu[0], pv_[0]);
     if (n > 1)
-        fn(ctx, ws->plane2, win[1], e[2], e[3], pu[1], pv_[1]);
+        fn(ctx, ws->plane2, ws->colmax2, win[1], e[2], e[3], pu[1], pv_[1]);
 }
 
 rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_win_fn fn,
@@ -548,11 +548,14 @@ rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
     return RPIV_OK;
 }
 
-void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, double ea, double eb,
-                double pu, double pv_, rpiv_field *f, size_t win)
+void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
+                double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win)
 {
     rpiv_peak pk;
-    rpiv_peak_find(plane, ps->ww, ps->wh, 0, pv->p.subpixel, &pk);
+    if (colmax)
+        rpiv_peak_find_cm(plane, ps->ww, ps->wh, colmax, pv->p.subpixel, &pk);
+    else
+        rpiv_peak_find(plane, ps->ww, ps->wh, 0, pv->p.subpixel, &pk);
     if (!(ea > 0) || !(eb > 0) || !pk.fit_ok || !(pk.value > 0)) {
         /* nothing to measure: rejected, replaced by validation */
         f->u[win] = (float)pu;
@@ -584,11 +587,11 @@ typedef struct step_ctx {
     rpiv_field *f;
 } step_ctx;
 
-static void step_vector(void *ctx, const float *plane, size_t win, double ea, double eb, double pu,
-                        double pv_)
+static void step_vector(void *ctx, const float *plane, const float *colmax, size_t win, double ea,
+                        double eb, double pu, double pv_)
 {
     step_ctx *c = ctx;
-    piv_vector(c->pv, c->ps, plane, ea, eb, pu, pv_, c->f, win);
+    piv_vector(c->pv, c->ps, plane, colmax, ea, eb, pu, pv_, c->f, win);
 }
 
 rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, rpiv_field **out)

@@ -50,9 +50,10 @@ typedef struct piv_source {
 } piv_source;
 
 /* Called from the worker threads with each correlated window (distinct windows at once):
- * the raw plane, the energies, and the shift of the window pair. */
-typedef void (*piv_win_fn)(void *ctx, const float *plane, size_t win, double ea, double eb,
-                           double pu, double pv_);
+ * the raw plane and its column maxima (rpiv_peak_find_cm), the energies, and the shift of
+ * the window pair. */
+typedef void (*piv_win_fn)(void *ctx, const float *plane, const float *colmax, size_t win,
+                           double ea, double eb, double pu, double pv_);
 
 /* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
  * NULL), calling fn for each. A deforming pass works strip by strip: the rows under one row
@@ -91,9 +92,10 @@ void piv_windows(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, 
 void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, double *pu,
                       double *pv_);
 
-/* The vector of window `win` from its (raw or summed) plane and energies: into f at win. */
-void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, double ea, double eb,
-                double pu, double pv_, rpiv_field *f, size_t win);
+/* The vector of window `win` from its (raw or summed) plane, its column maxima (NULL: not
+ * known) and energies: into f at win. */
+void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
+                double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win);
 
 /* Validate (median test if enabled) and replace rejected vectors. */
 RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);

@@ -87,6 +87,8 @@ rpiv_status rpiv_xcorr_work_new(const rpiv_xcorr *x, rpiv_xcorr_work **out)
     ws->plane2 = fftwf_malloc(x->n * sizeof(float));
     ws->a2 = fftwf_malloc(x->n * sizeof(float));
     ws->b2 = fftwf_malloc(x->n * sizeof(float));
+    ws->colmax = fftwf_malloc(2 * (size_t)x->w * sizeof(float));
+    ws->colmax2 = ws->colmax ? ws->colmax + x->w : NULL;
     /* one spare complex after each spectrum: see cross_pack */
     bf->z0 = fftwf_malloc((x->n + 1) * sizeof(fftwf_complex));
     bf->z1 = fftwf_malloc((x->n + 1) * sizeof(fftwf_complex));
@@ -95,8 +97,8 @@ rpiv_status rpiv_xcorr_work_new(const rpiv_xcorr *x, rpiv_xcorr_work **out)
         memset(bf->z0 + x->n, 0, sizeof(fftwf_complex));
         memset(bf->z1 + x->n, 0, sizeof(fftwf_complex));
     }
-    if (!ws->a || !ws->b || !ws->a2 || !ws->b2 || !ws->plane || !ws->plane2 || !bf->z0 || !bf->z1 ||
-        !bf->t) {
+    if (!ws->a || !ws->b || !ws->a2 || !ws->b2 || !ws->plane || !ws->plane2 || !ws->colmax ||
+        !bf->z0 || !bf->z1 || !bf->t) {
         rpiv_xcorr_work_free(ws);
         return rpiv_fail(RPIV_ENOMEM, "xcorr: out of memory for a %dx%d workspace", x->w, x->h);
     }
@@ -125,6 +127,7 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws)
     fftwf_free(ws->plane2);
     fftwf_free(ws->a2);
     fftwf_free(ws->b2);
+    fftwf_free(ws->colmax);
     free(ws);
 }
 
@@ -230,8 +233,8 @@ void xcorr_run_pairs_vl(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const rpiv_xco
     GLUE(width, cross_pack, (const float *)bf->z0, (const float *)(two ? bf->z1 : bf->z0),
          (float *)bf->t, x->w, x->h, c[0], c[1]);
     fftwf_execute_dft(x->inv, bf->t, bf->t);
-    GLUE(width, unpack, (const float *)bf->t, x->n, back[0], back[1], ws->plane,
-         two ? ws->plane2 : NULL);
+    GLUE(width, unpack, (const float *)bf->t, x->w, x->h, back[0], back[1], ws->plane,
+         two ? ws->plane2 : NULL, ws->colmax, ws->colmax2);
 }
 
 void rpiv_xcorr_run_pairs(const rpiv_xcorr *x, rpiv_xcorr_work *ws, const rpiv_xcorr_src *src,

@@ -173,22 +173,46 @@ static XG_TARGET void XG_(cross_pack)(const float *f0, const float *f1, float *r
     t[0] = t[1] = 0;
 }
 
-/* The packed planes t (n complex) -> plane0 = Re t * s0 and plane1 = Im t * s1 (plane1 may
- * be NULL). */
-static XG_TARGET void XG_(unpack)(const float *t, size_t n, float s0, float s1,
-                                  float *restrict plane0, float *restrict plane1)
+/* a > m ? a : m, lane by lane (m where a is NaN) */
+static inline XG_TARGET XG_VF XG_(gtmax)(XG_VF a, XG_VF m)
 {
-    size_t i = 0;
-    for (; i + XG_VL <= n; i += XG_VL) {
-        XG_VF u = XG_LD(t + 2 * i), v = XG_LD(t + 2 * i + XG_VL);
-        XG_ST(plane0 + i, s0 * XG_EV(u, v));
-        if (plane1)
-            XG_ST(plane1 + i, s1 * XG_OD(u, v));
-    }
-    for (; i < n; i++) {
-        plane0[i] = t[2 * i] * s0;
-        if (plane1)
-            plane1[i] = t[2 * i + 1] * s1;
+    const __typeof__(a > m) k = a > m;
+    return (XG_VF)((k & (__typeof__(k))a) | (~k & (__typeof__(k))m));
+}
+
+/* The packed planes t (w x h complex) -> plane0 = Re t * s0 and plane1 = Im t * s1 (plane1
+ * may be NULL), and their column maxima cm0, cm1 (w each) over the rows, as rpiv_peak_find
+ * takes them: cm = v > cm ? v : cm from -inf, row after row. */
+static XG_TARGET void XG_(unpack)(const float *t, int w, int h, float s0, float s1,
+                                  float *restrict plane0, float *restrict plane1,
+                                  float *restrict cm0, float *restrict cm1)
+{
+    for (int i = 0; i < w; i++)
+        cm0[i] = cm1[i] = -INFINITY;
+    for (int j = 0; j < h; j++) {
+        const size_t o = (size_t)j * (size_t)w;
+        const float *tr = t + 2 * o;
+        float *p0 = plane0 + o, *p1 = plane1 ? plane1 + o : NULL;
+        int i = 0;
+        for (; i + XG_VL <= w; i += XG_VL) {
+            XG_VF u = XG_LD(tr + 2 * i), v = XG_LD(tr + 2 * i + XG_VL);
+            XG_VF a = s0 * XG_EV(u, v), m = XG_LD(cm0 + i);
+            XG_ST(p0 + i, a);
+            XG_ST(cm0 + i, XG_(gtmax)(a, m));
+            if (p1) {
+                XG_VF b = s1 * XG_OD(u, v), m1 = XG_LD(cm1 + i);
+                XG_ST(p1 + i, b);
+                XG_ST(cm1 + i, XG_(gtmax)(b, m1));
+            }
+        }
+        for (; i < w; i++) {
+            p0[i] = tr[2 * i] * s0;
+            cm0[i] = p0[i] > cm0[i] ? p0[i] : cm0[i];
+            if (p1) {
+                p1[i] = tr[2 * i + 1] * s1;
+                cm1[i] = p1[i] > cm1[i] ? p1[i] : cm1[i];
+            }
+        }
     }
 }
 

@@ -278,7 +278,7 @@ static void make_plane(float *p, int w, int h, int kind)
 
 /* Every field of rpiv_peak_find's result the same bits as peak_find_ref's, on planes of
  * every kind and size, for every method and search range (whole plane, ranges smaller and
- * larger than half the plane). */
+ * larger than half the plane); rpiv_peak_find_cm's too, given the column maxima. */
 static void peak_find_matches_reference_bit_for_bit(void)
 {
     const int sizes[][2] = {{32, 32}, {64, 64}, {16, 24}, {24, 16}, {5, 5}, {4, 4},
@@ -300,6 +300,18 @@ static void peak_find_matches_reference_bit_for_bit(void)
                         memset(&b, 0xa5, sizeof b);
                         peak_find_ref(p, w, h, ranges[r], (rpiv_subpixel)m, &a);
                         rpiv_peak_find(p, w, h, ranges[r], (rpiv_subpixel)m, &b);
+                        if (!ranges[r]) { /* given the column maxima (what the engine does) */
+                            float cm[64];
+                            rpiv_peak c;
+                            memset(&c, 0x3c, sizeof c);
+                            for (int i = 0; i < w; i++) {
+                                cm[i] = -INFINITY;
+                                for (int j = 0; j < h; j++)
+                                    cm[i] = p[j * w + i] > cm[i] ? p[j * w + i] : cm[i];
+                            }
+                            rpiv_peak_find_cm(p, w, h, cm, (rpiv_subpixel)m, &c);
+                            bad += !peak_same(&a, &c);
+                        }
                         cases++;
                         fits += a.fit_ok;
                         nonfinite += kind >= 8;

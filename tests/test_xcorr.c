@@ -173,6 +173,17 @@ static void xcorr_two_pairs_packed_match_direct_sums(void)
         CHECK(direct_error(a0, b0, w, h, ws->plane) < 2e-6);
         CHECK(direct_error(a1, b1, w, h, ws->plane2) < 2e-6);
         CHECK(e[0] > 1e4 * e[2]);
+        /* the column maxima of both planes, as rpiv_peak_find takes them */
+        int cm_ok = 1;
+        for (int i = 0; i < w; i++) {
+            float m0 = -INFINITY, m1 = -INFINITY;
+            for (int j = 0; j < h; j++) {
+                m0 = ws->plane[j * w + i] > m0 ? ws->plane[j * w + i] : m0;
+                m1 = ws->plane2[j * w + i] > m1 ? ws->plane2[j * w + i] : m1;
+            }
+            cm_ok &= ws->colmax[i] == m0 && ws->colmax2[i] == m1;
+        }
+        CHECK(cm_ok);
         double lone[2];
         rpiv_xcorr_run_pairs(x, ws, src + 1, 1, RPIV_XCORR_RAW, lone);
         CHECK(direct_error(a1, b1, w, h, ws->plane) < 2e-6);
@@ -210,12 +221,15 @@ static void xcorr_vector_widths_give_the_same_bits(void)
             goto next;
         rpiv_xcorr_src src[2] = {{fa + 3, fb + 5, FW, FW}, {fa + 7 + FW, fb + 2 + 3 * FW, FW, FW}};
         double e4[4], e8[4];
+        float cm[2 * 32];
         xcorr_run_pairs_vl(x, ws, src, 2, RPIV_XCORR_RAW, e4, 4);
         memcpy(keep, ws->plane, sizeof(float) * (size_t)n);
         memcpy(keep + n, ws->plane2, sizeof(float) * (size_t)n);
+        memcpy(cm, ws->colmax, sizeof(float) * 2 * (size_t)w);
         xcorr_run_pairs_vl(x, ws, src, 2, RPIV_XCORR_RAW, e8, 8);
         CHECK(memcmp(keep, ws->plane, sizeof(float) * (size_t)n) == 0);
         CHECK(memcmp(keep + n, ws->plane2, sizeof(float) * (size_t)n) == 0);
+        CHECK(memcmp(cm, ws->colmax, sizeof(float) * 2 * (size_t)w) == 0);
         CHECK(memcmp(e4, e8, sizeof e4) == 0);
     next:
         free(keep);

@@ -39,6 +39,13 @@ typedef struct rpiv_peak {
 void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpixel method,
                     rpiv_peak *out);
 
+/* rpiv_peak_find over the whole plane (max_shift 0), given the plane's column maxima:
+ * colmax[i] = the largest value of column i over the rows, taken row after row as
+ * m = v > m ? v : m from -inf (rpiv_xcorr_work's colmax). The same result, without the pass
+ * over the plane that finds them. */
+void rpiv_peak_find_cm(const float *plane, int w, int h, const float *colmax, rpiv_subpixel method,
+                       rpiv_peak *out);
+
 /* The sub-pixel offset, in -1..1 px, of a peak from three samples c(-1), c(0), c(+1) with
  * c(0) the largest: Gaussian (exact for samples of exp(-(x-x0)^2/k)), parabola (exact for a
  * parabola). The Gaussian falls back to the parabola when a sample is not positive. *ok is 0

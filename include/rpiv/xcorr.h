@@ -30,6 +30,8 @@ typedef struct rpiv_xcorr_work {
     float *a2, *b2; /* spare windows, w*h each                                        */
     float *plane;   /* the correlation, w*h, circular (FFT) order: see rpiv/peak.h      */
     float *plane2;  /* the second pair's correlation after rpiv_xcorr_run_pairs         */
+    float *colmax;  /* column maxima of plane over its rows, w floats (rpiv_peak_find_cm) */
+    float *colmax2; /* those of plane2 (after a run of two pairs)                       */
     void *priv;     /* complex buffers, private                                        */
 } rpiv_xcorr_work;
 
