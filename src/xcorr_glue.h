@@ -180,41 +180,65 @@ static inline XG_TARGET XG_VF XG_(gtmax)(XG_VF a, XG_VF m)
     return (XG_VF)((k & (__typeof__(k))a) | (~k & (__typeof__(k))m));
 }
 
+/* The columns [i0, i0 + nv XG_VL) of the packed planes t (w x h complex) into plane0, plane1
+ * (may be NULL) and their maxima over the rows into cm0, cm1; nv = 4 or 1, the maxima held
+ * in registers down the rows. */
+#define XG_UNPACK_COLS(nv)                                                                         \
+    do {                                                                                           \
+        XG_VF m0[nv], m1[nv];                                                                      \
+        for (int q = 0; q < (nv); q++)                                                             \
+            m0[q] = m1[q] = ninf;                                                                  \
+        for (int j = 0; j < h; j++) {                                                              \
+            const size_t o = (size_t)j * (size_t)w + (size_t)i0;                                   \
+            for (int q = 0; q < (nv); q++) {                                                       \
+                const float *tp = t + 2 * (o + (size_t)(q * XG_VL));                               \
+                XG_VF u = XG_LD(tp), v = XG_LD(tp + XG_VL), a = s0 * XG_EV(u, v);                  \
+                XG_ST(plane0 + o + q * XG_VL, a);                                                  \
+                m0[q] = XG_(gtmax)(a, m0[q]);                                                      \
+                if (plane1) {                                                                      \
+                    XG_VF b = s1 * XG_OD(u, v);                                                    \
+                    XG_ST(plane1 + o + q * XG_VL, b);                                              \
+                    m1[q] = XG_(gtmax)(b, m1[q]);                                                  \
+                }                                                                                  \
+            }                                                                                      \
+        }                                                                                          \
+        for (int q = 0; q < (nv); q++) {                                                           \
+            XG_ST(cm0 + i0 + q * XG_VL, m0[q]);                                                    \
+            XG_ST(cm1 + i0 + q * XG_VL, m1[q]);                                                    \
+        }                                                                                          \
+        i0 += (nv)*XG_VL;                                                                          \
+    } while (0)
+
 /* The packed planes t (w x h complex) -> plane0 = Re t * s0 and plane1 = Im t * s1 (plane1
- * may be NULL), and their column maxima cm0, cm1 (w each) over the rows, as rpiv_peak_find
- * takes them: cm = v > cm ? v : cm from -inf, row after row. */
+ * may be NULL), and their column maxima cm0, cm1 (w each; cm1 -inf without plane1) over the
+ * rows, as rpiv_peak_find_cm takes them: m = v > m ? v : m from -inf, row after row. By
+ * blocks of columns, the maxima in registers. */
 static XG_TARGET void XG_(unpack)(const float *t, int w, int h, float s0, float s1,
                                   float *restrict plane0, float *restrict plane1,
                                   float *restrict cm0, float *restrict cm1)
 {
-    for (int i = 0; i < w; i++)
+    XG_VF ninf;
+    for (int l = 0; l < XG_VL; l++)
+        ninf[l] = -INFINITY;
+    int i0 = 0;
+    while (i0 + 4 * XG_VL <= w)
+        XG_UNPACK_COLS(4);
+    while (i0 + XG_VL <= w)
+        XG_UNPACK_COLS(1);
+    for (int i = i0; i < w; i++) {
         cm0[i] = cm1[i] = -INFINITY;
-    for (int j = 0; j < h; j++) {
-        const size_t o = (size_t)j * (size_t)w;
-        const float *tr = t + 2 * o;
-        float *p0 = plane0 + o, *p1 = plane1 ? plane1 + o : NULL;
-        int i = 0;
-        for (; i + XG_VL <= w; i += XG_VL) {
-            XG_VF u = XG_LD(tr + 2 * i), v = XG_LD(tr + 2 * i + XG_VL);
-            XG_VF a = s0 * XG_EV(u, v), m = XG_LD(cm0 + i);
-            XG_ST(p0 + i, a);
-            XG_ST(cm0 + i, XG_(gtmax)(a, m));
-            if (p1) {
-                XG_VF b = s1 * XG_OD(u, v), m1 = XG_LD(cm1 + i);
-                XG_ST(p1 + i, b);
-                XG_ST(cm1 + i, XG_(gtmax)(b, m1));
-            }
-        }
-        for (; i < w; i++) {
-            p0[i] = tr[2 * i] * s0;
-            cm0[i] = p0[i] > cm0[i] ? p0[i] : cm0[i];
-            if (p1) {
-                p1[i] = tr[2 * i + 1] * s1;
-                cm1[i] = p1[i] > cm1[i] ? p1[i] : cm1[i];
+        for (int j = 0; j < h; j++) {
+            const size_t o = (size_t)j * (size_t)w + (size_t)i;
+            plane0[o] = t[2 * o] * s0;
+            cm0[i] = plane0[o] > cm0[i] ? plane0[o] : cm0[i];
+            if (plane1) {
+                plane1[o] = t[2 * o + 1] * s1;
+                cm1[i] = plane1[o] > cm1[i] ? plane1[o] : cm1[i];
             }
         }
     }
 }
+#undef XG_UNPACK_COLS
 
 #undef XG_LD
 #undef XG_ST
