@@ -877,6 +877,7 @@ typedef int32_t v8i __attribute__((vector_size(32)));
 #define DB_TARGET         __attribute__((target("avx2")))
 #define DB_ALLZERO(e)     _mm256_testz_si256((__m256i)(e), (__m256i)(e))
 #define DB_GATHER(c, idx) ((v8f)_mm256_i32gather_ps((c), (__m256i)(idx), 4))
+#define DB_FLOOR(o)       ((v8f)_mm256_floor_ps((__m256)(o)))
 #include "deform_block.h"
 #endif
 

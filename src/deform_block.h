@@ -23,11 +23,18 @@ ALWAYS_INLINE DB_TARGET DB_VF DB_(selv)(DB_VI m, DB_VF b, DB_VF a)
 /* floor and fraction of every lane, as ifloor and locate compute them. */
 ALWAYS_INLINE DB_TARGET void DB_(vfloor)(DB_VF o, DB_VI *fi, DB_VF *t)
 {
+#ifdef DB_FLOOR
+    /* floor(o) is exact, and so is its conversion: the same integer and fraction */
+    const DB_VF f = DB_FLOOR(o);
+    *fi = __builtin_convertvector(f, DB_VI);
+    *t = o - f;
+#else
     DB_VI i = __builtin_convertvector(o, DB_VI);
     DB_VF f = __builtin_convertvector(i, DB_VF);
     i += (DB_VI)(f > o); /* -1 where the truncation went up */
     *fi = i;
     *t = o - __builtin_convertvector(i, DB_VF);
+#endif
 }
 
 /* The tap weights of every lane, as bweights computes them. */
@@ -226,3 +233,4 @@ static DB_TARGET void DB_(pred_runs)(const rpiv_deform_pred *p, const float *tu,
 #undef DB_TARGET
 #undef DB_ALLZERO
 #undef DB_GATHER
+#undef DB_FLOOR
