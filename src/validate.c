@@ -165,6 +165,9 @@ rpiv_status rpiv_validate_median(rpiv_field *f, double threshold, double eps, si
     unsigned char *ok = rej + n;
     for (size_t k = 0; k < n; k++)
         ok[k] = f->flag[k] == RPIV_FLAG_VALID;
+    /* each vector's test reads the flags of its neighbours only: rows in parallel (OpenMP's
+     * thread count), the same result */
+#pragma omp parallel for schedule(static) if (n >= 4096)
     for (int j = 0; j < ny; j++)
         for (int i = 0; i < nx; i++) {
             size_t k = (size_t)j * (size_t)nx + (size_t)i;
