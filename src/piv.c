@@ -5,6 +5,7 @@
 #include "rpiv/validate.h"
 
 #include "deform_impl.h"
+#include "validate_impl.h"
 
 #include <math.h>
 #include <omp.h>
@@ -579,7 +580,7 @@ rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f)
 {
     rpiv_status st;
     if (pv->p.median_thr > 0 &&
-        (st = rpiv_validate_median(f, pv->p.median_thr, pv->p.median_eps, NULL)))
+        (st = validate_median_nt(f, pv->p.median_thr, pv->p.median_eps, NULL, pv->nthreads)))
         return st;
     return rpiv_validate_replace(f, 0, NULL);
 }

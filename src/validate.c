@@ -2,7 +2,10 @@
 /* src/validate.c - normalised median test and median replacement. */
 #include "rpiv/validate.h"
 
+#include "validate_impl.h"
+
 #include <math.h>
+#include <omp.h>
 #if defined(__SSE__)
 #include <xmmintrin.h>
 #endif
@@ -152,6 +155,12 @@ static double residual(double c0, const float *nb, int n, double eps)
 
 rpiv_status rpiv_validate_median(rpiv_field *f, double threshold, double eps, size_t *nrejected)
 {
+    return validate_median_nt(f, threshold, eps, nrejected, 0);
+}
+
+rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, size_t *nrejected,
+                               int nthreads)
+{
     if (nrejected)
         *nrejected = 0;
     if (!(threshold > 0) || !(eps >= 0))
@@ -165,9 +174,10 @@ rpiv_status rpiv_validate_median(rpiv_field *f, double threshold, double eps, si
     unsigned char *ok = rej + n;
     for (size_t k = 0; k < n; k++)
         ok[k] = f->flag[k] == RPIV_FLAG_VALID;
-    /* each vector's test reads the flags of its neighbours only: rows in parallel (OpenMP's
-     * thread count), the same result */
-#pragma omp parallel for schedule(static) if (n >= 4096)
+    /* each vector's test reads the flags of its neighbours only: rows in parallel, the same
+     * result */
+    const int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
+#pragma omp parallel for schedule(static) num_threads(nt) if (n >= 4096)
     for (int j = 0; j < ny; j++)
         for (int i = 0; i < nx; i++) {
             size_t k = (size_t)j * (size_t)nx + (size_t)i;
