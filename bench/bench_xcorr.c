@@ -27,8 +27,8 @@ static double rnd(void) /* uniform in [0, 1) (splitmix64) */
 }
 
 /* Microseconds per call of two window pairs n x n: with the glue (*whole) and FFTs alone. */
-static int one_size(int n, int reps, const float *fa, const float *fb, double *whole,
-                    double *ffts, uint64_t *sum)
+static int one_size(int n, int reps, const float *fa, const float *fb, double *whole, double *ffts,
+                    uint64_t *sum)
 {
     rpiv_xcorr *x = NULL;
     rpiv_xcorr_work *ws = NULL;
