@@ -63,6 +63,16 @@ static inline uint64_t bench_checksum(uint64_t h, const float *v, size_t n)
     return h;
 }
 
+/* Uniform in [0, 1) from the state *s (splitmix64): the benchmarks' fixed-seed inputs. */
+static inline double bench_rand(uint64_t *s)
+{
+    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+
 static inline void bench_header(const char *name, int threads)
 {
     char cpu[256] = "unknown", line[512], load[64] = "?";

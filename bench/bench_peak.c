@@ -29,13 +29,9 @@ enum { MAXREP = 51 };
 
 static uint64_t rng_state = 0x3187a2b9c4d5e6f1ULL;
 
-static double rnd(void) /* uniform in [0, 1) (splitmix64) */
+static double rnd(void) /* uniform in [0, 1) */
 {
-    uint64_t z = (rng_state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
+    return bench_rand(&rng_state);
 }
 
 static void splat(float *win, int n, double x, double y, double amp, double s)

@@ -17,13 +17,9 @@ enum { MAXREP = 51, FW = 256, CALLS = 20000 };
 
 static uint64_t rng_state = 0x2f6e2b1a9c0d3e47ULL;
 
-static double rnd(void) /* uniform in [0, 1) (splitmix64) */
+static double rnd(void) /* uniform in [0, 1) */
 {
-    uint64_t z = (rng_state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
+    return bench_rand(&rng_state);
 }
 
 /* Microseconds per call of two window pairs n x n: with the glue (*whole) and FFTs alone. */
