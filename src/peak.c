@@ -373,8 +373,13 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
 static void peak_find(const float *plane, int w, int h, int max_shift, const float *colmax,
                       rpiv_subpixel method, rpiv_peak *out)
 {
+    if (w < 3 || h < 3 || w > RPIV_PEAK_MAX_SIZE || h > RPIV_PEAK_MAX_SIZE) {
+        *out = (rpiv_peak){0};
+        out->ratio = RPIV_PEAK_RATIO_MAX;
+        return; /* outside the documented sizes: no peak */
+    }
     int full = max_shift <= 0 || (max_shift >= w / 2 && max_shift >= h / 2);
-    int rows[4096], cols[4096], nr = h, nc = w;
+    int rows[RPIV_PEAK_MAX_SIZE], cols[RPIV_PEAK_MAX_SIZE], nr = h, nc = w;
     if (!full) {
         nr = axis_indices(h, max_shift, rows);
         nc = axis_indices(w, max_shift, cols);
@@ -382,7 +387,7 @@ static void peak_find(const float *plane, int w, int h, int max_shift, const flo
     /* highest value; on ties the lowest column, then the lowest row */
     int bi = -1, bj = -1;
     float best = -INFINITY;
-    float cm[4096];
+    float cm[RPIV_PEAK_MAX_SIZE];
     if (full) {
         /* column maxima, then the best column, then its first row holding the maximum */
         if (colmax)

@@ -160,6 +160,30 @@ static void peak_flat_plane_reports_failed_fit(void)
     CHECK(ok);
 }
 
+/* Planes outside 3..RPIV_PEAK_MAX_SIZE on a side give no peak (and no write past the
+ * search's buffers: the sanitizer build would see one). */
+static void peak_sizes_outside_the_range_give_no_peak(void)
+{
+    const int n = RPIV_PEAK_MAX_SIZE + 7;
+    float *p = calloc((size_t)n * 3, sizeof *p);
+    if (!p)
+        return;
+    p[5] = 0.9187f;
+    const int sizes[][2] = {{n, 3}, {3, n}, {2, 8}, {8, 2}};
+    for (int k = 0; k < 4; k++) {
+        rpiv_peak pk;
+        memset(&pk, 0x5a, sizeof pk);
+        rpiv_peak_find(p, sizes[k][0], sizes[k][1], 0, RPIV_SUBPIXEL_GAUSS, &pk);
+        CHECK(!pk.fit_ok && pk.value == 0 && pk.ix == 0 && pk.iy == 0);
+        CHECK(pk.ratio == RPIV_PEAK_RATIO_MAX);
+    }
+    /* the largest side still searched: the peak is found */
+    rpiv_peak pk;
+    rpiv_peak_find(p, RPIV_PEAK_MAX_SIZE, 3, 0, RPIV_SUBPIXEL_GAUSS, &pk);
+    CHECK(pk.ix == 5 && pk.iy == 0 && pk.value == 0.9187f);
+    free(p);
+}
+
 /* ---- the search against the reference (tests/test_peak_ref.h), bit for bit ---- */
 
 static uint64_t rng = 0x51c3a7e90d2b6f48ULL;
@@ -341,6 +365,7 @@ int main(void)
     RUN_TEST(peak_second_peak_is_a_local_maximum);
     RUN_TEST(peak_search_range_is_honoured);
     RUN_TEST(peak_flat_plane_reports_failed_fit);
+    RUN_TEST(peak_sizes_outside_the_range_give_no_peak);
     RUN_TEST(peak_find_matches_reference_bit_for_bit);
     return check_summary();
 }

@@ -22,6 +22,8 @@ typedef enum rpiv_subpixel {
  * the second peak is the highest local maximum whose shift differs from the first by more
  * than this in x or y (a 5 x 5 block is excluded). */
 #define RPIV_PEAK_EXCLUDE 2
+/* The largest plane side the search takes (as rpiv_xcorr's windows). */
+#define RPIV_PEAK_MAX_SIZE 4096
 
 typedef struct rpiv_peak {
     double dx, dy; /* sub-pixel shift of the highest peak, px                          */
@@ -35,7 +37,8 @@ typedef struct rpiv_peak {
 
 /* Find the highest value of a w x h plane among shifts with |sx| <= max_shift and
  * |sy| <= max_shift (max_shift <= 0: the whole plane), refine it with `method`, and find
- * the second peak over the same shifts. w, h >= 3. Never fails; see fit_ok. */
+ * the second peak over the same shifts. 3 <= w, h <= RPIV_PEAK_MAX_SIZE (other sizes: no
+ * peak, fit_ok 0 and value 0). Never fails; see fit_ok. */
 void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpixel method,
                     rpiv_peak *out);
 
