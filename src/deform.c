@@ -292,14 +292,16 @@ void deform_prefilter_ref(float *img, int w, int h, int nthreads)
     }
 }
 
-/* Prefilter the columns i0..i1-1 of a w x h image (h > HORIZON) in place, sweeping whole
+/* The column pass over the columns i0..i1-1 of a w-wide image, in pieces that sweep whole
  * rows of the slab (contiguous memory, which the hardware prefetches; the blocks of
- * prefilter_cols jump a row's length at every step). acc holds i1 - i0 doubles. Each column
- * gets exactly the arithmetic of prefilter_cols: the causal sums of causal_init, in the same
- * order, run over the columns side by side. */
-static void prefilter_slab(float *img, int w, int h, int i0, int i1, double *acc)
+ * prefilter_cols jump a row's length at every step). Each column gets exactly the arithmetic
+ * of prefilter_cols: the causal sums of causal_init, in the same order, run over the columns
+ * side by side. */
+
+/* The causal start: row 0 = GAIN sum_k z^k row k over the horizon (the rows already
+ * filtered along x). acc holds i1 - i0 doubles. */
+static void slab_causal_start(float *img, int w, int i0, int i1, double *acc)
 {
-    const float z = (float)POLE, g = (float)GAIN;
     const size_t sw = (size_t)w;
     const int nb = i1 - i0;
     double zk = 1;
@@ -314,12 +316,27 @@ static void prefilter_slab(float *img, int w, int h, int i0, int i1, double *acc
     float *row = img + i0;
     for (int i = 0; i < nb; i++)
         row[i] = (float)(GAIN * acc[i]);
-    for (int k = 1; k < h; k++) {
+}
+
+/* Rows k0..k1-1 (k0 >= 1) advanced by the causal recursion. */
+static void slab_causal_rows(float *img, int w, int i0, int i1, int k0, int k1)
+{
+    const float z = (float)POLE, g = (float)GAIN;
+    const size_t sw = (size_t)w;
+    for (int k = k0; k < k1; k++) {
         float *cur = img + (size_t)k * sw + i0;
         const float *prev = cur - sw;
-        for (int i = 0; i < nb; i++)
+        for (int i = 0; i < i1 - i0; i++)
             cur[i] = g * cur[i] + z * prev[i];
     }
+}
+
+/* The anticausal recursion of the h rows, from the last one up. */
+static void slab_anticausal(float *img, int w, int h, int i0, int i1)
+{
+    const float z = (float)POLE;
+    const size_t sw = (size_t)w;
+    const int nb = i1 - i0;
     float *last = img + (size_t)(h - 1) * sw + i0, *before = last - sw;
     for (int i = 0; i < nb; i++)
         last[i] =
@@ -330,6 +347,14 @@ static void prefilter_slab(float *img, int w, int h, int i0, int i1, double *acc
         for (int i = 0; i < nb; i++)
             cur[i] = z * (next[i] - cur[i]);
     }
+}
+
+/* The column pass of the columns i0..i1-1 of a w x h image (h > HORIZON) in place. */
+static void prefilter_slab(float *img, int w, int h, int i0, int i1, double *acc)
+{
+    slab_causal_start(img, w, i0, i1, acc);
+    slab_causal_rows(img, w, i0, i1, 1, h);
+    slab_anticausal(img, w, h, i0, i1);
 }
 
 void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
@@ -379,8 +404,6 @@ void rpiv_deform_prefilter(float *img, int w, int h, int nthreads)
  * pass of prefilter_slab over all columns). */
 static void prefilter_fused(float *img, int w, int h, double *acc)
 {
-    const float z = (float)POLE, g = (float)GAIN;
-    const size_t sw = (size_t)w;
     const int n16 = h / TROWS;
     int done = 0, next = 0; /* rows filtered along x; next row of the column recursion */
     for (int gi = 0; done < h; gi++) {
@@ -393,36 +416,15 @@ static void prefilter_fused(float *img, int w, int h, double *acc)
             done += nl;
         }
         if (!next && done >= HORIZON) {
-            double zk = 1;
-            for (int i = 0; i < w; i++)
-                acc[i] = 0;
-            for (int k = 0; k < HORIZON; k++) {
-                const float *row = img + (size_t)k * sw;
-                for (int i = 0; i < w; i++)
-                    acc[i] += zk * (double)row[i];
-                zk *= POLE;
-            }
-            for (int i = 0; i < w; i++)
-                img[i] = (float)(GAIN * acc[i]);
+            slab_causal_start(img, w, 0, w, acc);
             next = 1;
         }
-        for (; next && next < done; next++) {
-            float *cur = img + (size_t)next * sw;
-            const float *prev = cur - sw;
-            for (int i = 0; i < w; i++)
-                cur[i] = g * cur[i] + z * prev[i];
+        if (next) {
+            slab_causal_rows(img, w, 0, w, next, done);
+            next = done;
         }
     }
-    float *last = img + (size_t)(h - 1) * sw, *before = last - sw;
-    for (int i = 0; i < w; i++)
-        last[i] =
-            (float)((POLE / (POLE * POLE - 1.0)) * ((double)last[i] + POLE * (double)before[i]));
-    for (int k = h - 2; k >= 0; k--) {
-        float *cur = img + (size_t)k * sw;
-        const float *nx = cur + sw;
-        for (int i = 0; i < w; i++)
-            cur[i] = z * (nx[i] - cur[i]);
-    }
+    slab_anticausal(img, w, h, 0, w);
 }
 #endif
 

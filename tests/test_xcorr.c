@@ -144,6 +144,12 @@ out:
     rpiv_xcorr_free(x);
 }
 
+/* Window sizes of the packing tests: all vector paths (32 x 32), vector cross-spectra with a
+ * scalar tail in the packing (20 x 12), scalar (13 x 9), the smallest halved spectrum (8 x 4)
+ * and an odd height, computed whole (16 x 7). */
+static const int sizes[][2] = {{32, 32}, {20, 12}, {13, 9}, {8, 4}, {16, 7}};
+enum { NSIZES = (int)(sizeof sizes / sizeof sizes[0]) };
+
 /* Two window pairs packed in one set of transforms give each its own plane and energies,
  * even when one pair is 10^4 times weaker than the other (both planes are scaled to
  * correlation coefficients before packing), for widths that take the vector paths (32), the
@@ -152,8 +158,7 @@ out:
  * pair alone gives the same. */
 static void xcorr_two_pairs_packed_match_direct_sums(void)
 {
-    const int sizes[][2] = {{32, 32}, {20, 12}, {13, 9}, {8, 4}, {16, 7}};
-    for (int c = 0; c < 5; c++) {
+    for (int c = 0; c < NSIZES; c++) {
         int w = sizes[c][0], h = sizes[c][1], n = w * h;
         rpiv_xcorr *x = NULL;
         rpiv_xcorr_work *ws = NULL;
@@ -203,14 +208,13 @@ static void xcorr_two_pairs_packed_match_direct_sums(void)
  * scalar tail in the packing) and 13 x 9 (scalar), read from frames with a stride. */
 static void xcorr_vector_widths_give_the_same_bits(void)
 {
-    const int sizes[][2] = {{32, 32}, {20, 12}, {13, 9}, {8, 4}, {16, 7}};
     enum { FW = 101 };
     float *fa = malloc(sizeof(float) * FW * 40), *fb = malloc(sizeof(float) * FW * 40);
     if (!fa || !fb)
         goto out;
     fill_random(fa, FW * 40, 0x7e57, 3187.0, 211.0);
     fill_random(fb, FW * 40, 0x7e58, 2903.0, 187.0);
-    for (int c = 0; c < 5; c++) {
+    for (int c = 0; c < NSIZES; c++) {
         int w = sizes[c][0], h = sizes[c][1], n = w * h;
         rpiv_xcorr *x = NULL;
         rpiv_xcorr_work *ws = NULL;
