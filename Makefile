@@ -69,7 +69,7 @@ memcheck-quick: build-memcheck
 	    -j $(JOBS) --output-on-failure
 
 format:
-	clang-format -i include/rpiv/*.h src/*.c src/*.h app/*.c app/*.h tests/*.c tests/*.h bench/*.c 2>/dev/null || true
+	clang-format -i include/rpiv/*.h src/*/*.c src/*/*.h app/*.c app/*.h tests/*.c tests/*.h bench/*.c 2>/dev/null || true
 
 lint: build
 	cppcheck --project=build/compile_commands.json --enable=warning,performance,portability \
