@@ -221,7 +221,7 @@ static rpiv_status run_setup(run *r)
     if ((st = rpiv_experiment_check(e)))
         return st;
     double dt = r->o.dt > 0 ? r->o.dt : e->synth.dt_s;
-    r->m = rpiv_ccm_model_of(e, dt);
+    r->m = rpiv_config_ccm_model(e, dt);
     r->p = rpiv_ccm_params_default();
     r->p.subpixel = e->piv.subpixel;
     if (r->o.profile) {
@@ -467,7 +467,7 @@ static rpiv_status load_measurements(run *r, rpiv_ccm_curve **out)
     rpiv_synth *s = NULL;
     rpiv_status st = rpiv_field_load_txt(r->o.input, &f);
     if (!st)
-        st = rpiv_synth_new(&r->c.exp, NULL, &s);
+        st = rpiv_config_synth_new(&r->c.exp, NULL, &s);
     if (!st) {
         rpiv_synth_info in;
         rpiv_synth_get_info(s, &in);

@@ -107,7 +107,7 @@ typedef struct run_ctx {
     int nc_series; /* several pairs into one .nc (rank 0)          */
     const rpiv_meta *meta;
     rpiv_field_series *series; /* .nc with several pairs (rank 0)              */
-    rpiv_piv_stats *stats;     /* --mean-rms (rank 0)                          */
+    rpiv_series_stats *stats;  /* --mean-rms (rank 0)                          */
     rpiv_field *first;         /* kept for --plot (rank 0)                     */
     size_t first_index;
     size_t nvec, nreplaced;
@@ -139,7 +139,7 @@ static rpiv_status root_sink(void *user, size_t i, const rpiv_field *f)
     if (r->series)
         st = rpiv_field_series_append(r->series, f, (double)i);
     if (!st && r->stats)
-        st = rpiv_piv_stats_add(r->stats, f);
+        st = rpiv_series_stats_add(r->stats, f);
     if (!st && !r->first) {
         r->first_index = i;
         st = rpiv_field_copy(f, &r->first);
@@ -478,7 +478,7 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
             goto out_agree;
         if (r.nc_series && (st = rpiv_field_series_open(out, grid, &meta, &r.series)))
             goto out_agree;
-        if (o->meanrms && (st = rpiv_piv_stats_new(grid, &r.stats)))
+        if (o->meanrms && (st = rpiv_series_stats_new(grid, &r.stats)))
             goto out_agree;
     }
 out_agree:
@@ -509,7 +509,7 @@ out_agree:
         if (o->meanrms && root) {
             char path[RPIV_PATH_MAX + 32];
             if ((st = add_skipped(&meta, batch, pairs)) ||
-                (st = rpiv_piv_stats_finish(r.stats, &mean, &rms)) ||
+                (st = rpiv_series_stats_finish(r.stats, &mean, &rms)) ||
                 (st = out_name(out, "_mean", path, sizeof path)) ||
                 (st = rpiv_field_save(mean, &meta, path)) ||
                 (st = out_name(out, "_rms", path, sizeof path)) ||
@@ -555,7 +555,7 @@ out_agree:
 out_free:
     if (r.series && rpiv_field_series_close(r.series, 1))
         st = st ? st : RPIV_EIO; /* not reached: abort only removes a temporary file */
-    rpiv_piv_stats_free(r.stats);
+    rpiv_series_stats_free(r.stats);
     rpiv_field_free(r.first);
     rpiv_field_free(grid);
     rpiv_field_free(field);

@@ -252,12 +252,12 @@ static rpiv_status run(const rpiv_experiment *e, int quiet, const rpiv_mpi *mpi)
     rpiv_synth *s = NULL;
     rpiv_field *grid = NULL;
     char path[RPIV_PATH_MAX + 64];
-    rpiv_status st = rpiv_synth_new(e, NULL, &s);
+    rpiv_status st = rpiv_config_synth_new(e, NULL, &s);
     if (!st && !(st = piv_grid(s, e, &grid)))
         st = cli_mkdirs(dir);
     if (!st && root) {
         snprintf(path, sizeof path, "%s/synth.ini", dir);
-        if (!(st = rpiv_synth_save_params(s, path))) {
+        if (!(st = rpiv_config_save_synth(e, s, path))) {
             snprintf(path, sizeof path, "%s/truth.txt", dir);
             st = write_truth(s, e, grid, path);
         }

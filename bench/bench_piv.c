@@ -23,6 +23,7 @@
 #include "rpiv/ensemble.h"
 #include "rpiv/image.h"
 #include "rpiv/piv.h"
+#include "rpiv/series.h"
 
 #include <fftw3.h>
 #if defined(__GLIBC__)
@@ -336,7 +337,7 @@ static int case_one_pair(int threads)
     sink_ctx s = {1e9};
     double t0 = bench_now();
     if (!pairs || rpiv_piv_new(&prm, W, H, NULL, &pv) ||
-        rpiv_piv_series(pv, pairs, sink, &s, NULL)) {
+        rpiv_series_run(pv, pairs, sink, &s, NULL)) {
         fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
         return 1;
     }
@@ -360,7 +361,8 @@ static int case_ensemble(int threads, int n)
     prm.threads = threads;
     prm.ensemble = 1;
     double t0 = bench_now();
-    if (!pairs || rpiv_piv_new(&prm, W, H, NULL, &pv) || rpiv_ensemble_run(pv, pairs, NULL, &f)) {
+    if (!pairs || rpiv_piv_new(&prm, W, H, NULL, &pv) ||
+        rpiv_series_ensemble(pv, pairs, NULL, &f)) {
         fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
         return 1;
     }

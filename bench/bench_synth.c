@@ -38,7 +38,7 @@ static double checksum(const rpiv_image *a, const rpiv_image *b)
 static int run_case(const char *name, rpiv_experiment *e, int reps)
 {
     rpiv_synth *s;
-    if (rpiv_synth_new(e, NULL, &s)) {
+    if (rpiv_config_synth_new(e, NULL, &s)) {
         fprintf(stderr, "%s: %s\n", name, rpiv_errmsg());
         return 1;
     }

@@ -8,6 +8,7 @@
  * is RPIV_EINVAL. */
 #include "fuzz.h"
 #include "rpiv/image.h"
+#include "rpiv/pairs.h"
 
 static void make_image(const char *name, int w, int h, double phase)
 {

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* tests/test_batch.c - long runs over a series (rpiv/batch.h) in one process, and the team of
- * one (rpiv/mpi.h): the batch ensemble equals rpiv_ensemble_run and the imposed shift; a run
+ * one (rpiv/mpi.h): the batch ensemble equals rpiv_series_ensemble and the imposed shift; a run
  * stopped after any pair of any pass and resumed from its checkpoint ends with the same bits;
  * unreadable pairs are reported once, listed and left out (the result equals the run over
  * the readable pairs, background included); per-pair sinks see every field in order; and
@@ -154,7 +154,7 @@ static void ensemble_equals_ensemble_run_and_the_shift(void)
         CHECK_OK(rpiv_batch_ensemble(b, pv, NULL, &fb));
         CHECK(rpiv_batch_npairs(b) == NP && rpiv_batch_nskipped(b) == 0);
         CHECK(!rpiv_batch_resumed(b, NULL, NULL));
-        CHECK_OK(rpiv_ensemble_run(pv, pp, NULL, &fr));
+        CHECK_OK(rpiv_series_ensemble(pv, pp, NULL, &fr));
         CHECK(same_field(fb, fr));
         double e = 0;
         size_t n = fb ? (size_t)fb->nx * (size_t)fb->ny : 0;
@@ -186,7 +186,7 @@ static void resume_after_any_pair_is_bit_identical(void)
     snprintf(ck, sizeof ck, "%s/run.ck", dir);
     if (!pv || !pp)
         goto out;
-    CHECK_OK(rpiv_ensemble_run(pv, pp, NULL, &ref));
+    CHECK_OK(rpiv_series_ensemble(pv, pp, NULL, &ref));
     int npass = rpiv_piv_npass(pv), bad = 0;
     for (size_t stop = 1; stop < (size_t)(NP * npass); stop++) {
         rpiv_batch_params p = rpiv_batch_params_default();
@@ -257,7 +257,7 @@ static void unreadable_pairs_are_skipped_and_listed(void)
     CHECK(s.calls == 1 && s.index == 2 && strstr(s.msg, "f04b.tif"));
     CHECK(rpiv_batch_nskipped(b) == 1 && rpiv_batch_skipped(b, 0) == 2);
     CHECK(rpiv_batch_npairs(b) == NP);
-    CHECK_OK(rpiv_ensemble_run(pv, good, NULL, &fg));
+    CHECK_OK(rpiv_series_ensemble(pv, good, NULL, &fg));
     CHECK(same_field(fs, fg));
     /* the background over the readable pairs equals the good list's (a new batch finds the
      * bad pair again) */
@@ -268,7 +268,7 @@ static void unreadable_pairs_are_skipped_and_listed(void)
         CHECK_OK(rpiv_batch_new(bad, &p, NULL, &b));
         CHECK_OK(rpiv_batch_background(b, (rpiv_background)kind, W, H, NULL, &ba, &bb));
         CHECK(rpiv_batch_nskipped(b) == 1 && rpiv_batch_skipped(b, 0) == 2);
-        CHECK_OK(rpiv_piv_background(good, (rpiv_background)kind, NULL, &ga, &gb));
+        CHECK_OK(rpiv_series_background(good, (rpiv_background)kind, NULL, &ga, &gb));
         CHECK(ba && ga && !memcmp(ba->px, ga->px, sizeof(float) * W * H));
         CHECK(bb && gb && !memcmp(bb->px, gb->px, sizeof(float) * W * H));
         rpiv_image_free(ba);

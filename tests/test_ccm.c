@@ -787,7 +787,7 @@ static void profile_of_field_and_model_of(void)
     rpiv_experiment e = rpiv_experiment_default();
     e.camera.fnumber = 8;
     e.particles.dp_m = 7.3e-6;
-    rpiv_ccm_model m = rpiv_ccm_model_of(&e, 2e-3);
+    rpiv_ccm_model m = rpiv_config_ccm_model(&e, 2e-3);
     CHECK(m.camera.fnumber == 8 && m.dp_m == 7.3e-6 && m.h_m == e.channel.h_m);
     /* U_b dt M / pixel = 465e-6/8e-3 * 2e-3 * 0.39 / (16.6e-3/2560) */
     CHECK_NEAR(m.scale_px, 0.058125 * 2e-3 * 0.39 / (16.6e-3 / 2560), 1e-9);

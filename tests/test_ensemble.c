@@ -6,6 +6,7 @@
 #include "rpiv/ensemble.h"
 #include "rpiv/flow.h"
 #include "rpiv/image.h"
+#include "rpiv/series.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -338,7 +339,7 @@ static void ensemble_merge_save_and_load(void)
     rpiv_piv_free(pv);
 }
 
-/* rpiv_ensemble_run over files equals the accumulation done by hand. */
+/* rpiv_series_ensemble over files equals the accumulation done by hand. */
 static void ensemble_run_over_a_file_series(void)
 {
     char dir[] = "/tmp/rpiv_ensrun_XXXXXX", pa[256], pb[256];
@@ -364,7 +365,7 @@ static void ensemble_run_over_a_file_series(void)
     CHECK_OK(rpiv_piv_new(&prm, W, H, NULL, &pv));
     if (pairs && pv) {
         CHECK(pairs->n == (size_t)np);
-        CHECK_OK(rpiv_ensemble_run(pv, pairs, NULL, &fr));
+        CHECK_OK(rpiv_series_ensemble(pv, pairs, NULL, &fr));
         for (int k = 0; k < 3; k++) {
             rpiv_ensemble *e = accumulate(pv, k, fm, 0, np);
             rpiv_field *f = NULL;
@@ -381,7 +382,7 @@ static void ensemble_run_over_a_file_series(void)
         rpiv_field *f = NULL;
         CHECK_OK(rpiv_piv_new(&p2, W + 16, H, NULL, &big));
         if (big) {
-            CHECK_FAILS(rpiv_ensemble_run(big, pairs, NULL, &f), RPIV_ESIZE);
+            CHECK_FAILS(rpiv_series_ensemble(big, pairs, NULL, &f), RPIV_ESIZE);
             CHECK(strstr(rpiv_errmsg(), "f00a.tif") != NULL);
         }
         rpiv_piv_free(big);

@@ -3,6 +3,7 @@
  * list files, glob patterns with the A/B, consecutive and time-resolved rules, and every
  * error (size mismatch, odd count, unmatched A/B, missing file named with its pair index). */
 #include "image_test_util.h"
+#include "rpiv/pairs.h"
 
 /* A small 16-bit frame whose pixels encode its id: v = id * 1000 + x + 10 y. */
 static int make_frame(const char *name, int id, int w, int h)

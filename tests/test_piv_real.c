@@ -5,6 +5,7 @@
  * RPIV_SHARED_DATA is not set or not there. RPIV_SLOW_TESTS=1 adds the two largest pairs. */
 #include "check.h"
 #include "rpiv/image.h"
+#include "rpiv/pairs.h"
 #include "rpiv/piv.h"
 
 #include <stdio.h>

@@ -5,6 +5,7 @@
 #include "piv_testimg.h"
 #include "rpiv/image.h"
 #include "rpiv/piv.h"
+#include "rpiv/series.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -13,11 +14,11 @@
 static void stats_of_known_fields(void)
 {
     rpiv_field *f = NULL, *mean = NULL, *rms = NULL;
-    rpiv_piv_stats *s = NULL;
+    rpiv_series_stats *s = NULL;
     CHECK_OK(rpiv_field_new(3, 2, 15.5, 15.5, 16, 16, &f));
     if (!f)
         return;
-    CHECK_OK(rpiv_piv_stats_new(f, &s));
+    CHECK_OK(rpiv_series_stats_new(f, &s));
     const float us[3] = {1.25f, 2.5f, 4.75f};
     for (int t = 0; s && t < 3; t++) {
         for (int k = 0; k < 6; k++) {
@@ -30,10 +31,10 @@ static void stats_of_known_fields(void)
         f->flag[1] = t == 1 ? RPIV_FLAG_REPLACED : RPIV_FLAG_VALID; /* left out at point 1 */
         f->flag[2] = RPIV_FLAG_REPLACED;                            /* never valid         */
         f->flag[3] = RPIV_FLAG_MASKED;                              /* always masked       */
-        CHECK_OK(rpiv_piv_stats_add(s, f));
+        CHECK_OK(rpiv_series_stats_add(s, f));
     }
-    CHECK(rpiv_piv_stats_count(s) == 3);
-    CHECK_OK(rpiv_piv_stats_finish(s, &mean, &rms));
+    CHECK(rpiv_series_stats_count(s) == 3);
+    CHECK_OK(rpiv_series_stats_finish(s, &mean, &rms));
     if (mean && rms) {
         /* point 0: u = 1.25, 2.5, 4.75: mean 17/6, population std sqrt(1.5 ... ) */
         double m = (1.25 + 2.5 + 4.75) / 3,
@@ -58,17 +59,17 @@ static void stats_of_known_fields(void)
     rpiv_field *g = NULL;
     CHECK_OK(rpiv_field_new(3, 2, 15.5, 15.5, 16, 8, &g));
     if (g && s)
-        CHECK_FAILS(rpiv_piv_stats_add(s, g), RPIV_ESIZE);
-    rpiv_piv_stats *empty = NULL;
+        CHECK_FAILS(rpiv_series_stats_add(s, g), RPIV_ESIZE);
+    rpiv_series_stats *empty = NULL;
     rpiv_field *m2 = NULL, *r2 = NULL;
-    CHECK_OK(rpiv_piv_stats_new(f, &empty));
+    CHECK_OK(rpiv_series_stats_new(f, &empty));
     if (empty)
-        CHECK_FAILS(rpiv_piv_stats_finish(empty, &m2, &r2), RPIV_EINVAL);
-    rpiv_piv_stats_free(empty);
+        CHECK_FAILS(rpiv_series_stats_finish(empty, &m2, &r2), RPIV_EINVAL);
+    rpiv_series_stats_free(empty);
     rpiv_field_free(g);
     rpiv_field_free(mean);
     rpiv_field_free(rms);
-    rpiv_piv_stats_free(s);
+    rpiv_series_stats_free(s);
     rpiv_field_free(f);
 }
 
@@ -145,7 +146,7 @@ static void background_min_and_mean(void)
     CHECK_OK(rpiv_pairs_from_args(sd.n, sd.args, RPIV_PAIR_AB, &pairs));
     if (!pairs)
         goto out;
-    CHECK_OK(rpiv_piv_background(pairs, RPIV_BACKGROUND_MIN, NULL, &ga, &gb));
+    CHECK_OK(rpiv_series_background(pairs, RPIV_BACKGROUND_MIN, NULL, &ga, &gb));
     if (ga && gb) {
         CHECK(!memcmp(ga->px, mn[0], sizeof mn[0]) && !memcmp(gb->px, mn[1], sizeof mn[1]));
         /* and the minimum of the A frames is at least pair 0's background */
@@ -153,7 +154,7 @@ static void background_min_and_mean(void)
     }
     rpiv_image_free(ga);
     rpiv_image_free(gb);
-    CHECK_OK(rpiv_piv_background(pairs, RPIV_BACKGROUND_MEAN, NULL, &ga, &gb));
+    CHECK_OK(rpiv_series_background(pairs, RPIV_BACKGROUND_MEAN, NULL, &ga, &gb));
     if (ga && gb) {
         double e = 0;
         for (int i = 0; i < N; i++)
@@ -163,7 +164,7 @@ static void background_min_and_mean(void)
     }
     rpiv_image_free(ga);
     rpiv_image_free(gb);
-    CHECK_FAILS(rpiv_piv_background(pairs, RPIV_BACKGROUND_NONE, NULL, &ga, &gb), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_series_background(pairs, RPIV_BACKGROUND_NONE, NULL, &ga, &gb), RPIV_EINVAL);
     /* a series whose frames change size: the pair is named */
     {
         rpiv_image *sm = NULL;
@@ -179,7 +180,7 @@ static void background_min_and_mean(void)
         char *args[4] = {sd.args[0], sd.args[1], pa, pb};
         CHECK_OK(rpiv_pairs_from_args(4, args, RPIV_PAIR_AB, &mixed));
         if (mixed) {
-            CHECK_FAILS(rpiv_piv_background(mixed, RPIV_BACKGROUND_MEAN, NULL, &ga, &gb),
+            CHECK_FAILS(rpiv_series_background(mixed, RPIV_BACKGROUND_MEAN, NULL, &ga, &gb),
                         RPIV_ESIZE);
             CHECK(strstr(rpiv_errmsg(), "t9a.tif") != NULL && ga == NULL);
         }
@@ -231,15 +232,15 @@ static void series_driver_runs_every_pair(void)
     CHECK_OK(rpiv_piv_new(&prm, 96, 80, NULL, &pv));
     if (!pairs || !pv)
         goto out;
-    CHECK_OK(rpiv_piv_background(pairs, RPIV_BACKGROUND_MIN, NULL, &ga, &gb));
+    CHECK_OK(rpiv_series_background(pairs, RPIV_BACKGROUND_MIN, NULL, &ga, &gb));
     CHECK_OK(rpiv_piv_set_background(pv, ga, gb));
-    CHECK_OK(rpiv_piv_series(pv, pairs, collect, &s, NULL));
+    CHECK_OK(rpiv_series_run(pv, pairs, collect, &s, NULL));
     CHECK(s.calls == 3 && s.last == 2);
     printf("    3 pairs, min background removed: max error %.4f px\n", s.err);
     CHECK(s.err < 0.05);
     rpiv_progress stop = {stop_at_two, NULL};
     s.calls = 0;
-    CHECK_FAILS(rpiv_piv_series(pv, pairs, collect, &s, &stop), RPIV_EINTR);
+    CHECK_FAILS(rpiv_series_run(pv, pairs, collect, &s, &stop), RPIV_EINTR);
     CHECK(s.calls == 2);
 out:
     rpiv_image_free(ga);

@@ -16,6 +16,7 @@
  *    so JPEG pixels are checked within 1 and the mean within 0.01. */
 #include "check.h"
 #include "rpiv/image.h"
+#include "rpiv/pairs.h"
 
 #include <stdio.h>
 #include <stdlib.h>

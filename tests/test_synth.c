@@ -42,10 +42,10 @@ static void image_free(rpiv_image *im)
     free(im);
 }
 
-/* A noiseless experiment with a uniform sheet and a uniform flow. */
-static rpiv_experiment quiet_experiment(int w, int h)
+/* A noiseless setup with a uniform sheet and a uniform flow. */
+static rpiv_synth_setup quiet_experiment(int w, int h)
 {
-    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_synth_setup e = rpiv_synth_setup_default();
     e.synth.width_px = w;
     e.synth.height_px = h;
     e.synth.shot_noise = 0;
@@ -91,7 +91,7 @@ static double de_by_hand_m(double z)
 
 static void particle_count_matches_density_per_window(void)
 {
-    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_synth_setup e = rpiv_synth_setup_default();
     e.particles.density_ppp = 0.05; /* the test's figures are for 0.05 (default 0.015) */
     e.synth.width_px = 512;
     e.synth.height_px = 384;
@@ -147,7 +147,7 @@ static void particle_count_matches_density_per_window(void)
 
 static void single_particle_centroid_is_its_position(void)
 {
-    rpiv_experiment e = quiet_experiment(96, 64);
+    rpiv_synth_setup e = quiet_experiment(96, 64);
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
     if (!s)
@@ -179,7 +179,7 @@ static void single_particle_centroid_is_its_position(void)
 
 static void particle_diameter_follows_eq_diam(void)
 {
-    rpiv_experiment e = quiet_experiment(128, 128);
+    rpiv_synth_setup e = quiet_experiment(128, 128);
     e.synth.radius_sigma = 7; /* no truncation in the moments */
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
@@ -216,7 +216,7 @@ static void particle_diameter_follows_eq_diam(void)
 
 static void total_intensity_follows_amplitude_law(void)
 {
-    rpiv_experiment e = quiet_experiment(128, 128);
+    rpiv_synth_setup e = quiet_experiment(128, 128);
     e.synth.radius_sigma = 7;
     e.synth.peak_counts = 1318.7;
     rpiv_synth *s;
@@ -276,7 +276,7 @@ static int images_equal(const rpiv_image *a, const rpiv_image *b)
 
 static void same_seed_same_pair_for_any_thread_count(void)
 {
-    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_synth_setup e = rpiv_synth_setup_default();
     e.synth.width_px = 300; /* not a multiple of the band height */
     e.synth.height_px = 211;
     e.synth.seed = 2385;
@@ -323,7 +323,7 @@ static void same_seed_same_pair_for_any_thread_count(void)
 
 static void frame_b_moves_by_the_uniform_displacement(void)
 {
-    rpiv_experiment e = quiet_experiment(256, 192);
+    rpiv_synth_setup e = quiet_experiment(256, 192);
     e.particles.density_ppp = 0.0008;
     e.synth.peak_counts = 1e6; /* fine grey levels after rounding; defocused peaks < 65535 */
     /* all particles near z* = 0.007: defocused (apparent distance 0.443 h / 1.33 from the
@@ -385,7 +385,7 @@ static void frame_b_moves_by_the_uniform_displacement(void)
 
 static void duct_maps_to_bulk_displacement_in_pixels(void)
 {
-    rpiv_experiment e = rpiv_experiment_default(); /* flow "duct", full sensor */
+    rpiv_synth_setup e = rpiv_synth_setup_default(); /* flow "duct", full sensor */
     e.particles.density_ppp = 0.05;
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
@@ -446,7 +446,7 @@ static void duct_maps_to_bulk_displacement_in_pixels(void)
 static void truth_at_the_sheet_peak_for_rpiv(void)
 {
     /* default R-PIV sheet: peak z*_max(x*) = zm1 x*; truth = bulk U*(y*, z*_max) */
-    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_synth_setup e = rpiv_synth_setup_default();
     e.synth.width_px = 512;
     e.synth.height_px = 256;
     rpiv_synth *s;
@@ -490,7 +490,7 @@ static void duct_with_w_integrates_along_the_path(void)
 {
     /* with an out-of-plane w the particle crosses the profile: B - A = A_bulk * integral over
      * the pulse separation of U*(y*, z*(t)), by RK4; reference by GSL quadrature */
-    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_synth_setup e = rpiv_synth_setup_default();
     e.synth.width_px = 256;
     e.synth.height_px = 256;
     e.synth.w_star = 0.1318;
@@ -523,7 +523,7 @@ static void duct_with_w_integrates_along_the_path(void)
 
 static void oseen_particles_stay_on_their_circle(void)
 {
-    rpiv_experiment e = quiet_experiment(256, 256);
+    rpiv_synth_setup e = quiet_experiment(256, 256);
     strcpy(e.synth.flow, "oseen:6,48");
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
@@ -554,7 +554,7 @@ static void piv_recovers_the_uniform_displacement(void)
      * 0.01 h of the object plane) at 0.05 ppp, processed by rpiv piv with its defaults
      * (64, 32, 32 px at 50 %, deformation): the PIV issue's accuracy target for uniform
      * sub-pixel displacements, RMS <= 0.015 px and |mean| <= 0.005 px per component */
-    rpiv_experiment e = quiet_experiment(384, 320);
+    rpiv_synth_setup e = quiet_experiment(384, 320);
     e.particles.density_ppp = 0.05;
     e.camera.fnumber = 8;
     e.synth.bits = 16;
@@ -570,7 +570,8 @@ static void piv_recovers_the_uniform_displacement(void)
     CHECK_OK(rpiv_synth_pair(s, 11, a, b));
     rpiv_piv *pv = NULL;
     rpiv_field *f = NULL, *t = NULL;
-    CHECK_OK(rpiv_piv_new(&e.piv, 384, 320, NULL, &pv));
+    rpiv_piv_params pp = rpiv_piv_params_default();
+    CHECK_OK(rpiv_piv_new(&pp, 384, 320, NULL, &pv));
     if (pv) {
         CHECK_OK(rpiv_piv_run(pv, a, b, &f));
         CHECK_OK(rpiv_piv_grid(pv, rpiv_piv_npass(pv) - 1, &t));
@@ -617,7 +618,7 @@ static void noise_has_poisson_and_read_statistics(void)
                  {0, 100, 5, 25 + 1.0 / 12},
                  {1, 41318.7, 0, 41318.7}};
     for (int c = 0; c < 4; c++) {
-        rpiv_experiment e = quiet_experiment(w, h);
+        rpiv_synth_setup e = quiet_experiment(w, h);
         e.particles.density_ppp = 0;
         e.synth.background = cases[c].bg;
         e.synth.shot_noise = cases[c].shot;
@@ -661,7 +662,7 @@ static void noise_has_poisson_and_read_statistics(void)
 
 static void quantisation_saturates_at_the_bit_depth(void)
 {
-    rpiv_experiment e = quiet_experiment(64, 40);
+    rpiv_synth_setup e = quiet_experiment(64, 40);
     e.particles.density_ppp = 0;
     e.synth.background = 300.4;
     e.synth.bits = 8;
@@ -697,7 +698,7 @@ static void quantisation_saturates_at_the_bit_depth(void)
 static void tabulated_pz_is_sampled(void)
 {
     /* P(z*) = 2 z*: mean 2/3, variance 1/18 */
-    rpiv_experiment e = quiet_experiment(512, 512);
+    rpiv_synth_setup e = quiet_experiment(512, 512);
     e.particles.density_ppp = 0.05;
     strcpy(e.synth.pz_profile, write_file("pz_ramp.txt", "# ramp\n0 0\n0.5 1\n1 2\n"));
     rpiv_synth *s;
@@ -724,7 +725,7 @@ static void tabulated_pz_is_sampled(void)
 
 static void diameters_are_uniform_in_the_spread(void)
 {
-    rpiv_experiment e = quiet_experiment(256, 256);
+    rpiv_synth_setup e = quiet_experiment(256, 256);
     e.particles.density_ppp = 0.05;
     e.particles.dp_sigma_m = 4e-6;
     rpiv_synth *s;
@@ -750,7 +751,7 @@ static void diameters_are_uniform_in_the_spread(void)
 
 static void uniform_truth_on_a_grid(void)
 {
-    rpiv_experiment e = quiet_experiment(256, 200);
+    rpiv_synth_setup e = quiet_experiment(256, 200);
     rpiv_synth *s;
     CHECK_OK(rpiv_synth_new(&e, NULL, &s));
     if (!s)
@@ -783,12 +784,12 @@ static void params_file_reads_back_to_the_same_experiment(void)
     strcpy(e.synth.flow, "sine:3,64");
     e.synth.w_star = 0.0123;
     rpiv_synth *s;
-    CHECK_OK(rpiv_synth_new(&e, NULL, &s));
+    CHECK_OK(rpiv_config_synth_new(&e, NULL, &s));
     if (!s)
         return;
     char path[256];
     snprintf(path, sizeof path, "%s/synth.ini", tmpdir);
-    CHECK_OK(rpiv_synth_save_params(s, path));
+    CHECK_OK(rpiv_config_save_synth(&e, s, path));
     rpiv_experiment r = rpiv_experiment_default();
     CHECK_OK(rpiv_config_load(path, &r));
     CHECK(r.synth.seed == 918273 && r.synth.width_px == 320 && !strcmp(r.synth.flow, "sine:3,64"));
@@ -800,7 +801,7 @@ static void params_file_reads_back_to_the_same_experiment(void)
     fclose(f1);
     fclose(f2);
     CHECK(!strcmp(b1, b2));
-    CHECK_FAILS(rpiv_synth_save_params(s, "/nonexistent-dir/synth.ini"), RPIV_EIO);
+    CHECK_FAILS(rpiv_config_save_synth(&e, s, "/nonexistent-dir/synth.ini"), RPIV_EIO);
     rpiv_synth_free(s);
 }
 
@@ -833,7 +834,7 @@ static void flow_specs_parse_and_fail(void)
 
 static void bad_inputs_fail_with_codes(void)
 {
-    rpiv_experiment e = quiet_experiment(64, 64);
+    rpiv_synth_setup e = quiet_experiment(64, 64);
     rpiv_synth *s = (rpiv_synth *)&e; /* must be reset to NULL on failure */
     strcpy(e.synth.flow, "vortex:1");
     CHECK_FAILS(rpiv_synth_new(&e, NULL, &s), RPIV_EINVAL);
@@ -888,7 +889,7 @@ static void bad_inputs_fail_with_codes(void)
 
 static void duct_outside_the_channel_has_no_particles(void)
 {
-    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_synth_setup e = rpiv_synth_setup_default();
     e.synth.width_px = 128;
     e.synth.height_px = 128;
     e.channel.fov_y0_star = 3.2; /* the centred window sees y* > 1 only */

@@ -42,6 +42,7 @@
 #include "rpiv/mpi.h"
 #include "rpiv/piv.h"
 #include "rpiv/progress.h"
+#include "rpiv/series.h"
 
 #include <stddef.h>
 
@@ -74,33 +75,33 @@ void rpiv_batch_free(rpiv_batch *b); /* NULL is a no-op */
  * skipped with skip_bad, else their error is returned). Every rank reads the same pairs. */
 RPIV_NODISCARD rpiv_status rpiv_batch_size(rpiv_batch *b, int *w, int *h);
 
-/* The background of the series (rpiv_piv_background) for w x h frames: each rank computes it
+/* The background of the series (rpiv_series_background) for w x h frames: each rank computes it
  * over its own pairs and the ranks combine them (minimum: exact; mean: the ranks' means
- * weighted by their pair counts, in double). With one rank it is rpiv_piv_background over
+ * weighted by their pair counts, in double). With one rank it is rpiv_series_background over
  * the readable pairs. With skip_bad, a pair that fails is found, listed, and the background
- * made again without it. Collective. Errors as rpiv_piv_background's. */
+ * made again without it. Collective. Errors as rpiv_series_background's. */
 RPIV_NODISCARD rpiv_status rpiv_batch_background(rpiv_batch *b, rpiv_background kind, int w, int h,
                                                  const rpiv_progress *progress, rpiv_image **bg_a,
                                                  rpiv_image **bg_b);
 
-/* The ensemble run (rpiv_ensemble_run) of plan pv over the batch's pairs, with the
+/* The ensemble run (rpiv_series_ensemble) of plan pv over the batch's pairs, with the
  * checkpoints, resume, skipping and dealing above; collective. Every rank gets the final
  * field in *out. Progress counts this rank's pairs over all passes. Errors: those of
- * rpiv_ensemble_run, naming the pair; RPIV_EFORMAT (a checkpoint that is not one, is
+ * rpiv_series_ensemble, naming the pair; RPIV_EFORMAT (a checkpoint that is not one, is
  * corrupt, or belongs to another series, plan or team: the message says which);
  * RPIV_EIO (a checkpoint cannot be written, or no pair could be read); RPIV_EINTR on a stop
  * request (the checkpoint, if any, is saved first). */
 RPIV_NODISCARD rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv,
                                                const rpiv_progress *progress, rpiv_field **out);
 
-/* Per-pair processing (rpiv_piv_series) of the batch's pairs; collective, in rounds of K
+/* Per-pair processing (rpiv_series_run) of the batch's pairs; collective, in rounds of K
  * pairs (one per rank). `local` (may be NULL) gets each field on the rank that made it;
  * `root` (may be NULL) gets every field on rank 0, in pair order (they are gathered there).
  * With one rank both are called for each pair, local first. Skipped pairs reach neither.
  * A non-OK return from a sink stops the run on every rank. Checkpoint parameters are not
  * used (each pair's output is complete when its sink returns). */
-RPIV_NODISCARD rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_piv_sink local,
-                                             rpiv_piv_sink root, void *user,
+RPIV_NODISCARD rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_series_sink local,
+                                             rpiv_series_sink root, void *user,
                                              const rpiv_progress *progress);
 
 /* The pairs skipped so far on any rank (after a collective step), ascending: the number, and

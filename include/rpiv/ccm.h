@@ -124,11 +124,6 @@ typedef struct rpiv_ccm_model {
 rpiv_ccm_model rpiv_ccm_model_default(void);
 RPIV_NODISCARD rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m);
 
-struct rpiv_experiment;
-/* The default model with the experiment's camera, channel height, particle diameter and
- * scale_px of dt_s (config.h); I0, U*, P stay the defaults. */
-rpiv_ccm_model rpiv_ccm_model_of(const struct rpiv_experiment *e, double dt_s);
-
 /* Displacement scale U_b dt M / pixel, px per unit U*. */
 double rpiv_ccm_scale_px(const rpiv_camera *cam, const rpiv_channel *ch, double dt_s);
 

@@ -7,6 +7,7 @@
 #ifndef RPIV_CONFIG_H
 #define RPIV_CONFIG_H
 
+#include "rpiv/ccm.h"
 #include "rpiv/error.h"
 #include "rpiv/flow.h"
 #include "rpiv/imaging.h"
@@ -56,5 +57,25 @@ RPIV_NODISCARD rpiv_status rpiv_config_write(const rpiv_experiment *e, FILE *fp)
 
 /* Write the key reference as a Markdown table (docs/config.md). */
 RPIV_NODISCARD rpiv_status rpiv_config_write_doc(FILE *fp);
+
+/* ---- the experiment mapped onto the modules' parameters ---------------------------------- */
+
+/* The synthetic-image generator's setup: the experiment's camera, particles, channel, sheet
+ * and synth sections. */
+rpiv_synth_setup rpiv_config_synth_setup(const rpiv_experiment *e);
+
+/* rpiv_synth_new on rpiv_config_synth_setup(e). */
+RPIV_NODISCARD rpiv_status rpiv_config_synth_new(const rpiv_experiment *e, const rpiv_flow *flow,
+                                                 rpiv_synth **out);
+
+/* Write the parameters of generator s, made from e: the complete experiment as INI (readable
+ * with --config) and, as comments, the derived figures of rpiv_synth_info. Written
+ * atomically. RPIV_EIO. */
+RPIV_NODISCARD rpiv_status rpiv_config_save_synth(const rpiv_experiment *e, const rpiv_synth *s,
+                                                  const char *path);
+
+/* The CCM model of the experiment's camera, particles and channel (h, d_p, and scale_px, the
+ * bulk displacement U_b dt M / pixel of dt_s); I0, U*, P stay the defaults. */
+rpiv_ccm_model rpiv_config_ccm_model(const rpiv_experiment *e, double dt_s);
 
 #endif /* RPIV_CONFIG_H */

@@ -32,7 +32,6 @@
 #include "rpiv/field.h"
 #include "rpiv/image.h"
 #include "rpiv/piv.h"
-#include "rpiv/progress.h"
 
 #include <stddef.h>
 
@@ -76,11 +75,5 @@ RPIV_NODISCARD rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path
  * with rejected vectors replaced; it is the predictor of the next pass. RPIV_EINVAL if no
  * pair was added. */
 RPIV_NODISCARD rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out);
-
-/* The whole ensemble run over a series: for every pass, every pair of `pairs` is loaded and
- * added, then the pass is finished into the next predictor. Progress counts pairs over all
- * passes; a stop request returns RPIV_EINTR. *out is the last pass's field. */
-RPIV_NODISCARD rpiv_status rpiv_ensemble_run(rpiv_piv *pv, const rpiv_pairs *pairs,
-                                             const rpiv_progress *progress, rpiv_field **out);
 
 #endif /* RPIV_ENSEMBLE_H */

@@ -110,6 +110,11 @@ void rpiv_profile_free(rpiv_profile *p); /* NULL is a no-op */
  * skipped): 2 for a profile, 4 or more for a vector file. RPIV_EIO, RPIV_EFORMAT (no data). */
 RPIV_NODISCARD rpiv_status rpiv_text_columns(const char *path, int *ncol);
 
+/* E1 (Eq. "E1"): sqrt(int (ref - cmp)^2 da) / int ref da over the samples alpha[0..n-1]
+ * (increasing), trapezoid rule. RPIV_EINVAL if n < 2, alpha not increasing, or int ref = 0. */
+RPIV_NODISCARD rpiv_status rpiv_e1(const double *alpha, const double *ref, const double *cmp,
+                                   size_t n, double *e1);
+
 /* What a comparison measured: E1 (Eq. "E1" of the paper, see rpiv_e1), and the RMS and
  * largest absolute difference ref - cmp, in the unit of the values; n samples used; for
  * profiles, the alpha range [alpha0, alpha1] compared. */

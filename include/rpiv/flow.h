@@ -62,9 +62,4 @@ typedef struct rpiv_flow {
 /* Displacement (u, v) in pixels of a particle at image position (x, y) px and height z*. */
 void rpiv_flow_eval(const rpiv_flow *f, double x, double y, double zstar, double *u, double *v);
 
-/* E1 (Eq. "E1"): sqrt(int (ref - cmp)^2 da) / int ref da over the samples alpha[0..n-1]
- * (increasing), trapezoid rule. RPIV_EINVAL if n < 2, alpha not increasing, or int ref = 0. */
-RPIV_NODISCARD rpiv_status rpiv_e1(const double *alpha, const double *ref, const double *cmp,
-                                   size_t n, double *e1);
-
 #endif /* RPIV_FLOW_H */

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* rpiv/piv.h - multi-pass deforming FFT cross-correlation PIV, per pair and ensemble. */
+/* rpiv/piv.h - multi-pass deforming FFT cross-correlation PIV of one pair (the loops over a
+ * series of pairs are rpiv/series.h; the ensemble accumulator is rpiv/ensemble.h). */
 #ifndef RPIV_PIV_H
 #define RPIV_PIV_H
 
@@ -10,6 +11,7 @@
 #include "rpiv/progress.h"
 
 #include <stddef.h>
+#include <stdint.h>
 
 #define RPIV_PIV_MAX_PASSES 8
 
@@ -83,6 +85,11 @@ int rpiv_piv_threads(const rpiv_piv *pv);
 const rpiv_piv_params *rpiv_piv_params_of(const rpiv_piv *pv);
 /* Bytes held by the plan's buffers (frames, workspaces). */
 size_t rpiv_piv_memory(const rpiv_piv *pv);
+/* The frame size the plan was made for. */
+void rpiv_piv_size(const rpiv_piv *pv, int *w, int *h);
+/* What identifies the plan beyond its parameters, for a checkpoint: the 64-bit FNV-1a hash h
+ * continued over the mask and the background frames the plan holds (h itself if none). */
+uint64_t rpiv_piv_hash_frames(const rpiv_piv *pv, uint64_t h);
 
 /* A zeroed field on the grid of pass `pass` (0-based), scale and dt set from the params. */
 RPIV_NODISCARD rpiv_status rpiv_piv_grid(const rpiv_piv *pv, int pass, rpiv_field **out);
@@ -111,42 +118,5 @@ RPIV_NODISCARD rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_fiel
  * next one's predictor. *out is the last pass's field. */
 RPIV_NODISCARD rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b,
                                         rpiv_field **out);
-
-/* ---- series --------------------------------------------------------------------------------
- * (The ensemble run over a series is rpiv_ensemble_run, rpiv/ensemble.h.) */
-
-/* The background of a series: the per-pixel minimum or mean of all A frames (*bg_a) and of
- * all B frames (*bg_b), read once, streaming (memory: two frames, and two double sums for the
- * mean). RPIV_EINVAL for kind NONE or no pairs, RPIV_ESIZE (naming the pair) if the frames
- * change size, RPIV_EINTR on a stop request, and the image readers' errors. */
-RPIV_NODISCARD rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
-                                               const rpiv_progress *progress, rpiv_image **bg_a,
-                                               rpiv_image **bg_b);
-
-/* Called with every field of a series, in pair order; a non-OK return stops the series with
- * that status. The field is only lent for the call. */
-typedef rpiv_status (*rpiv_piv_sink)(void *user, size_t index, const rpiv_field *f);
-
-/* Instantaneous processing of a series: every pair is read, loaded into the plan (its images
- * freed at once, so memory holds the plan's frames only) and run through all passes; each
- * final field goes to sink. Errors name the pair; RPIV_EINTR on a stop request. */
-RPIV_NODISCARD rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs,
-                                           rpiv_piv_sink sink, void *user,
-                                           const rpiv_progress *progress);
-
-/* Mean and RMS (standard deviation) of a series of fields on one grid, point by point, over
- * the vectors flagged valid (Welford's update in double, in the order added). At a point with
- * no valid vector the replaced ones are used and the point is flagged RPIV_FLAG_REPLACED; a
- * point masked in every field stays RPIV_FLAG_MASKED with 0. peak_ratio and corr are the means
- * of the same vectors. */
-typedef struct rpiv_piv_stats rpiv_piv_stats;
-RPIV_NODISCARD rpiv_status rpiv_piv_stats_new(const rpiv_field *grid, rpiv_piv_stats **out);
-void rpiv_piv_stats_free(rpiv_piv_stats *s); /* NULL is a no-op */
-/* RPIV_ESIZE if f's grid differs from the first one's. */
-RPIV_NODISCARD rpiv_status rpiv_piv_stats_add(rpiv_piv_stats *s, const rpiv_field *f);
-size_t rpiv_piv_stats_count(const rpiv_piv_stats *s);
-/* New fields *mean and *rms (u, v: mean and standard deviation, px). RPIV_EINVAL if empty. */
-RPIV_NODISCARD rpiv_status rpiv_piv_stats_finish(const rpiv_piv_stats *s, rpiv_field **mean,
-                                                 rpiv_field **rms);
 
 #endif /* RPIV_PIV_H */

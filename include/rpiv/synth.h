@@ -76,16 +76,31 @@ RPIV_NODISCARD rpiv_status rpiv_synth_params_check(const rpiv_synth_params *p);
 RPIV_NODISCARD rpiv_status rpiv_synth_flow_parse(const char *spec, rpiv_flow *flow, int *has_amp,
                                                  int *has_centre);
 
+/* The name of a flow kind as rpiv_synth_flow_parse reads it ("?" for an unknown kind). */
+const char *rpiv_synth_flow_name(rpiv_flow_kind kind);
+
 /* A generator, ready to make pairs. Read-only once made. */
 typedef struct rpiv_synth rpiv_synth;
-struct rpiv_experiment;
 
-/* Make a generator from the experiment (camera, particles, channel, sheet, synth; the pieces
- * are copied, the sheet profile and P(z*) files are read now). flow: the displacement field
- * in px, or NULL to build it from e->synth.flow and the geometry (duct: y* of each image row,
- * amplitude U_b dt M / pixel; oseen: centre of the image). Errors: RPIV_EINVAL (parameters),
- * RPIV_EIO / RPIV_EFORMAT (profile files), RPIV_ENOMEM. On failure *out is NULL. */
-RPIV_NODISCARD rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flow,
+/* What a generator is made from: the pieces of the experiment it uses (rpiv/config.h maps an
+ * experiment onto it, rpiv_config_synth_setup). */
+typedef struct rpiv_synth_setup {
+    rpiv_camera camera;
+    rpiv_particles particles;
+    rpiv_channel channel;
+    rpiv_sheet_params sheet;
+    rpiv_synth_params synth;
+} rpiv_synth_setup;
+
+/* Every piece at its module's default (the same values as the default experiment's). */
+rpiv_synth_setup rpiv_synth_setup_default(void);
+
+/* Make a generator (the setup is copied, the sheet profile and P(z*) files are read now).
+ * flow: the displacement field in px, or NULL to build it from setup->synth.flow and the
+ * geometry (duct: y* of each image row, amplitude U_b dt M / pixel; oseen: centre of the
+ * image). Errors: RPIV_EINVAL (parameters), RPIV_EIO / RPIV_EFORMAT (profile files),
+ * RPIV_ENOMEM. On failure *out is NULL. */
+RPIV_NODISCARD rpiv_status rpiv_synth_new(const rpiv_synth_setup *setup, const rpiv_flow *flow,
                                           rpiv_synth **out);
 void rpiv_synth_free(rpiv_synth *s); /* NULL is a no-op */
 
@@ -150,9 +165,5 @@ RPIV_NODISCARD rpiv_status rpiv_synth_pair_double(const rpiv_synth *s, unsigned 
  * RPIV_FLAG_MASKED where there is no fluid (duct rows outside 0 < y* < 1), else VALID;
  * peak_ratio and corr are set to 0; scale_mm_per_px and dt_s are set. */
 void rpiv_synth_truth(const rpiv_synth *s, rpiv_field *f);
-
-/* Write every parameter (the complete experiment as INI, readable with --config) and, as
- * comments, the derived figures of rpiv_synth_info. Written atomically. RPIV_EIO. */
-RPIV_NODISCARD rpiv_status rpiv_synth_save_params(const rpiv_synth *s, const char *path);
 
 #endif /* RPIV_SYNTH_H */

@@ -2,7 +2,6 @@
 /* The correlation as a sum of Gaussians and its peak; the model's inputs; Eq. "CCM_gen" and
  * Eq. "CCM_simp". */
 #include "ccm_impl.h"
-#include "rpiv/config.h"
 #include "rpiv/peak.h"
 
 #include <errno.h>
@@ -528,16 +527,6 @@ rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m)
         return rpiv_fail(RPIV_EINVAL, "ccm: %zu breakpoints, at most %d", m->nbreaks,
                          RPIV_CCM_MAX_BREAKS);
     return RPIV_OK;
-}
-
-rpiv_ccm_model rpiv_ccm_model_of(const struct rpiv_experiment *e, double dt_s)
-{
-    rpiv_ccm_model m = rpiv_ccm_model_default();
-    m.camera = e->camera;
-    m.h_m = e->channel.h_m;
-    m.dp_m = e->particles.dp_m;
-    m.scale_px = rpiv_ccm_scale_px(&e->camera, &e->channel, dt_s);
-    return m;
 }
 
 double rpiv_ccm_scale_px(const rpiv_camera *cam, const rpiv_channel *ch, double dt_s)

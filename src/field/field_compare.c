@@ -2,12 +2,30 @@
 /* src/field_compare.c - E1 (Eq. "E1"), RMS and largest difference between two profiles or two
  * vector fields. */
 #include "rpiv/field.h"
-#include "rpiv/flow.h"
 
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_interp.h>
 #include <math.h>
 #include <stdlib.h>
+
+rpiv_status rpiv_e1(const double *alpha, const double *ref, const double *cmp, size_t n, double *e1)
+{
+    if (n < 2)
+        return rpiv_fail(RPIV_EINVAL, "E1: need at least 2 samples, got %zu", n);
+    double num = 0, den = 0;
+    for (size_t i = 1; i < n; i++) {
+        double h = alpha[i] - alpha[i - 1];
+        if (!(h > 0))
+            return rpiv_fail(RPIV_EINVAL, "E1: coordinates not increasing at sample %zu", i);
+        double d0 = ref[i - 1] - cmp[i - 1], d1 = ref[i] - cmp[i];
+        num += 0.5 * h * (d0 * d0 + d1 * d1);
+        den += 0.5 * h * (ref[i - 1] + ref[i]);
+    }
+    if (!(fabs(den) > 0) || !isfinite(num))
+        return rpiv_fail(RPIV_EINVAL, "E1: the reference integrates to zero or is not finite");
+    *e1 = sqrt(num) / den;
+    return RPIV_OK;
+}
 
 rpiv_status rpiv_profile_compare(const rpiv_profile *ref, const rpiv_profile *cmp,
                                  rpiv_compare *out)

@@ -97,20 +97,6 @@ static int split_numbers(char *s, const char *path, long lineno, double *vals, r
     return nc;
 }
 
-ssize_t text_getline(FILE *fp, char **line, size_t *cap, const char *path, long *lineno,
-                     rpiv_status *st)
-{
-    ssize_t len = getline(line, cap, fp);
-    if (len < 0)
-        return -1;
-    ++*lineno;
-    if (memchr(*line, '\0', (size_t)len)) {
-        *st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: NUL byte: not a text file", path, *lineno);
-        return -2;
-    }
-    return len;
-}
-
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;

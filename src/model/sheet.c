@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 #include "rpiv/sheet.h"
 
-#include "field_impl.h"
+#include "base/atomic.h"
+#include "base/text.h"
 
 #include <errno.h>
 #include <math.h>

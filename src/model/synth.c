@@ -3,10 +3,6 @@
  * docs/model.md explains the model and every reading of the paper it makes. */
 #include "rpiv/synth.h"
 
-#include "field_impl.h"
-
-#include "rpiv/config.h"
-
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -38,7 +34,7 @@ enum { POIS_TABLES = 512 };
 #define TAG_NOISE     (1ULL << 40)
 
 struct rpiv_synth {
-    rpiv_experiment e;          /* the parameters, copied                           */
+    rpiv_synth_setup e;         /* the parameters, copied                           */
     rpiv_sheet *sheet;          /* I0(x*, z*)                                       */
     rpiv_flow flow;             /* displacement over dt, px                         */
     int w, h;                   /* image size                                       */
@@ -328,7 +324,7 @@ static void region_of(rpiv_synth *s)
         s->reg[3] = s->reg[1];
 }
 
-rpiv_status rpiv_synth_new(const struct rpiv_experiment *e, const rpiv_flow *flow, rpiv_synth **out)
+rpiv_status rpiv_synth_new(const rpiv_synth_setup *e, const rpiv_flow *flow, rpiv_synth **out)
 {
     rpiv_status st;
     *out = NULL;
@@ -835,54 +831,3 @@ void rpiv_synth_truth(const rpiv_synth *s, rpiv_field *f)
 }
 
 /* ---- parameters file -------------------------------------------------------------------- */
-
-static const char *flow_name(rpiv_flow_kind k)
-{
-    switch (k) {
-    case RPIV_FLOW_UNIFORM:
-        return "uniform";
-    case RPIV_FLOW_DUCT:
-        return "duct";
-    case RPIV_FLOW_POISEUILLE:
-        return "poiseuille";
-    case RPIV_FLOW_POISEUILLE_Y:
-        return "poiseuille-y";
-    case RPIV_FLOW_OSEEN:
-        return "oseen";
-    case RPIV_FLOW_SINE:
-        return "sine";
-    }
-    return "?";
-}
-
-rpiv_status rpiv_synth_save_params(const rpiv_synth *s, const char *path)
-{
-    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
-    rpiv_status st = atomic_begin(&af, path, 1);
-    if (st)
-        return st;
-    FILE *fp = af.fp;
-    rpiv_synth_info in;
-    rpiv_synth_get_info(s, &in);
-    const rpiv_flow *f = &in.flow;
-    fprintf(fp,
-            "# rpiv synth: the complete parameters of these pairs (rpiv synth --config FILE\n"
-            "# makes them again). Derived figures:\n"
-            "#   seed %lu, pairs %d (files pair_00001 = index 0)\n"
-            "#   image %d x %d px, x* %.6f .. %.6f, y* %.6f .. %.6f (%.9g h per px)\n"
-            "#   particles per pair %zu in x %.3f .. %.3f px, y %.3f .. %.3f px\n"
-            "#   bulk displacement U_b dt M / pixel = %.6f px\n"
-            "#   in-focus d_e = %.6f px, sigma = %.6f px\n"
-            "#   flow %s: a %.9g, b %.9g, centre (%.6g, %.6g), y* at row 0 %.9g, y* per px %.9g\n",
-            s->e.synth.seed, s->e.synth.pairs, in.width_px, in.height_px, in.x0_star,
-            in.x0_star + in.width_px * in.star_per_px, in.y0_star,
-            in.y0_star + in.height_px * in.star_per_px, in.star_per_px, in.nparticles, in.region[0],
-            in.region[2], in.region[1], in.region[3], in.bulk_px, in.de_focus_px, in.sigma_focus_px,
-            flow_name(f->kind), f->a, f->b, f->cx, f->cy, f->y0_star, f->ystar_per_px);
-    st = rpiv_config_write(&s->e, fp);
-    if (st) {
-        atomic_abort(&af);
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    }
-    return atomic_commit(&af);
-}

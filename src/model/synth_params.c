@@ -85,6 +85,26 @@ static const struct {
     {"oseen", RPIV_FLOW_OSEEN, 2, 4},           {"sine", RPIV_FLOW_SINE, 2, 2},
 };
 
+const char *rpiv_synth_flow_name(rpiv_flow_kind kind)
+{
+    for (size_t k = 0; k < sizeof flows / sizeof flows[0]; k++)
+        if (flows[k].kind == kind)
+            return flows[k].name;
+    return "?";
+}
+
+rpiv_synth_setup rpiv_synth_setup_default(void)
+{
+    rpiv_synth_setup s;
+    memset(&s, 0, sizeof s);
+    s.camera = rpiv_camera_default();
+    s.particles = rpiv_particles_default();
+    s.channel = rpiv_channel_default();
+    s.sheet = rpiv_sheet_params_default();
+    s.synth = rpiv_synth_params_default();
+    return s;
+}
+
 rpiv_status rpiv_synth_flow_parse(const char *spec, rpiv_flow *flow, int *has_amp, int *has_centre)
 {
     static const char *const usage =

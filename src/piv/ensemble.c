@@ -2,9 +2,9 @@
 /* src/ensemble.c - sum-of-correlation accumulators, their files, and the ensemble run. */
 #include "rpiv/ensemble.h"
 
-#include "rpiv/batch.h"
-
 #include "piv_impl.h"
+
+#include "base/hash.h"
 
 #include <errno.h>
 #include <omp.h>
@@ -27,27 +27,17 @@ struct rpiv_ensemble {
     size_t npairs;
 };
 
-uint64_t piv_hash(uint64_t h, const void *p, size_t n)
-{
-    const unsigned char *c = p;
-    for (size_t i = 0; i < n; i++) {
-        h ^= c[i];
-        h *= 1099511628211ULL;
-    }
-    return h;
-}
-
 static uint64_t field_hash(const rpiv_field *f)
 {
-    uint64_t h = PIV_HASH0;
+    uint64_t h = HASH0;
     if (!f)
         return h;
     size_t n = (size_t)f->nx * (size_t)f->ny;
     int dims[2] = {f->nx, f->ny};
-    h = piv_hash(h, dims, sizeof dims);
-    h = piv_hash(h, f->u, n * sizeof *f->u);
-    h = piv_hash(h, f->v, n * sizeof *f->v);
-    return piv_hash(h, f->flag, n);
+    h = hash_bytes(h, dims, sizeof dims);
+    h = hash_bytes(h, f->u, n * sizeof *f->u);
+    h = hash_bytes(h, f->v, n * sizeof *f->v);
+    return hash_bytes(h, f->flag, n);
 }
 
 void rpiv_ensemble_free(rpiv_ensemble *e)
@@ -234,7 +224,7 @@ rpiv_status rpiv_ensemble_save(const rpiv_ensemble *e, const char *path)
 {
     file_header hd;
     header_of(e, &hd);
-    hd.data_hash = piv_hash(PIV_HASH0, e->data, e->n * sizeof *e->data);
+    hd.data_hash = hash_bytes(HASH0, e->data, e->n * sizeof *e->data);
     size_t len = strlen(path);
     char *tmp = malloc(len + 16);
     if (!tmp)
@@ -300,7 +290,7 @@ rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path)
         st = rpiv_fail(RPIV_EFORMAT, "%s: truncated", path);
         goto out_close;
     }
-    if (piv_hash(PIV_HASH0, buf, e->n * sizeof *buf) != hd.data_hash) {
+    if (hash_bytes(HASH0, buf, e->n * sizeof *buf) != hd.data_hash) {
         st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt (checksum mismatch)", path);
         goto out_close;
     }
@@ -309,22 +299,5 @@ rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path)
 out_close:
     free(buf);
     fclose(fp);
-    return st;
-}
-
-/* ---- the run --------------------------------------------------------------------------------- */
-
-rpiv_status rpiv_ensemble_run(rpiv_piv *pv, const rpiv_pairs *pairs, const rpiv_progress *progress,
-                              rpiv_field **out)
-{
-    /* the loop (with checkpoints, skipping and MPI dealing when asked) is rpiv_batch_ensemble */
-    *out = NULL;
-    if (!pairs->n)
-        return rpiv_fail(RPIV_EINVAL, "ensemble: no image pairs");
-    rpiv_batch *b = NULL;
-    rpiv_status st = rpiv_batch_new(pairs, NULL, NULL, &b);
-    if (!st)
-        st = rpiv_batch_ensemble(b, pv, progress, out);
-    rpiv_batch_free(b);
     return st;
 }

@@ -2,7 +2,7 @@
 /* src/peak.c - correlation peak search, sub-pixel fits, second peak and peak ratio. */
 #include "rpiv/peak.h"
 
-#include "simd.h"
+#include "base/simd.h"
 
 #include <math.h>
 #include <stddef.h>

@@ -7,6 +7,8 @@
 #include "deform_impl.h"
 #include "validate_impl.h"
 
+#include "base/hash.h"
+
 #include <math.h>
 #include <omp.h>
 #include <stdlib.h>
@@ -200,6 +202,24 @@ const rpiv_piv_params *rpiv_piv_params_of(const rpiv_piv *pv)
 size_t rpiv_piv_memory(const rpiv_piv *pv)
 {
     return pv->bytes;
+}
+
+void rpiv_piv_size(const rpiv_piv *pv, int *w, int *h)
+{
+    *w = pv->w;
+    *h = pv->h;
+}
+
+uint64_t rpiv_piv_hash_frames(const rpiv_piv *pv, uint64_t h)
+{
+    size_t npx = (size_t)pv->w * (size_t)pv->h;
+    if (pv->mask)
+        h = hash_bytes(h, pv->mask, npx);
+    if (pv->bga) {
+        h = hash_bytes(h, pv->bga, npx * sizeof *pv->bga);
+        h = hash_bytes(h, pv->bgb, npx * sizeof *pv->bgb);
+    }
+    return h;
 }
 
 rpiv_status rpiv_piv_grid(const rpiv_piv *pv, int pass, rpiv_field **out)

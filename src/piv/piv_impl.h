@@ -100,9 +100,4 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, cons
 /* Validate (median test if enabled) and replace rejected vectors. */
 RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);
 
-/* FNV-1a over n bytes, continuing from h (PIV_HASH0 to start): the checksums of the ensemble
- * accumulators and of the checkpoints (identity of the pairs, the plan, the predictor). */
-#define PIV_HASH0 1469598103934665603ULL
-uint64_t piv_hash(uint64_t h, const void *p, size_t n);
-
 #endif /* RPIV_SRC_PIV_IMPL_H */

@@ -247,7 +247,7 @@ static rpiv_status model(demo_ctx *c)
         if ((st = rpiv_ccm_curve_new(z, u, NZ_CURVE, &cu)))
             break;
         rpiv_ccm_sheet_at at = {c->sheet, c->xs[i]};
-        rpiv_ccm_model m = rpiv_ccm_model_of(&c->e, c->e.synth.dt_s);
+        rpiv_ccm_model m = rpiv_config_ccm_model(&c->e, c->e.synth.dt_s);
         m.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
         m.u = (rpiv_ccm_func){rpiv_ccm_curve_fn, cu};
         m.breaks[0] = c->czmax[i];
@@ -304,7 +304,7 @@ static rpiv_status invert(demo_ctx *c)
             um[n] = c->ur_mid[i];
             n++;
         }
-    rpiv_ccm_model base = rpiv_ccm_model_of(&c->e, c->e.synth.dt_s);
+    rpiv_ccm_model base = rpiv_config_ccm_model(&c->e, c->e.synth.dt_s);
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
     ip.symmetric = 1; /* the duct is symmetric about z* = 0.5, as the paper extends it */
     rpiv_ccm_params cp = rpiv_ccm_params_default();

@@ -7,6 +7,7 @@
 #include "rpiv/field.h"
 #include "rpiv/image.h"
 #include "rpiv/optics.h"
+#include "rpiv/pairs.h"
 #include "rpiv/sheet.h"
 #include "rpiv/synth.h"
 

@@ -8,6 +8,7 @@
 #include "rpiv/ensemble.h"
 #include "rpiv/flow.h"
 #include "rpiv/piv.h"
+#include "rpiv/series.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -21,7 +22,7 @@
 static rpiv_status band_info(const rpiv_experiment *e, rpiv_synth_info *info)
 {
     rpiv_synth *s;
-    rpiv_status st = rpiv_synth_new(e, NULL, &s);
+    rpiv_status st = rpiv_config_synth_new(e, NULL, &s);
     if (st)
         return st;
     rpiv_synth_get_info(s, info);
@@ -229,7 +230,7 @@ static rpiv_status series_run(demo_ctx *c, series *sr)
     size_t n = (size_t)sr->npairs, ks = 0;
 
     sr->e.synth.pairs = sr->npairs;
-    if ((st = rpiv_synth_new(&sr->e, NULL, &s)))
+    if ((st = rpiv_config_synth_new(&sr->e, NULL, &s)))
         goto out;
     rpiv_synth_info in;
     rpiv_synth_get_info(s, &in);
@@ -241,7 +242,8 @@ static rpiv_status series_run(demo_ctx *c, series *sr)
     if (sr->save_first) {
         char rel[128], path[RPIV_PATH_MAX];
         snprintf(rel, sizeof rel, "data/%s.ini", sr->label);
-        if ((st = demo_path(c, rel, path, sizeof path)) || (st = rpiv_synth_save_params(s, path)))
+        if ((st = demo_path(c, rel, path, sizeof path)) ||
+            (st = rpiv_config_save_synth(&sr->e, s, path)))
             goto out;
     }
     if ((st = rpiv_image_new(c->w, c->h, &a)) || (st = rpiv_image_new(c->w, c->h, &b)))

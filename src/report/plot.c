@@ -5,7 +5,7 @@
  * go into a buffer (plsError) rather than to stderr. */
 #include "rpiv/plot.h"
 
-#include "field_impl.h"
+#include "base/atomic.h"
 
 #include <math.h>
 #include <plplot/plplot.h>

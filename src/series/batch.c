@@ -7,8 +7,8 @@
 
 #include "rpiv/ensemble.h"
 
+#include "base/hash.h"
 #include "mpi_impl.h"
-#include "piv_impl.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -223,7 +223,7 @@ static rpiv_status share_of(const rpiv_batch *b, rpiv_pairs *view, size_t *idx)
     return RPIV_OK;
 }
 
-/* After rpiv_piv_background failed on a view with `st` (message current): find the first pair
+/* After rpiv_series_background failed on a view with `st` (message current): find the first pair
  * of the view that cannot be read. Returns its position, or view->n if every pair reads (then
  * the original failure stands); *err is the pair's own failure (message current). */
 static size_t find_bad(const rpiv_batch *b, const rpiv_pairs *view, const size_t *idx, int w, int h,
@@ -300,7 +300,7 @@ rpiv_status rpiv_batch_background(rpiv_batch *b, rpiv_background kind, int w, in
     if ((st = share_of(b, &view, idx)))
         goto out_agree;
     while (view.n) {
-        if (!(st = rpiv_piv_background(&view, kind, progress, &ga, &gb)) || !unreadable(st))
+        if (!(st = rpiv_series_background(&view, kind, progress, &ga, &gb)) || !unreadable(st))
             break;
         size_t j = find_bad(b, &view, idx, w, h, &st);
         if (j == view.n || !b->p.skip_bad)
@@ -356,13 +356,15 @@ static void ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     static const char *const bg[] = {"none", "min", "mean"};
     const rpiv_pairs *pp = b->pairs;
     const rpiv_piv_params *p = rpiv_piv_params_of(pv);
+    int w, h_px;
+    rpiv_piv_size(pv, &w, &h_px);
     memset(id, 0, sizeof *id);
-    uint64_t h = piv_hash(PIV_HASH0, &pp->n, sizeof pp->n);
+    uint64_t h = hash_bytes(HASH0, &pp->n, sizeof pp->n);
     for (size_t i = 0; i < pp->n; i++) {
-        h = piv_hash(h, pp->pair[i].path_a, strlen(pp->pair[i].path_a) + 1);
+        h = hash_bytes(h, pp->pair[i].path_a, strlen(pp->pair[i].path_a) + 1);
         if (pp->pair[i].path_b)
-            h = piv_hash(h, pp->pair[i].path_b, strlen(pp->pair[i].path_b) + 1);
-        h = piv_hash(h, "|", 1);
+            h = hash_bytes(h, pp->pair[i].path_b, strlen(pp->pair[i].path_b) + 1);
+        h = hash_bytes(h, "|", 1);
     }
     id->series_hash = h;
     snprintf(id->series, sizeof id->series, "%zu pairs, %s ... %s", pp->n, pp->pair[0].path_a,
@@ -374,20 +376,13 @@ static void ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     snprintf(id->plan, sizeof id->plan,
              "%dx%d frames, windows %.100s, overlap %.15g, step %d px, subpixel %s, median %.15g "
              "(eps %.15g px), deform %d, background %s, roi %d,%d,%d,%d, mask %.300s",
-             pv->w, pv->h, win, p->overlap, p->step_px, sub[p->subpixel], p->median_thr,
-             p->median_eps, p->deform, bg[p->background], p->roi[0], p->roi[1], p->roi[2],
-             p->roi[3], p->mask[0] ? p->mask : "none");
-    size_t npx = (size_t)pv->w * (size_t)pv->h;
+             w, h_px, win, p->overlap, p->step_px, sub[p->subpixel], p->median_thr, p->median_eps,
+             p->deform, bg[p->background], p->roi[0], p->roi[1], p->roi[2], p->roi[3],
+             p->mask[0] ? p->mask : "none");
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
-    h = piv_hash(PIV_HASH0, id->plan, strlen(id->plan));
-    h = piv_hash(h, exact, sizeof exact);
-    if (pv->mask)
-        h = piv_hash(h, pv->mask, npx);
-    if (pv->bga) {
-        h = piv_hash(h, pv->bga, npx * sizeof *pv->bga);
-        h = piv_hash(h, pv->bgb, npx * sizeof *pv->bgb);
-    }
-    id->plan_hash = h;
+    h = hash_bytes(HASH0, id->plan, strlen(id->plan));
+    h = hash_bytes(h, exact, sizeof exact);
+    id->plan_hash = rpiv_piv_hash_frames(pv, h);
 }
 
 /* Sequential writing and reading with a running hash of the bytes. */
@@ -401,14 +396,14 @@ static void put(ck_io *io, const void *p, size_t n)
 {
     if (!io->bad && n && fwrite(p, 1, n, io->fp) != n)
         io->bad = 1;
-    io->h = piv_hash(io->h, p, n);
+    io->h = hash_bytes(io->h, p, n);
 }
 
 static int get(ck_io *io, void *p, size_t n)
 {
     if (io->bad || (n && fread(p, 1, n, io->fp) != n))
         return !(io->bad = 1);
-    io->h = piv_hash(io->h, p, n);
+    io->h = hash_bytes(io->h, p, n);
     return 1;
 }
 
@@ -459,7 +454,7 @@ static rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, i
         return rpiv_fail(RPIV_ENOMEM, "checkpoint: out of memory");
     snprintf(tmp, len, "%s.tmp%ld", b->ckpt, (long)getpid());
     rpiv_status st = RPIV_OK;
-    ck_io io = {fopen(tmp, "wb"), PIV_HASH0, 0};
+    ck_io io = {fopen(tmp, "wb"), HASH0, 0};
     if (!io.fp) {
         st = rpiv_fail(RPIV_EIO, "%s: cannot write checkpoint: %s", b->ckpt, strerror(errno));
         goto out_free;
@@ -552,7 +547,7 @@ static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id, cons
     *pred = NULL;
     *e = NULL;
     const char *path = b->ckpt;
-    ck_io io = {fopen(path, "rb"), PIV_HASH0, 0};
+    ck_io io = {fopen(path, "rb"), HASH0, 0};
     if (!io.fp)
         return errno == ENOENT ? ck_missing(b, user_path)
                                : rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
@@ -713,7 +708,9 @@ static rpiv_status add_pair(rpiv_batch *b, const rpiv_piv *pv, rpiv_ensemble *e,
                             int *added)
 {
     rpiv_image *a = NULL, *bb = NULL;
-    rpiv_status st = load_pair(b, i, pv->w, pv->h, &a, &bb);
+    int w, h_px;
+    rpiv_piv_size(pv, &w, &h_px);
+    rpiv_status st = load_pair(b, i, w, h_px, &a, &bb);
     *added = 0;
     if (!st && (st = rpiv_ensemble_add(e, a, bb))) {
         char msg[768];
@@ -868,7 +865,9 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
 static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **f)
 {
     rpiv_image *a = NULL, *bb = NULL;
-    rpiv_status st = load_pair(b, i, pv->w, pv->h, &a, &bb);
+    int w, h_px;
+    rpiv_piv_size(pv, &w, &h_px);
+    rpiv_status st = load_pair(b, i, w, h_px, &a, &bb);
     if (!st && (st = rpiv_piv_run(pv, a, bb, f))) {
         char msg[768];
         snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
@@ -883,8 +882,8 @@ static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **
     return st;
 }
 
-rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_piv_sink local, rpiv_piv_sink root,
-                              void *user, const rpiv_progress *progress)
+rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_series_sink local,
+                              rpiv_series_sink root, void *user, const rpiv_progress *progress)
 {
     const rpiv_mpi *m = b->mpi;
     size_t N = b->pairs->n, K = (size_t)rpiv_mpi_size(m), r = (size_t)rpiv_mpi_rank(m);

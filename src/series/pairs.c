@@ -2,7 +2,7 @@
 /* src/image_pairs.c - image pairs from two files, double-frame files, list files and glob
  * patterns with a pairing rule. Building the list only looks at names (and reads list files);
  * the images themselves are opened by rpiv_pairs_load, which names the pair and file at fault. */
-#include "image_impl.h"
+#include "rpiv/pairs.h"
 
 #include <ctype.h>
 #include <errno.h>

@@ -1,6 +1,9 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/piv_series.c - series of pairs: background, instantaneous processing, mean and RMS. */
-#include "piv_impl.h"
+/* src/series/series.c - series of pairs: background, instantaneous processing, mean and RMS,
+ * the ensemble run. */
+#include "rpiv/series.h"
+
+#include "rpiv/batch.h"
 
 #include <float.h>
 #include <math.h>
@@ -16,8 +19,9 @@ static rpiv_status pair_fail(rpiv_status st, const rpiv_pairs *pairs, size_t i)
     return rpiv_fail(st, "pair %zu (%s): %s", i + 1, pairs->pair[i].path_a, msg);
 }
 
-rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
-                                const rpiv_progress *progress, rpiv_image **bg_a, rpiv_image **bg_b)
+rpiv_status rpiv_series_background(const rpiv_pairs *pairs, rpiv_background kind,
+                                   const rpiv_progress *progress, rpiv_image **bg_a,
+                                   rpiv_image **bg_b)
 {
     *bg_a = *bg_b = NULL;
     if (kind != RPIV_BACKGROUND_MIN && kind != RPIV_BACKGROUND_MEAN)
@@ -84,8 +88,8 @@ rpiv_status rpiv_piv_background(const rpiv_pairs *pairs, rpiv_background kind,
     return RPIV_OK;
 }
 
-rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_piv_sink sink, void *user,
-                            const rpiv_progress *progress)
+rpiv_status rpiv_series_run(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_series_sink sink,
+                            void *user, const rpiv_progress *progress)
 {
     if (!pairs->n)
         return rpiv_fail(RPIV_EINVAL, "piv: no image pairs");
@@ -97,7 +101,7 @@ rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_piv_sink
             st = pair_fail(st, pairs, i);
         rpiv_image_free(a);
         rpiv_image_free(b);
-        for (int k = 0; !st && k < pv->npass; k++) {
+        for (int k = 0; !st && k < rpiv_piv_npass(pv); k++) {
             st = rpiv_piv_step(pv, k, prev, &f);
             rpiv_field_free(prev);
             prev = f;
@@ -116,7 +120,7 @@ rpiv_status rpiv_piv_series(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_piv_sink
 
 /* ---- mean and RMS ------------------------------------------------------------------------ */
 
-struct rpiv_piv_stats {
+struct rpiv_series_stats {
     rpiv_field *grid;
     size_t nfields;
     /* per point, for valid vectors (index 0) and for replaced ones (index 1) */
@@ -124,7 +128,7 @@ struct rpiv_piv_stats {
     double *block;
 };
 
-void rpiv_piv_stats_free(rpiv_piv_stats *s)
+void rpiv_series_stats_free(rpiv_series_stats *s)
 {
     if (!s)
         return;
@@ -133,10 +137,10 @@ void rpiv_piv_stats_free(rpiv_piv_stats *s)
     free(s);
 }
 
-rpiv_status rpiv_piv_stats_new(const rpiv_field *grid, rpiv_piv_stats **out)
+rpiv_status rpiv_series_stats_new(const rpiv_field *grid, rpiv_series_stats **out)
 {
     *out = NULL;
-    rpiv_piv_stats *s = calloc(1, sizeof *s);
+    rpiv_series_stats *s = calloc(1, sizeof *s);
     if (!s)
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for statistics");
     rpiv_status st =
@@ -150,7 +154,7 @@ rpiv_status rpiv_piv_stats_new(const rpiv_field *grid, rpiv_piv_stats **out)
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for statistics");
     }
     if (st) {
-        rpiv_piv_stats_free(s);
+        rpiv_series_stats_free(s);
         return st;
     }
     double **arr[7] = {s->cnt, s->mu, s->mv, s->su, s->sv, s->pr, s->cr};
@@ -161,7 +165,7 @@ rpiv_status rpiv_piv_stats_new(const rpiv_field *grid, rpiv_piv_stats **out)
     return RPIV_OK;
 }
 
-rpiv_status rpiv_piv_stats_add(rpiv_piv_stats *s, const rpiv_field *f)
+rpiv_status rpiv_series_stats_add(rpiv_series_stats *s, const rpiv_field *f)
 {
     const rpiv_field *g = s->grid;
     if (f->nx != g->nx || f->ny != g->ny || f->x0 != g->x0 || f->y0 != g->y0 || f->dx != g->dx ||
@@ -189,12 +193,13 @@ rpiv_status rpiv_piv_stats_add(rpiv_piv_stats *s, const rpiv_field *f)
     return RPIV_OK;
 }
 
-size_t rpiv_piv_stats_count(const rpiv_piv_stats *s)
+size_t rpiv_series_stats_count(const rpiv_series_stats *s)
 {
     return s->nfields;
 }
 
-rpiv_status rpiv_piv_stats_finish(const rpiv_piv_stats *s, rpiv_field **mean, rpiv_field **rms)
+rpiv_status rpiv_series_stats_finish(const rpiv_series_stats *s, rpiv_field **mean,
+                                     rpiv_field **rms)
 {
     *mean = *rms = NULL;
     if (!s->nfields)
@@ -224,4 +229,21 @@ rpiv_status rpiv_piv_stats_finish(const rpiv_piv_stats *s, rpiv_field **mean, rp
     *mean = m;
     *rms = r;
     return RPIV_OK;
+}
+
+/* ---- the ensemble run ------------------------------------------------------------------------ */
+
+rpiv_status rpiv_series_ensemble(rpiv_piv *pv, const rpiv_pairs *pairs,
+                                 const rpiv_progress *progress, rpiv_field **out)
+{
+    /* the loop (with checkpoints, skipping and MPI dealing when asked) is rpiv_batch_ensemble */
+    *out = NULL;
+    if (!pairs->n)
+        return rpiv_fail(RPIV_EINVAL, "ensemble: no image pairs");
+    rpiv_batch *b = NULL;
+    rpiv_status st = rpiv_batch_new(pairs, NULL, NULL, &b);
+    if (!st)
+        st = rpiv_batch_ensemble(b, pv, progress, out);
+    rpiv_batch_free(b);
+    return st;
 }

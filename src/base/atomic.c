@@ -1,0 +1,131 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/base/atomic.c - the one way librpiv and the rpiv program write a file: under a unique
+ * temporary name in the target's folder, fsync'd, renamed over the target, the folder fsync'd.
+ * A failure at any step removes the temporary file and leaves the old file intact. */
+#include "atomic.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+rpiv_status atomic_begin(atomic_file *af, const char *path, int want_stream)
+{
+    memset(af, 0, sizeof *af);
+    size_t len = strlen(path);
+    af->path = strdup(path);
+    af->tmp = malloc(len + 64);
+    if (!af->path || !af->tmp) {
+        free(af->path);
+        free(af->tmp);
+        return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
+    }
+    /* O_EXCL makes the name ours; the suffix only has to make collisions unlikely. Unlike
+     * mkstemp, open() applies the umask to 0666, so the result has the usual mode. */
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    unsigned long seed = (unsigned long)ts.tv_nsec ^ ((unsigned long)getpid() << 16);
+    int fd = -1, err = 0;
+    for (int attempt = 0; attempt < 100 && fd < 0; attempt++) {
+        seed = seed * 6364136223846793005UL + 1442695040888963407UL;
+        snprintf(af->tmp, len + 64, "%s.tmp-%ld-%08lx", path, (long)getpid(),
+                 (seed >> 32) & 0xfffffffful);
+        fd = open(af->tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        err = errno;
+        if (fd < 0 && err != EEXIST)
+            break;
+    }
+    if (fd < 0) {
+        free(af->path);
+        free(af->tmp);
+        return rpiv_fail(RPIV_EIO, "%s: cannot create a temporary file in its folder: %s", path,
+                         strerror(err));
+    }
+    if (want_stream) {
+        af->fp = fdopen(fd, "w");
+        if (!af->fp) {
+            err = errno;
+            close(fd);
+            unlink(af->tmp);
+            free(af->path);
+            free(af->tmp);
+            return rpiv_fail(RPIV_EIO, "%s: cannot open a stream: %s", path, strerror(err));
+        }
+    } else {
+        close(fd);
+    }
+    return RPIV_OK;
+}
+
+static void atomic_release(atomic_file *af)
+{
+    free(af->path);
+    free(af->tmp);
+    af->path = af->tmp = NULL;
+    af->fp = NULL;
+}
+
+void atomic_abort(atomic_file *af)
+{
+    if (af->fp)
+        fclose(af->fp);
+    if (af->tmp)
+        unlink(af->tmp);
+    atomic_release(af);
+}
+
+/* fsync a file by name (NetCDF closes its own descriptor). */
+static int fsync_path(const char *p, int dir)
+{
+    int fd = open(p, (dir ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
+    if (fd < 0)
+        return -1;
+    int r = fsync(fd);
+    /* some file systems refuse fsync on a directory; the rename is done, so ignore that */
+    if (r != 0 && dir && (errno == EINVAL || errno == EBADF))
+        r = 0;
+    close(fd);
+    return r;
+}
+
+rpiv_status atomic_commit(atomic_file *af)
+{
+    int err = 0;
+    if (af->fp) {
+        if (fflush(af->fp) != 0 || ferror(af->fp))
+            err = errno ? errno : EIO;
+        if (!err && fsync(fileno(af->fp)) != 0)
+            err = errno;
+        if (fclose(af->fp) != 0 && !err)
+            err = errno ? errno : EIO;
+        af->fp = NULL;
+    } else if (fsync_path(af->tmp, 0) != 0) {
+        err = errno;
+    }
+    if (!err && rename(af->tmp, af->path) != 0)
+        err = errno;
+    if (err) {
+        rpiv_status st = rpiv_fail(RPIV_EIO, "%s: cannot write: %s", af->path, strerror(err));
+        atomic_abort(af);
+        return st;
+    }
+    /* make the rename durable: fsync the folder */
+    char *dir = strdup(af->path);
+    if (dir) {
+        char *slash = strrchr(dir, '/');
+        if (!slash)
+            strcpy(dir, ".");
+        else if (slash == dir)
+            dir[1] = '\0';
+        else
+            *slash = '\0';
+        (void)fsync_path(dir, 1);
+        free(dir);
+    }
+    atomic_release(af);
+    return RPIV_OK;
+}
