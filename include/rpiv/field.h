@@ -57,6 +57,19 @@ RPIV_NODISCARD rpiv_status rpiv_meta_add(rpiv_meta *m, const char *key, const ch
     RPIV_PRINTF(3, 4);
 void rpiv_meta_clear(rpiv_meta *m); /* frees the entries; m is empty and reusable after */
 
+/* The vector-file formats, named by a file's extension (case-insensitive). */
+typedef enum rpiv_field_format {
+    RPIV_FIELD_UNKNOWN = 0, /* no extension, or another one */
+    RPIV_FIELD_TXT = 1,     /* .txt */
+    RPIV_FIELD_NC = 2,      /* .nc  */
+    RPIV_FIELD_DAT = 3,     /* .dat */
+    RPIV_FIELD_VTK = 4      /* .vtk */
+} rpiv_field_format;
+
+/* The format path's extension names; *ext (if ext is not NULL) points into path at the
+ * extension of its last component, dot included, or at "" when it has none. */
+rpiv_field_format rpiv_field_format_of(const char *path, const char **ext);
+
 /* Save by extension (case-insensitive): .txt (text columns x y u v flag peak_ratio
  * correlation, + x_mm y_mm u_ms v_ms when scale and dt are set), .nc (NetCDF-4, dims
  * (t,y,x) with t of length 1, t = 0), .dat (Tecplot ASCII POINT zone), .vtk (legacy VTK

@@ -12,9 +12,6 @@
 #include <stdio.h>
 #include <sys/types.h>
 
-/* The extension of path after the last '.' of its last component, or "" if none. */
-const char *field_ext(const char *path);
-
 /* Writers by format; each writes into af (already open) and names af->path in messages. */
 RPIV_NODISCARD rpiv_status field_write_txt(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
                                            const char *path);

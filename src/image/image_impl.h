@@ -5,6 +5,8 @@
 
 #include "rpiv/image.h"
 
+#include "base/atomic.h"
+
 #include <stddef.h>
 #include <stdint.h>
 
@@ -48,11 +50,5 @@ IMG_HIDDEN rpiv_status img_jpeg_load(const char *path, const unsigned char *buf,
                                      rpiv_image **out, int *warned);
 IMG_HIDDEN rpiv_status img_bmp_load(const char *path, const unsigned char *buf, size_t n,
                                     rpiv_image **out, int *warned);
-
-/* Writers' plumbing: create a unique temporary file next to path (mode 0666 & ~umask);
- * *fd and tmp (size cap) receive it. img_commit fsyncs fd's file, closes nothing, renames tmp
- * to path and syncs the folder. */
-IMG_HIDDEN rpiv_status img_tmp_open(const char *path, char *tmp, size_t cap, int *fd);
-IMG_HIDDEN rpiv_status img_tmp_commit(const char *tmp, const char *path);
 
 #endif /* RPIV_IMAGE_IMPL_H */

@@ -219,42 +219,27 @@ static int png_encode(wctx *c)
 
 rpiv_status rpiv_image_save_png16(const rpiv_image *im, const char *path)
 {
-    char tmp[4096];
-    int fd;
+    atomic_file af;
     wctx c;
     memset(&c, 0, sizeof c);
     c.im = im;
-    rpiv_status st = img_tmp_open(path, tmp, sizeof tmp, &fd);
+    rpiv_status st = atomic_begin(&af, path, 1);
     if (st)
         return st;
-    c.f = fdopen(fd, "wb");
-    if (!c.f) {
-        close(fd);
-        unlink(tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(errno));
-    }
+    c.f = af.fp;
     c.row = malloc((size_t)im->w * 2);
     c.png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &c, on_werror, on_warning);
     if (c.png)
         c.info = png_create_info_struct(c.png);
-    if (!c.row || !c.png || !c.info) {
+    if (!c.row || !c.png || !c.info)
         st = rpiv_fail(RPIV_ENOMEM, "%s: cannot create the PNG writer", path);
-        goto out_close;
-    }
-    if (png_encode(&c) < 0) {
+    else if (png_encode(&c) < 0)
         st = rpiv_fail(RPIV_EIO, "%s: cannot write PNG: %s", path, c.msg);
-        goto out_close;
-    }
-    if (fflush(c.f) != 0 || fsync(fd) != 0)
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write to disk: %s", path, strerror(errno));
-out_close:
     png_destroy_write_struct(&c.png, &c.info);
     free(c.row);
-    if (fclose(c.f) != 0 && !st)
-        st = rpiv_fail(RPIV_EIO, "%s: cannot close: %s", path, strerror(errno));
     if (st) {
-        unlink(tmp);
+        atomic_abort(&af);
         return st;
     }
-    return img_tmp_commit(tmp, path);
+    return atomic_commit(&af); /* flush, fsync, rename, fsync of the folder */
 }

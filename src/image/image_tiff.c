@@ -473,16 +473,14 @@ out_close:
 
 static rpiv_status tiff_save(const rpiv_image *im, const char *path, int isfloat)
 {
-    char tmp[4096];
-    int fd;
+    atomic_file af;
     tctx c;
-    rpiv_status st = img_tmp_open(path, tmp, sizeof tmp, &fd);
+    rpiv_status st = atomic_begin(&af, path, 0); /* libtiff opens the temporary file by name */
     if (st)
         return st;
-    TIFF *t = topen(tmp, "w", fd, &c);
+    TIFF *t = topen(af.tmp, "w", -1, &c);
     if (!t) {
-        close(fd);
-        unlink(tmp);
+        atomic_abort(&af);
         return rpiv_fail(RPIV_EIO, "%s: cannot write TIFF: %s", path, c.msg);
     }
     size_t rowbytes = (size_t)im->w * (isfloat ? 4 : 2);
@@ -521,16 +519,14 @@ static rpiv_status tiff_save(const rpiv_image *im, const char *path, int isfloat
         st = rpiv_fail(RPIV_EIO, "%s: cannot write the TIFF directory: %s", path, c.msg);
         goto out_close;
     }
-    if (fsync(fd) != 0)
-        st = rpiv_fail(RPIV_EIO, "%s: cannot sync to disk: %s", path, strerror(errno));
 out_close:
     free(row);
-    TIFFClose(t); /* closes fd */
+    TIFFClose(t);
     if (st) {
-        unlink(tmp);
+        atomic_abort(&af);
         return st;
     }
-    return img_tmp_commit(tmp, path);
+    return atomic_commit(&af); /* fsync, rename, fsync of the folder */
 }
 
 rpiv_status rpiv_image_save_tiff16(const rpiv_image *im, const char *path)
