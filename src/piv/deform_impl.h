@@ -1,12 +1,50 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/deform_impl.h - one row of a symmetric deformation, for callers that deform strips of
- * rows into their own buffers (the PIV passes). */
+/* src/piv/deform_impl.h - what the deformation's files share (deform_prefilter.c,
+ * deform_pred.c, deform.c), and one row of a symmetric deformation, for callers that deform
+ * strips of rows into their own buffers (the PIV passes). */
 #ifndef RPIV_SRC_DEFORM_IMPL_H
 #define RPIV_SRC_DEFORM_IMPL_H
 
 #include "rpiv/deform.h"
 
+#include <omp.h>
 #include <stddef.h>
+
+/* Ghost nodes around a predictor's grid: the prefilter's mirror boundary sits this far out,
+ * where its effect on the evaluated range (RPIV_DEFORM_GHOST steps) is below 1e-6. */
+#define PAD 16
+
+/* The thread count: n, or OpenMP's default for n <= 0. */
+static inline int nthr(int n)
+{
+    return n > 0 ? n : omp_get_max_threads();
+}
+
+/* Cubic B-spline weights for taps -1, 0, 1, 2 at fraction t in [0, 1). */
+static inline void bweights(float t, float wt[4])
+{
+    float t2 = t * t, t3 = t2 * t, s = 1.0f - t;
+    wt[0] = s * s * s * (1.0f / 6.0f);
+    wt[1] = (2.0f / 3.0f) - t2 + 0.5f * t3;
+    wt[3] = t3 * (1.0f / 6.0f);
+    wt[2] = 1.0f - wt[0] - wt[1] - wt[3];
+}
+
+struct rpiv_deform_pred {
+    int nx, ny; /* padded grid size (field + 2 * PAD) */
+    double x0, y0, dx, dy;
+    float *cu, *cv; /* spline coefficients, ny x nx */
+    int w, h;       /* image size */
+    double shift;   /* rows and columns evaluated at pixel + shift */
+    float maxabs;   /* largest |coefficient|: the interpolant's bound (convex weights) */
+    int *ix, *iy;   /* first tap per pixel column / row */
+    float *wx, *wy; /* 4 weights per pixel column / row */
+    float *wxs;     /* the column weights by tap: wxs[k * w + x] = wx[4 * x + k] */
+    int *runend;    /* first column after x whose first tap differs from ix[x] */
+};
+
+/* The grid rows of the predictor combined for image row y: tu[k], tv[k] for the nx columns. */
+void deform_pred_grid_row(const rpiv_deform_pred *p, int y, float *tu, float *tv);
 
 /* Floats of scratch deform_row needs for the columns x0..x1-1. */
 size_t deform_row_scratch(const rpiv_deform_pred *p, int x0, int x1);
