@@ -15,6 +15,9 @@ typedef enum rpiv_subpixel {
     RPIV_SUBPIXEL_CENTROID = 2  /* 3x3 centroid                              */
 } rpiv_subpixel;
 
+/* The methods' names in enum order (NULL-terminated): "gauss", "parabola", "centroid". */
+extern const char *const rpiv_subpixel_names[];
+
 /* The peak ratio reported when there is no second peak (or it is not positive). */
 #define RPIV_PEAK_RATIO_MAX 1000.0f
 

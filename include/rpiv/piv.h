@@ -21,6 +21,9 @@ typedef enum rpiv_background {
     RPIV_BACKGROUND_MEAN = 2 /* subtract the series' per-pixel mean    */
 } rpiv_background;
 
+/* The kinds' names in enum order (NULL-terminated): "none", "min", "mean". */
+extern const char *const rpiv_background_names[];
+
 typedef struct rpiv_piv_params {
     int npass;                      /* number of passes, 1..8 (3)                  */
     int win_w[RPIV_PIV_MAX_PASSES]; /* window width per pass, px (64, 32, 32)      */

@@ -38,8 +38,6 @@ typedef struct key_spec {
 static const char *const sheet_kinds[] = {"gauss", "selfsim", "uniform", NULL};
 static const char *const polars[] = {"p", "s", "unpolarised", NULL};
 static const char *const beta1_sides[] = {"air", "pmma", NULL};
-static const char *const subpixels[] = {"gauss", "parabola", "centroid", NULL};
-static const char *const backgrounds[] = {"none", "min", "mean", NULL};
 
 static const key_spec keys[] = {
     /* [camera] */
@@ -142,13 +140,13 @@ static const key_spec keys[] = {
     {"piv", "ensemble", KEY_BOOL, OFF(piv.ensemble), 0, 1, 1, "-",
      "sum of correlation over all pairs", 0},
     {"piv", "subpixel", KEY_ENUM, OFF(piv.subpixel), 0, 0, 1, "-",
-     "peak fit: gauss, parabola or centroid", subpixels},
+     "peak fit: gauss, parabola or centroid", rpiv_subpixel_names},
     {"piv", "median_threshold", KEY_DOUBLE, OFF(piv.median_thr), 0, 100, 1, "-",
      "normalised median test threshold (0 = off)", 0},
     {"piv", "median_eps_px", KEY_DOUBLE, OFF(piv.median_eps), 0, 10, 1, "px",
      "normalised median test epsilon", 0},
     {"piv", "background", KEY_ENUM, OFF(piv.background), 0, 0, 1, "-",
-     "subtract the series' min or mean image, or none", backgrounds},
+     "subtract the series' min or mean image, or none", rpiv_background_names},
     {"piv", "roi", KEY_ROI, OFF(piv.roi), 0, 65536, 1, "px",
      "region of interest x0,y0,x1,y1 (0,0,0,0 = whole image)", 0},
     {"piv", "mask", KEY_STRING, OFF(piv.mask), 0, 0, 1, "path", "mask image, 0 = masked", 0},

@@ -3,6 +3,9 @@
 
 #include <math.h>
 
+const char *const rpiv_subpixel_names[] = {"gauss", "parabola", "centroid", NULL};
+const char *const rpiv_background_names[] = {"none", "min", "mean", NULL};
+
 rpiv_piv_params rpiv_piv_params_default(void)
 {
     return (rpiv_piv_params){.npass = 3,
