@@ -132,7 +132,7 @@ void rpiv_xcorr_work_free(rpiv_xcorr_work *ws)
 }
 
 /* The glue around the transforms is written with GCC/Clang vector extensions in
- * xcorr_glue.h, included twice: 8 floats (4 complex) at a time for CPUs with AVX2, chosen at
+ * xcorr_pack.h, included twice: 8 floats (4 complex) at a time for CPUs with AVX2, chosen at
  * run time, and 4 at a time (SSE2, NEON) otherwise; both give the same bits (the header
  * says why).
  *
@@ -163,7 +163,7 @@ typedef float v4fu __attribute__((vector_size(16), aligned(4), may_alias));
 #define XG_ZHI(a, b) SHUF(a, b, 2, 6, 3, 7)
 #define XG_EV(a, b)  SHUF(a, b, 0, 2, 4, 6)
 #define XG_OD(a, b)  SHUF(a, b, 1, 3, 5, 7)
-#include "xcorr_glue.h"
+#include "xcorr_pack.h"
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(RPIV_NO_CLONES)
 #define XCORR_AVX2 1
@@ -182,7 +182,7 @@ typedef float v8fu __attribute__((vector_size(32), aligned(4), may_alias));
 #define XG_ZHI(a, b) SHUF(a, b, 4, 12, 5, 13, 6, 14, 7, 15)
 #define XG_EV(a, b)  SHUF(a, b, 0, 2, 4, 6, 8, 10, 12, 14)
 #define XG_OD(a, b)  SHUF(a, b, 1, 3, 5, 7, 9, 11, 13, 15)
-#include "xcorr_glue.h"
+#include "xcorr_pack.h"
 #endif
 
 /* The glue's width: 8 where the CPU has AVX2 (and it is built), else 4; a request (vl = 4 or

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/xcorr_glue.h - the glue around the transforms of xcorr.c (packing, cross-spectra,
+/* src/piv/xcorr_pack.h - the glue around the transforms of xcorr.c (packing, cross-spectra,
  * unpacking), included by src/xcorr.c once per vector width with these defined:
  *   XG_VL          lanes (4 or 8 floats), XG_VF its float vector type, XG_VU the same type
  *                  unaligned and allowed to alias floats;
