@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image/image.c - the float image: allocation under the size limit, copy, statistics.
+/* src/image/image.c - the float image: allocation under the size limit, copy, statistics,
+ * the format names.
  * The format readers build on it; image_file.c dispatches files to them. */
 #include "image_impl.h"
 
@@ -112,4 +113,23 @@ rpiv_image_stats rpiv_image_stats_of(const rpiv_image *im)
     }
     s.mean = sum / (double)n;
     return s;
+}
+
+const char *rpiv_image_format_name(rpiv_image_format fmt)
+{
+    switch (fmt) {
+    case RPIV_IMAGE_TIFF:
+        return "TIFF";
+    case RPIV_IMAGE_PNG:
+        return "PNG";
+    case RPIV_IMAGE_PGM:
+        return "PGM";
+    case RPIV_IMAGE_BMP:
+        return "BMP";
+    case RPIV_IMAGE_JPEG:
+        return "JPEG";
+    case RPIV_IMAGE_UNKNOWN:
+        break;
+    }
+    return "unknown";
 }

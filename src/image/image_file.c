@@ -29,25 +29,6 @@ rpiv_image_format rpiv_image_format_of_bytes(const unsigned char *m, size_t n)
     return RPIV_IMAGE_UNKNOWN;
 }
 
-const char *rpiv_image_format_name(rpiv_image_format fmt)
-{
-    switch (fmt) {
-    case RPIV_IMAGE_TIFF:
-        return "TIFF";
-    case RPIV_IMAGE_PNG:
-        return "PNG";
-    case RPIV_IMAGE_PGM:
-        return "PGM";
-    case RPIV_IMAGE_BMP:
-        return "BMP";
-    case RPIV_IMAGE_JPEG:
-        return "JPEG";
-    case RPIV_IMAGE_UNKNOWN:
-        break;
-    }
-    return "unknown";
-}
-
 /* Open path, check it is a non-empty regular file and read its first bytes. */
 static rpiv_status read_magic(const char *path, rpiv_image_format *fmt, FILE **fp, size_t *size)
 {
