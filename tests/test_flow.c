@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 #include "check.h"
+#include "rpiv/field.h"
 #include "rpiv/flow.h"
 
 #include <gsl/gsl_integration.h>
