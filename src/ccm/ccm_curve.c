@@ -3,6 +3,8 @@
  * vector field (a measured profile along x*). */
 #include "ccm_impl.h"
 
+#include "base/text.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -58,29 +60,32 @@ rpiv_status rpiv_ccm_curve_load(const char *path, rpiv_ccm_curve **out)
     rpiv_status st = RPIV_OK;
     size_t n = 0, cap = 0;
     double *x = NULL, *y = NULL, *w = NULL;
-    int ncol = 0, lineno = 0;
-    char buf[1024];
-    while (fgets(buf, sizeof buf, fp)) {
-        lineno++;
-        char *s = buf + strspn(buf, " \t");
-        if (*s == '#' || *s == '\n' || *s == '\r' || *s == '\0')
+    int ncol = 0;
+    char *line = NULL;
+    size_t lcap = 0;
+    long lineno = 0;
+    ssize_t len;
+    while ((len = text_getline(fp, &line, &lcap, path, &lineno, &st)) >= 0) {
+        if (!text_is_data(line))
             continue;
         double v[3];
-        int k = sscanf(s, "%lf %lf %lf", &v[0], &v[1], &v[2]);
-        if (k < 2 || !isfinite(v[0]) || !isfinite(v[1]) || (k == 3 && !isfinite(v[2]))) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: expected two or three numbers 'x y [w]'", path,
+        int k = text_columns(line, v, 3, path, lineno, &st);
+        if (k < 0)
+            goto out_free;
+        if (k < 2 || k > 3) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: expected two or three numbers 'x y [w]'", path,
                            lineno);
             goto out_free;
         }
         if (!ncol)
             ncol = k;
         if (k != ncol) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: %d columns, the first row had %d", path, lineno, k,
-                           ncol);
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: %d columns, the first row had %d", path, lineno,
+                           k, ncol);
             goto out_free;
         }
         if (n && !(v[0] > x[n - 1])) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: first column not increasing", path, lineno);
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: first column not increasing", path, lineno);
             goto out_free;
         }
         if (n == cap) {
@@ -104,6 +109,8 @@ rpiv_status rpiv_ccm_curve_load(const char *path, rpiv_ccm_curve **out)
         w[n] = k == 3 ? v[2] : 0;
         n++;
     }
+    if (len == -2)
+        goto out_free;
     if (ferror(fp)) {
         st = rpiv_fail(RPIV_EIO, "%s: read error", path);
         goto out_free;
@@ -122,6 +129,7 @@ rpiv_status rpiv_ccm_curve_load(const char *path, rpiv_ccm_curve **out)
         memcpy(c->w, w, n * sizeof *w);
     *out = c;
 out_free:
+    free(line);
     free(x);
     free(y);
     free(w);

@@ -57,8 +57,7 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
     rpiv_status st = RPIV_OK;
     while ((len = text_getline(fp, &line, &lcap, path, &lineno, &st)) >= 0) {
         char key[32];
-        double v, a, b;
-        int used = 0;
+        double v;
         if (line[0] == '#') {
             if (strstr(line, "rpiv-sheet"))
                 magic = 1;
@@ -80,15 +79,19 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
             }
             continue;
         }
-        if (strspn(line, " \t\r\n") == strlen(line))
+        if (!text_is_data(line))
             continue;
-        if (sscanf(line, "%lf %lf %n", &a, &b, &used) != 2 || line[used] != '\0' || !isfinite(a) ||
-            !(b >= 0 && b <= 1.0001)) {
+        double row[2];
+        int nc = text_columns(line, row, 2, path, lineno, &st);
+        if (nc < 0)
+            goto out;
+        if (nc != 2 || !(row[1] >= 0 && row[1] <= 1.0001)) {
             st =
                 rpiv_fail(RPIV_EFORMAT, "%s:%ld: expected 'zplus I' (two numbers) with 0 <= I <= 1",
                           path, lineno);
             goto out;
         }
+        double a = row[0], b = row[1];
         if (s->n && a <= s->zp[s->n - 1]) {
             st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: zplus not increasing", path, lineno);
             goto out;

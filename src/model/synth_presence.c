@@ -3,6 +3,8 @@
  * the heights drawn from it. */
 #include "synth_impl.h"
 
+#include "base/text.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -16,28 +18,30 @@ rpiv_status synth_pz_load(rpiv_synth *s, const char *path)
     FILE *fp = fopen(path, "r");
     if (!fp)
         return rpiv_fail(RPIV_EIO, "%s: cannot open P(z) table: %s", path, strerror(errno));
-    char line[512];
-    size_t cap = 0;
-    int lineno = 0;
+    char *line = NULL;
+    size_t cap = 0, lcap = 0;
+    long lineno = 0;
+    ssize_t len;
     rpiv_status st = RPIV_OK;
-    while (fgets(line, sizeof line, fp)) {
-        lineno++;
-        char *c = line + strspn(line, " \t");
-        if (*c == '#' || *c == '\0' || *c == '\n' || *c == '\r')
+    while ((len = text_getline(fp, &line, &lcap, path, &lineno, &st)) >= 0) {
+        if (!text_is_data(line))
             continue;
-        double z, p;
-        char tail[2];
-        if (sscanf(c, "%lf %lf %1s", &z, &p, tail) != 2 || !isfinite(z) || !isfinite(p)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: expected two numbers 'z* P'", path, lineno);
+        double row[2];
+        int nc = text_columns(line, row, 2, path, lineno, &st);
+        if (nc < 0)
+            goto out_close;
+        if (nc != 2) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: expected two numbers 'z* P'", path, lineno);
             goto out_close;
         }
+        double z = row[0], p = row[1];
         if (z < 0 || z > 1 || p < 0) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: need 0 <= z* <= 1 and P >= 0, got %g %g", path,
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: need 0 <= z* <= 1 and P >= 0, got %g %g", path,
                            lineno, z, p);
             goto out_close;
         }
         if (s->npz && !(z > s->pz_z[s->npz - 1])) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: z* not increasing", path, lineno);
+            st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: z* not increasing", path, lineno);
             goto out_close;
         }
         if (s->npz == cap) {
@@ -57,6 +61,8 @@ rpiv_status synth_pz_load(rpiv_synth *s, const char *path)
         s->pz_p[s->npz] = p;
         s->npz++;
     }
+    if (len == -2)
+        goto out_close;
     if (ferror(fp)) {
         st = rpiv_fail(RPIV_EIO, "%s: read error", path);
         goto out_close;
@@ -77,6 +83,7 @@ rpiv_status synth_pz_load(rpiv_synth *s, const char *path)
     if (!(s->pz_c[s->npz - 1] > 0))
         st = rpiv_fail(RPIV_EFORMAT, "%s: P(z) integrates to zero", path);
 out_close:
+    free(line);
     fclose(fp);
     return st;
 }
