@@ -59,28 +59,6 @@ rpiv_status ccm_gsl_fail(int gsl_status, const char *what)
     return rpiv_fail(RPIV_ENUMERIC, "ccm: %s failed: %s", what, gsl_strerror(gsl_status));
 }
 
-rpiv_status ccm_file_begin(const char *path, char *tmp, FILE **fp)
-{
-    *fp = NULL;
-    if (snprintf(tmp, RPIV_PATH_MAX + 16, "%s.tmp", path) >= RPIV_PATH_MAX + 16)
-        return rpiv_fail(RPIV_EINVAL, "%s: path too long", path);
-    *fp = fopen(tmp, "w");
-    if (!*fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create: %s", path, strerror(errno));
-    return RPIV_OK;
-}
-
-rpiv_status ccm_file_end(FILE *fp, const char *tmp, const char *path)
-{
-    int bad = ferror(fp);
-    bad |= fclose(fp) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        remove(tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    }
-    return RPIV_OK;
-}
-
 void ccm_file_header(FILE *fp, const char *hdr)
 {
     const char *s = hdr;

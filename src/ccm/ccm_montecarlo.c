@@ -3,6 +3,8 @@
  * window at random heights, N_im pairs summed, R repetitions. */
 #include "ccm_impl.h"
 
+#include "base/atomic.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -259,11 +261,11 @@ rpiv_status rpiv_ccm_mc_save(const rpiv_ccm_mc_result *r, double scale_px, doubl
 {
     if (!(fabs(scale_px) > 0))
         return rpiv_fail(RPIV_EINVAL, "ccm: displacement scale is zero");
-    char tmp[RPIV_PATH_MAX + 16];
-    FILE *fp;
-    rpiv_status st = ccm_file_begin(path, tmp, &fp);
+    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&af, path, 1);
     if (st)
         return st;
+    FILE *fp = af.fp;
     fprintf(fp, "# rpiv-ccm-mc 1\n");
     ccm_file_header(fp, hdr);
     fprintf(fp, "# repetitions = %zu\n", r->repeats);
@@ -274,5 +276,5 @@ rpiv_status rpiv_ccm_mc_save(const rpiv_ccm_mc_result *r, double scale_px, doubl
         fprintf(fp, "%zu %.10g %.6e %.10g %.6e\n", r->nim[k], r->mean[k] / scale_px,
                 r->std[k] / fabs(scale_px), r->mean_sub[k] / scale_px,
                 r->std_sub[k] / fabs(scale_px));
-    return ccm_file_end(fp, tmp, path);
+    return atomic_commit(&af);
 }
