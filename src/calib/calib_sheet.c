@@ -8,6 +8,7 @@
 #include <gsl/gsl_filter.h>
 #include <gsl/gsl_fit.h>
 #include <gsl/gsl_integration.h>
+#include <gsl/gsl_interp.h>
 #include <gsl/gsl_sort_double.h>
 #include <gsl/gsl_statistics_double.h>
 #include <gsl/gsl_vector.h>
@@ -222,22 +223,49 @@ static void fit_line(const double *x, const double *z, size_t n, double *c0, dou
     }
 }
 
-/* Linear interpolation in an increasing table; returns 0 outside. */
-static int interp(const double *xs, const double *ys, size_t n, double x, double *y)
+/* A plate's profile I(z+) as a table, interpolated linearly (GSL) between its samples and
+ * without a value outside them; built once per plate for all its lookups. */
+typedef struct shape_table {
+    const double *z, *inten;
+    size_t n;
+    gsl_interp *in;
+    gsl_interp_accel *acc;
+} shape_table;
+
+static void shape_table_free(shape_table *t)
 {
-    if (n < 2 || x < xs[0] || x > xs[n - 1])
-        return 0;
-    size_t lo = 0, hi = n - 1;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (xs[mid] <= x)
-            lo = mid;
-        else
-            hi = mid;
+    if (t->in)
+        gsl_interp_free(t->in);
+    if (t->acc)
+        gsl_interp_accel_free(t->acc);
+}
+
+/* The table (z, inten, n) of one plate; n < 2 gives an empty table (no value anywhere). */
+static rpiv_status shape_table_init(shape_table *t, const double *z, const double *inten, size_t n)
+{
+    *t = (shape_table){z, inten, n, NULL, NULL};
+    if (n < 2)
+        return RPIV_OK;
+    t->in = gsl_interp_alloc(gsl_interp_linear, n);
+    t->acc = gsl_interp_accel_alloc();
+    if (!t->in || !t->acc) {
+        shape_table_free(t);
+        return rpiv_fail(RPIV_ENOMEM, "calib sheet: out of memory");
     }
-    double f = xs[hi] > xs[lo] ? (x - xs[lo]) / (xs[hi] - xs[lo]) : 0;
-    *y = ys[lo] + f * (ys[hi] - ys[lo]);
-    return 1;
+    int gs = gsl_interp_init(t->in, z, inten, n);
+    if (gs) {
+        shape_table_free(t);
+        return rpiv_fail(RPIV_ENUMERIC, "calib sheet: a plate's profile: %s", gsl_strerror(gs));
+    }
+    return RPIV_OK;
+}
+
+/* 1 and *y if x is inside the table, 0 outside. */
+static int shape_at(const shape_table *t, double x, double *y)
+{
+    if (t->n < 2 || x < t->z[0] || x > t->z[t->n - 1])
+        return 0;
+    return gsl_interp_eval_e(t->in, t->z, t->inten, x, t->acc, y) == GSL_SUCCESS;
 }
 
 /* Lines through the (x*, z*) points where the plates meet z*_max, z*_inf, z*_sup. Each point
@@ -313,13 +341,17 @@ static rpiv_status sheet_shape(const rpiv_calib_sheet_params *p, rpiv_calib_shee
                 goto out_free;
             }
         }
+        shape_table t;
+        if ((st = shape_table_init(&t, z, pl->inten, pl->n)))
+            goto out_free;
         for (size_t g = 0; g < ng; g++) {
             double v, zg = ((double)g - (double)half) * p->zplus_step;
-            if (interp(z, pl->inten, pl->n, zg, &v)) {
+            if (shape_at(&t, zg, &v)) {
                 sum[g] += v;
                 cnt[g]++;
             }
         }
+        shape_table_free(&t);
     }
     size_t m = 0;
     double smax = 0;
@@ -341,11 +373,15 @@ static rpiv_status sheet_shape(const rpiv_calib_sheet_params *p, rpiv_calib_shee
         rpiv_calib_sheet_plate *pl = &r->plate[i];
         double ss = 0, v;
         size_t k = 0;
+        shape_table t;
+        if ((st = shape_table_init(&t, zp + i * nmax, pl->inten, pl->n)))
+            goto out_free;
         for (size_t j = 0; j < m; j++)
-            if (interp(zp + i * nmax, pl->inten, pl->n, r->zplus[j], &v)) {
+            if (shape_at(&t, r->zplus[j], &v)) {
                 ss += (v - r->shape[j]) * (v - r->shape[j]);
                 k++;
             }
+        shape_table_free(&t);
         pl->shape_rms = k ? sqrt(ss / (double)k) : (double)NAN;
     }
 out_free:

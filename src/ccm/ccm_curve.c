@@ -11,6 +11,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_interp.h>
+
 /* ---- tabulated curves ----------------------------------------------------------------- */
 
 static rpiv_status curve_alloc(size_t n, int with_w, rpiv_ccm_curve **out)
@@ -26,6 +29,25 @@ static rpiv_status curve_alloc(size_t n, int with_w, rpiv_ccm_curve **out)
         return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for a curve of %zu points", n);
     }
     c->n = n;
+    *out = c;
+    return RPIV_OK;
+}
+
+/* The curve's interpolation, built once its points are in (x increasing, n >= 2). On failure
+ * the curve is freed. */
+static rpiv_status curve_finish(rpiv_ccm_curve *c, rpiv_ccm_curve **out)
+{
+    gsl_interp *in = gsl_interp_alloc(gsl_interp_linear, c->n);
+    c->interp = in;
+    if (!in) {
+        rpiv_ccm_curve_free(c);
+        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for a curve of %zu points", c->n);
+    }
+    int gs = gsl_interp_init(in, c->x, c->y, c->n);
+    if (gs) {
+        rpiv_ccm_curve_free(c);
+        return ccm_gsl_fail(gs, "a curve's interpolation");
+    }
     *out = c;
     return RPIV_OK;
 }
@@ -47,8 +69,7 @@ rpiv_status rpiv_ccm_curve_new(const double *x, const double *y, size_t n, rpiv_
         return st;
     memcpy(c->x, x, n * sizeof *x);
     memcpy(c->y, y, n * sizeof *y);
-    *out = c;
-    return RPIV_OK;
+    return curve_finish(c, out);
 }
 
 rpiv_status rpiv_ccm_curve_load(const char *path, rpiv_ccm_curve **out)
@@ -127,7 +148,7 @@ rpiv_status rpiv_ccm_curve_load(const char *path, rpiv_ccm_curve **out)
     memcpy(c->y, y, n * sizeof *y);
     if (c->w)
         memcpy(c->w, w, n * sizeof *w);
-    *out = c;
+    st = curve_finish(c, out);
 out_free:
     free(line);
     free(x);
@@ -141,26 +162,22 @@ void rpiv_ccm_curve_free(rpiv_ccm_curve *c)
 {
     if (!c)
         return;
+    if (c->interp)
+        gsl_interp_free(c->interp);
     free(c->x);
     free(c->y);
     free(c->w);
     free(c);
 }
 
+/* No accelerator: a curve is a model callback, evaluated from many threads at once; GSL's
+ * bisection without one is the search this lookup always made. */
 double rpiv_ccm_curve_eval(const rpiv_ccm_curve *c, double x)
 {
     if (!(x >= c->x[0] && x <= c->x[c->n - 1]))
         return 0;
-    size_t lo = 0, hi = c->n - 1;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (c->x[mid] <= x)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    double f = (x - c->x[lo]) / (c->x[hi] - c->x[lo]);
-    return c->y[lo] + f * (c->y[hi] - c->y[lo]);
+    double y;
+    return gsl_interp_eval_e(c->interp, c->x, c->y, x, NULL, &y) == GSL_SUCCESS ? y : 0;
 }
 
 double rpiv_ccm_curve_fn(const void *user, double x)

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <gsl/gsl_interp.h>
 #include <gsl/gsl_rng.h>
 #include <omp.h>
 
@@ -112,14 +113,8 @@ static double sampler_draw(const sampler *s, gsl_rng *rng)
     double u = gsl_rng_uniform(rng), lo = s->m->zlo, hi = s->m->zhi;
     if (!s->cdf)
         return lo + u * (hi - lo);
-    size_t a = 0, b = s->n - 1;
-    while (b - a > 1) {
-        size_t mid = (a + b) / 2;
-        if (s->cdf[mid] <= u)
-            a = mid;
-        else
-            b = mid;
-    }
+    /* the cell by GSL's bisection (the CDF is flat where P = 0, which gsl_interp refuses) */
+    size_t a = gsl_interp_bsearch(s->cdf, u, 0, s->n - 1), b = a + 1;
     double da = s->cdf[b] - s->cdf[a], f = da > 0 ? (u - s->cdf[a]) / da : 0;
     return lo + (hi - lo) * ((double)a + f) / (double)(s->n - 1);
 }

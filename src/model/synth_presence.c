@@ -11,6 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <gsl/gsl_interp.h>
+
 /* ---- P(z*) table ------------------------------------------------------------------------ */
 
 rpiv_status synth_pz_load(rpiv_synth *s, const char *path)
@@ -96,14 +98,9 @@ double synth_pz_sample(const rpiv_synth *s, gsl_rng *r)
     if (!s->npz)
         return u;
     double t = u * s->pz_c[s->npz - 1];
-    size_t lo = 0, hi = s->npz - 1;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (s->pz_c[mid] <= t)
-            lo = mid;
-        else
-            hi = mid;
-    }
+    /* the segment by GSL's bisection (the cumulative integral may be flat where P = 0, which
+     * gsl_interp refuses, and the inversion in the segment is quadratic, not linear) */
+    size_t lo = gsl_interp_bsearch(s->pz_c, t, 0, s->npz - 1), hi = lo + 1;
     double dz = s->pz_z[hi] - s->pz_z[lo], p0 = s->pz_p[lo];
     double a = (s->pz_p[hi] - p0) / dz, rem = t - s->pz_c[lo];
     double den = p0 + sqrt(p0 * p0 + 2 * a * rem);
