@@ -332,7 +332,7 @@ static rpiv_status sheet_shape(const rpiv_calib_sheet_params *p, rpiv_calib_shee
         double *z = zp + i * nmax;
         for (size_t j = 0; j < pl->n; j++) {
             double x = pl->x[j];
-            z[j] = (pl->z[j] - (r->zm0 + r->zm1 * x)) / (r->e0 + r->e1 * x);
+            z[j] = rpiv_sheet_zplus(pl->z[j], r->zm0 + r->zm1 * x, r->e0 + r->e1 * x);
             if (j && !(z[j] > z[j - 1])) {
                 st = rpiv_fail(RPIV_ENUMERIC,
                                "calib sheet: z+ does not increase along plate %zu (the fitted "
@@ -466,7 +466,7 @@ rpiv_status rpiv_calib_sheet_write_profiles(const rpiv_calib_sheet_result *r, FI
             fputc('\n', fp);
         for (size_t j = 0; j < pl->n; j++) {
             double x = pl->x[j];
-            double zp = (pl->z[j] - (r->zm0 + r->zm1 * x)) / (r->e0 + r->e1 * x);
+            double zp = rpiv_sheet_zplus(pl->z[j], r->zm0 + r->zm1 * x, r->e0 + r->e1 * x);
             fprintf(fp, "%zu %.6f %.6f %.6f %.6f\n", i + 1, pl->z[j], x, pl->inten[j], zp);
         }
     }

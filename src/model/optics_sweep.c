@@ -183,8 +183,8 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
         zm[nu] = m.zmax;
         im[nu] = m.imax;
         idx[nu] = k;
-        zpmin = fmin(zpmin, (zstar[0] - m.zmax) / m.e);
-        zpmax = fmax(zpmax, (zstar[nz - 1] - m.zmax) / m.e);
+        zpmin = fmin(zpmin, rpiv_sheet_zplus(zstar[0], m.zmax, m.e));
+        zpmax = fmax(zpmax, rpiv_sheet_zplus(zstar[nz - 1], m.zmax, m.e));
         nu++;
     }
     if (nu < 2) {

@@ -195,6 +195,11 @@ static double table_shape(const rpiv_sheet *s, double zp)
     return gsl_interp_eval_e(s->shape, s->zp, s->in, zp, NULL, &v) == GSL_SUCCESS ? v : 0;
 }
 
+double rpiv_sheet_zplus(double zstar, double zmax, double e)
+{
+    return (zstar - zmax) / e;
+}
+
 double rpiv_sheet_eval(const rpiv_sheet *s, double xstar, double zstar)
 {
     const double ln4 = 1.3862943611198906;
@@ -209,7 +214,7 @@ double rpiv_sheet_eval(const rpiv_sheet *s, double xstar, double zstar)
         double e = s->p.e0 + s->p.e1 * xstar;
         if (!(e > 1e-9))
             return 0;
-        double zp = (zstar - (s->p.zm0 + s->p.zm1 * xstar)) / e;
+        double zp = rpiv_sheet_zplus(zstar, s->p.zm0 + s->p.zm1 * xstar, e);
         return s->n ? table_shape(s, zp) : default_shape(s->p.skew, zp);
     }
     case RPIV_SHEET_UNIFORM:
