@@ -153,6 +153,7 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_sheet_x_of_zmax(const rpiv_sheet *s, double 
 typedef struct rpiv_ccm_curve {
     size_t n;
     double *x, *y, *w;
+    void *interp; /* the linear interpolation (a gsl_interp), built by _new and _load */
 } rpiv_ccm_curve;
 RPIV_NODISCARD rpiv_status rpiv_ccm_curve_new(const double *x, const double *y, size_t n,
                                               rpiv_ccm_curve **out);

@@ -44,6 +44,12 @@ typedef struct rpiv_sheet rpiv_sheet;
 RPIV_NODISCARD rpiv_status rpiv_sheet_new(const rpiv_sheet_params *p, rpiv_sheet **out);
 void rpiv_sheet_free(rpiv_sheet *s);
 
+/* The sheet coordinate z+ = (z* - z*_max) / e*: the height above the sheet's maximum in units
+ * of its thickness, the abscissa of a self-similar shape (SELFSIM, profile files). For the
+ * SELFSIM lines, z*_max = zm0 + zm1 x* and e* = e0 + e1 x*. No check: e = 0 gives +-inf or NaN.
+ * The one place this coordinate is computed. */
+double rpiv_sheet_zplus(double zstar, double zmax, double e);
+
 /* I0(x*, z*) normalised so that the maximum over z* at any x* is 1. */
 double rpiv_sheet_eval(const rpiv_sheet *s, double xstar, double zstar);
 

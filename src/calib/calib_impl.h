@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/calib_impl.h - helpers shared by calib.c (common, sheet), calib_dof.c and calib_render.c.
+/* src/calib/calib_impl.h - helpers shared inside the calib module: the target's image model
+ * (calib_blur.c), the plate in the image (calib_plate.c), the focus curve (calib_focus.c).
  * Internal: not installed. */
 #ifndef RPIV_CALIB_IMPL_H
 #define RPIV_CALIB_IMPL_H
@@ -80,5 +81,12 @@ RPIV_NODISCARD rpiv_status calib_place_init(const rpiv_calib_geom *g, const rpiv
                                             const rpiv_channel *ch, const rpiv_calib_shot *shot,
                                             const double *p, int w, const char *what,
                                             calib_place *pl);
+
+/* The focus curve (calib_focus.c). calib_focus_alloc: the arrays for n heights (and the dot
+ * counts if counts). calib_focus_analyse: from z and I* (filled by the caller), 1/I*, its local
+ * fit (m columns each side), g, the crossings, DOF*, z*_OP and the secondary widths; `what`
+ * names the analysis in messages. */
+RPIV_NODISCARD rpiv_status calib_focus_alloc(rpiv_calib_focus *c, size_t n, int counts);
+RPIV_NODISCARD rpiv_status calib_focus_analyse(rpiv_calib_focus *c, int m, const char *what);
 
 #endif /* RPIV_CALIB_IMPL_H */

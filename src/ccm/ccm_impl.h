@@ -65,10 +65,6 @@ size_t ccm_breakpoints(const rpiv_ccm_model *m, rpiv_ccm_work *w, double *pts, s
 /* Mix (seed, index) into one 32-bit-safe RNG seed (splitmix64). */
 unsigned long ccm_seed(unsigned long seed, unsigned long index);
 
-/* Atomic text files: write to "<path>.tmp", then rename over path. tmp has RPIV_PATH_MAX + 16
- * bytes. ccm_file_end closes fp and publishes (or removes the temporary on failure). */
-RPIV_NODISCARD rpiv_status ccm_file_begin(const char *path, char *tmp, FILE **fp);
-RPIV_NODISCARD rpiv_status ccm_file_end(FILE *fp, const char *tmp, const char *path);
 /* Write each line of hdr prefixed with "# ". */
 void ccm_file_header(FILE *fp, const char *hdr);
 

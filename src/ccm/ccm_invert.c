@@ -4,6 +4,8 @@
  * (zero at the walls), fitted by regularised non-linear least squares on Eq. "statform". */
 #include "ccm_impl.h"
 
+#include "base/atomic.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -544,11 +546,11 @@ out_free:
 
 rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hdr, const char *path)
 {
-    char tmp[RPIV_PATH_MAX + 16];
-    FILE *fp;
-    rpiv_status st = ccm_file_begin(path, tmp, &fp);
+    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&af, path, 1);
     if (st)
         return st;
+    FILE *fp = af.fp;
     fprintf(fp, "# rpiv-ccm-invert 1\n");
     ccm_file_header(fp, hdr);
     fprintf(fp, "# sigma = %.6g\n# chi2 = %.6g\n# iterations = %zu\n", r->sigma, r->chi2,
@@ -559,7 +561,7 @@ rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hd
     fprintf(fp, "# columns: z* U* std_U*\n");
     for (size_t i = 0; i < r->nout; i++)
         fprintf(fp, "%.8g %.10g %.6e\n", r->z[i], r->u[i], r->u_std[i]);
-    return ccm_file_end(fp, tmp, path);
+    return atomic_commit(&af);
 }
 
 static int cmp_triple(const void *a, const void *b)

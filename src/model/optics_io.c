@@ -2,39 +2,12 @@
 /* Text tables of the ray tracer's results, each with the parameters that made it. */
 #include "rpiv/optics.h"
 
+#include "base/atomic.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
-
-typedef struct table {
-    FILE *fp;
-    const char *path;
-    char tmp[RPIV_PATH_MAX + 16];
-} table;
-
-static rpiv_status table_open(table *t, const char *path)
-{
-    t->path = path;
-    if (strlen(path) >= RPIV_PATH_MAX)
-        return rpiv_fail(RPIV_EINVAL, "%s: path too long", path);
-    snprintf(t->tmp, sizeof t->tmp, "%s.tmp", path);
-    t->fp = fopen(t->tmp, "w");
-    if (!t->fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create: %s", path, strerror(errno));
-    return RPIV_OK;
-}
-
-static rpiv_status table_close(table *t)
-{
-    int bad = ferror(t->fp);
-    bad |= fclose(t->fp) != 0;
-    if (bad || rename(t->tmp, t->path) != 0) {
-        remove(t->tmp);
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", t->path);
-    }
-    return RPIV_OK;
-}
 
 /* "nan" on every platform, %.*g otherwise. */
 static void num(FILE *fp, double v, const char *sep)
@@ -79,8 +52,8 @@ static void result_header(FILE *fp, const char *what, const rpiv_optics_result *
 
 rpiv_status rpiv_optics_save_profile(const rpiv_optics_result *r, size_t k, const char *path)
 {
-    table t;
-    rpiv_status st = table_open(&t, path);
+    atomic_file t; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&t, path, 1);
     if (st)
         return st;
     result_header(t.fp, "profile", r);
@@ -94,13 +67,13 @@ rpiv_status rpiv_optics_save_profile(const rpiv_optics_result *r, size_t k, cons
         num(t.fp, p[j], " ");
         num(t.fp, mx > 0 ? p[j] / mx : 0, "\n");
     }
-    return table_close(&t);
+    return atomic_commit(&t);
 }
 
 rpiv_status rpiv_optics_save_metrics(const rpiv_optics_result *r, const char *path)
 {
-    table t;
-    rpiv_status st = table_open(&t, path);
+    atomic_file t;
+    rpiv_status st = atomic_begin(&t, path, 1);
     if (st)
         return st;
     result_header(t.fp, "metrics", r);
@@ -121,7 +94,7 @@ rpiv_status rpiv_optics_save_metrics(const rpiv_optics_result *r, const char *pa
         num(t.fp, m.e, " ");
         num(t.fp, m.imax, "\n");
     }
-    return table_close(&t);
+    return atomic_commit(&t);
 }
 
 rpiv_status rpiv_optics_save_sweep(const rpiv_laser *l, const rpiv_prism *p, double xstar,
@@ -129,8 +102,8 @@ rpiv_status rpiv_optics_save_sweep(const rpiv_laser *l, const rpiv_prism *p, dou
                                    const double *profiles, const rpiv_optics_opts *o,
                                    const char *profiles_path)
 {
-    table t;
-    rpiv_status st = table_open(&t, path);
+    atomic_file t;
+    rpiv_status st = atomic_begin(&t, path, 1);
     if (st)
         return st;
     header(t.fp, "beta1 sweep", l, p);
@@ -149,9 +122,9 @@ rpiv_status rpiv_optics_save_sweep(const rpiv_laser *l, const rpiv_prism *p, dou
         num(t.fp, q->ipeak_star, " ");
         num(t.fp, q->elevation_deg, "\n");
     }
-    if ((st = table_close(&t)) || !profiles)
+    if ((st = atomic_commit(&t)) || !profiles)
         return st;
-    if ((st = table_open(&t, profiles_path)))
+    if ((st = atomic_begin(&t, profiles_path, 1)))
         return st;
     header(t.fp, "beta1 sweep profiles I0*(z*)", l, p);
     fprintf(t.fp, "# x* %g\n# columns: z*", xstar);
@@ -168,17 +141,17 @@ rpiv_status rpiv_optics_save_sweep(const rpiv_laser *l, const rpiv_prism *p, dou
         }
         fputc('\n', t.fp);
     }
-    return table_close(&t);
+    return atomic_commit(&t);
 }
 
 rpiv_status rpiv_optics_save_sensitivity(const rpiv_laser *l, const rpiv_prism *p,
                                          const rpiv_optics_sens_row *rows, size_t n, double cutoff,
                                          const char *path)
 {
-    table t;
+    atomic_file t;
     rpiv_optics_axis ax;
     rpiv_status st = rpiv_optics_axis_of(l, p, &ax);
-    if (st || (st = table_open(&t, path)))
+    if (st || (st = atomic_begin(&t, path, 1)))
         return st;
     header(t.fp, "one-ray sensitivity to eta = n_pmma / n_water (paper fig. 10)", l, p);
     fprintf(t.fp,
@@ -195,5 +168,5 @@ rpiv_status rpiv_optics_save_sensitivity(const rpiv_laser *l, const rpiv_prism *
         num(t.fp, q->dT_rel, " ");
         fprintf(t.fp, "%d\n", q->transmitted);
     }
-    return table_close(&t);
+    return atomic_commit(&t);
 }

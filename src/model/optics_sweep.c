@@ -9,7 +9,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <gsl/gsl_errno.h>
 #include <gsl/gsl_fit.h>
+#include <gsl/gsl_interp.h>
 
 /* ---- sweeps -------------------------------------------------------------------------------- */
 
@@ -134,23 +136,6 @@ void rpiv_optics_selfsim_free(rpiv_optics_selfsim *f)
     free(f);
 }
 
-/* Linear interpolation of y(x) on an increasing grid; 0 outside. */
-static double interp(const double *x, const double *y, size_t n, double at)
-{
-    if (!(at >= x[0] && at <= x[n - 1]))
-        return 0;
-    size_t lo = 0, hi = n - 1;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (x[mid] <= at)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    double t = (at - x[lo]) / (x[hi] - x[lo]);
-    return y[lo] + t * (y[hi] - y[lo]);
-}
-
 static double rms_resid(const double *x, const double *y, size_t n, double c0, double c1)
 {
     double s = 0;
@@ -179,7 +164,9 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
            *zm = malloc(nx * sizeof *zm), *im = malloc(nx * sizeof *im);
     size_t *idx = malloc(nx * sizeof *idx);
     double *res = NULL, *norm = malloc(nz * sizeof *norm);
-    if (!f || !xs || !es || !zm || !im || !idx || !norm) {
+    gsl_interp *li = gsl_interp_alloc(gsl_interp_linear, nz); /* a station's I(z*), linear */
+    gsl_interp_accel *hint = gsl_interp_accel_alloc();
+    if (!f || !xs || !es || !zm || !im || !idx || !norm || !li || !hint) {
         st = rpiv_fail(RPIV_ENOMEM, "selfsim fit: out of memory");
         goto out_free;
     }
@@ -196,8 +183,8 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
         zm[nu] = m.zmax;
         im[nu] = m.imax;
         idx[nu] = k;
-        zpmin = fmin(zpmin, (zstar[0] - m.zmax) / m.e);
-        zpmax = fmax(zpmax, (zstar[nz - 1] - m.zmax) / m.e);
+        zpmin = fmin(zpmin, rpiv_sheet_zplus(zstar[0], m.zmax, m.e));
+        zpmax = fmax(zpmax, rpiv_sheet_zplus(zstar[nz - 1], m.zmax, m.e));
         nu++;
     }
     if (nu < 2) {
@@ -235,10 +222,18 @@ rpiv_status rpiv_optics_selfsim_fit(const double *xstar, size_t nx, const double
         const double *p = inten + idx[q] * nz;
         for (size_t j = 0; j < nz; j++)
             norm[j] = p[j] / im[q];
+        int gs = gsl_interp_init(li, zstar, norm, nz);
+        if (gs) {
+            st = rpiv_fail(RPIV_ENUMERIC, "selfsim fit: station %zu: %s", idx[q], gsl_strerror(gs));
+            goto out_free;
+        }
+        gsl_interp_accel_reset(hint);
         for (size_t g = 0; g < ng; g++) {
-            double z = zm[q] + f->zplus[g] * es[q];
-            res[q * ng + g] =
-                z >= zstar[0] && z <= zstar[nz - 1] ? interp(zstar, norm, nz, z) : (double)NAN;
+            double z = zm[q] + f->zplus[g] * es[q], v;
+            res[q * ng + g] = z >= zstar[0] && z <= zstar[nz - 1] &&
+                                      gsl_interp_eval_e(li, zstar, norm, z, hint, &v) == GSL_SUCCESS
+                                  ? v
+                                  : (double)NAN;
         }
     }
     /* the mean over the stations covering each z+, renormalised to a maximum of 1 */
@@ -276,6 +271,10 @@ out_free:
     free(idx);
     free(res);
     free(norm);
+    if (li)
+        gsl_interp_free(li);
+    if (hint)
+        gsl_interp_accel_free(hint);
     return st;
 }
 

@@ -10,10 +10,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_interp.h>
+
 struct rpiv_sheet {
     rpiv_sheet_params p;
-    size_t n;        /* shape table rows (0 = default analytic shape) */
-    double *zp, *in; /* shape table */
+    size_t n;          /* shape table rows (0 = default analytic shape) */
+    double *zp, *in;   /* shape table */
+    gsl_interp *shape; /* linear interpolation of the table, built once */
 };
 
 rpiv_sheet_params rpiv_sheet_params_default(void)
@@ -57,8 +61,7 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
     rpiv_status st = RPIV_OK;
     while ((len = text_getline(fp, &line, &lcap, path, &lineno, &st)) >= 0) {
         char key[32];
-        double v, a, b;
-        int used = 0;
+        double v;
         if (line[0] == '#') {
             if (strstr(line, "rpiv-sheet"))
                 magic = 1;
@@ -80,15 +83,19 @@ static rpiv_status load_profile(const char *path, rpiv_sheet *s)
             }
             continue;
         }
-        if (strspn(line, " \t\r\n") == strlen(line))
+        if (!text_is_data(line))
             continue;
-        if (sscanf(line, "%lf %lf %n", &a, &b, &used) != 2 || line[used] != '\0' || !isfinite(a) ||
-            !(b >= 0 && b <= 1.0001)) {
+        double row[2];
+        int nc = text_columns(line, row, 2, path, lineno, &st);
+        if (nc < 0)
+            goto out;
+        if (nc != 2 || !(row[1] >= 0 && row[1] <= 1.0001)) {
             st =
                 rpiv_fail(RPIV_EFORMAT, "%s:%ld: expected 'zplus I' (two numbers) with 0 <= I <= 1",
                           path, lineno);
             goto out;
         }
+        double a = row[0], b = row[1];
         if (s->n && a <= s->zp[s->n - 1]) {
             st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: zplus not increasing", path, lineno);
             goto out;
@@ -143,6 +150,11 @@ rpiv_status rpiv_sheet_new(const rpiv_sheet_params *p, rpiv_sheet **out)
     s->p = *p;
     if (p->kind == RPIV_SHEET_SELFSIM && p->profile[0]) {
         st = load_profile(p->profile, s);
+        if (!st && !(s->shape = gsl_interp_alloc(gsl_interp_linear, s->n)))
+            st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", p->profile);
+        int gs = st ? GSL_SUCCESS : gsl_interp_init(s->shape, s->zp, s->in, s->n);
+        if (gs)
+            st = rpiv_fail(RPIV_EFORMAT, "%s: shape table: %s", p->profile, gsl_strerror(gs));
         if (st) {
             rpiv_sheet_free(s);
             return st;
@@ -156,6 +168,8 @@ void rpiv_sheet_free(rpiv_sheet *s)
 {
     if (!s)
         return;
+    if (s->shape)
+        gsl_interp_free(s->shape);
     free(s->zp);
     free(s->in);
     free(s);
@@ -171,20 +185,19 @@ static double default_shape(double skew, double zp)
     return exp(-ln4 * zp * zp / (w * w));
 }
 
+/* The table's shape at zp, 0 outside. No accelerator: a sheet is evaluated from many threads
+ * at once, and GSL's bisection without one is the search this lookup always made. */
 static double table_shape(const rpiv_sheet *s, double zp)
 {
     if (zp < s->zp[0] || zp > s->zp[s->n - 1])
         return 0;
-    size_t lo = 0, hi = s->n - 1;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (s->zp[mid] <= zp)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    double f = (zp - s->zp[lo]) / (s->zp[hi] - s->zp[lo]);
-    return s->in[lo] + f * (s->in[hi] - s->in[lo]);
+    double v;
+    return gsl_interp_eval_e(s->shape, s->zp, s->in, zp, NULL, &v) == GSL_SUCCESS ? v : 0;
+}
+
+double rpiv_sheet_zplus(double zstar, double zmax, double e)
+{
+    return (zstar - zmax) / e;
 }
 
 double rpiv_sheet_eval(const rpiv_sheet *s, double xstar, double zstar)
@@ -201,7 +214,7 @@ double rpiv_sheet_eval(const rpiv_sheet *s, double xstar, double zstar)
         double e = s->p.e0 + s->p.e1 * xstar;
         if (!(e > 1e-9))
             return 0;
-        double zp = (zstar - (s->p.zm0 + s->p.zm1 * xstar)) / e;
+        double zp = rpiv_sheet_zplus(zstar, s->p.zm0 + s->p.zm1 * xstar, e);
         return s->n ? table_shape(s, zp) : default_shape(s->p.skew, zp);
     }
     case RPIV_SHEET_UNIFORM:

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* The synthetic-image generator: particles, their motion, their images and the camera noise.
  * docs/model.md explains the model and every reading of the paper it makes. */
-#include "rpiv/synth.h"
+#include "synth_impl.h"
 
 #include <errno.h>
 #include <math.h>
@@ -21,38 +21,9 @@
  * particles). It does not depend on the thread count. */
 enum { BAND = 32 };
 
-/* Shot noise draws Poisson(m) as Poisson(m_k) + Poisson(m - m_k), exact in distribution,
- * with m_k = background + k POIS_STEP the largest tabulated mean below m (Walker tables of
- * GSL, O(1) per draw) and the small remainder from gsl_ran_poisson's direct method; means
- * beyond the last table draw the whole excess from gsl_ran_poisson. */
-#define POIS_STEP    4.0
-#define POIS_ENTRIES 2e6
-enum { POIS_TABLES = 512 };
-
 /* Stream tags: particles, and noise of (frame, band). */
 #define TAG_PARTICLES 0ULL
 #define TAG_NOISE     (1ULL << 40)
-
-struct rpiv_synth {
-    rpiv_synth_setup e;         /* the parameters, copied                           */
-    rpiv_sheet *sheet;          /* I0(x*, z*)                                       */
-    rpiv_flow flow;             /* displacement over dt, px                         */
-    int w, h;                   /* image size                                       */
-    double pix_m;               /* sensor pixel pitch                               */
-    double spp;                 /* x* (= y*) per image pixel                        */
-    double x0s, y0s;            /* x*, y* of the left and top image edges           */
-    double reg[4];              /* particle region x0, y0, x1, y1, px               */
-    size_t n;                   /* particles per pair                               */
-    double norm;                /* peak_counts / model peak of the reference particle */
-    double de0_m;               /* d_e of the reference particle in focus           */
-    int invariant;              /* 1: the displacement is constant along a path     */
-    size_t npz;                 /* P(z*) table rows (0 = uniform)                   */
-    double *pz_z, *pz_p, *pz_c; /* nodes, density, cumulative integral      */
-    gsl_ran_discrete_t **ptab;  /* shot noise: Poisson(background + k POIS_STEP) */
-    long *ptab_k0;              /* first count of each table                */
-    int npt;                    /* number of tables                         */
-    double maxval;              /* 2^bits - 1                               */
-};
 
 /* One particle image in one frame: centre (px), peak (counts) and sigma (px). */
 typedef struct spot {
@@ -78,158 +49,7 @@ static unsigned long stream_seed(unsigned long seed, unsigned long index, uint64
     return (unsigned long)((z ^ (z >> 32)) & 0xffffffffULL);
 }
 
-/* ---- P(z*) table ------------------------------------------------------------------------ */
-
-static rpiv_status pz_load(rpiv_synth *s, const char *path)
-{
-    FILE *fp = fopen(path, "r");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot open P(z) table: %s", path, strerror(errno));
-    char line[512];
-    size_t cap = 0;
-    int lineno = 0;
-    rpiv_status st = RPIV_OK;
-    while (fgets(line, sizeof line, fp)) {
-        lineno++;
-        char *c = line + strspn(line, " \t");
-        if (*c == '#' || *c == '\0' || *c == '\n' || *c == '\r')
-            continue;
-        double z, p;
-        char tail[2];
-        if (sscanf(c, "%lf %lf %1s", &z, &p, tail) != 2 || !isfinite(z) || !isfinite(p)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: expected two numbers 'z* P'", path, lineno);
-            goto out_close;
-        }
-        if (z < 0 || z > 1 || p < 0) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: need 0 <= z* <= 1 and P >= 0, got %g %g", path,
-                           lineno, z, p);
-            goto out_close;
-        }
-        if (s->npz && !(z > s->pz_z[s->npz - 1])) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s:%d: z* not increasing", path, lineno);
-            goto out_close;
-        }
-        if (s->npz == cap) {
-            cap = cap ? 2 * cap : 64;
-            double *nz = realloc(s->pz_z, cap * sizeof *nz);
-            if (nz)
-                s->pz_z = nz;
-            double *np = realloc(s->pz_p, cap * sizeof *np);
-            if (np)
-                s->pz_p = np;
-            if (!nz || !np) {
-                st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
-                goto out_close;
-            }
-        }
-        s->pz_z[s->npz] = z;
-        s->pz_p[s->npz] = p;
-        s->npz++;
-    }
-    if (ferror(fp)) {
-        st = rpiv_fail(RPIV_EIO, "%s: read error", path);
-        goto out_close;
-    }
-    if (s->npz < 2) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: a P(z) table needs at least 2 rows", path);
-        goto out_close;
-    }
-    s->pz_c = malloc(s->npz * sizeof *s->pz_c);
-    if (!s->pz_c) {
-        st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
-        goto out_close;
-    }
-    s->pz_c[0] = 0;
-    for (size_t k = 1; k < s->npz; k++)
-        s->pz_c[k] =
-            s->pz_c[k - 1] + 0.5 * (s->pz_p[k - 1] + s->pz_p[k]) * (s->pz_z[k] - s->pz_z[k - 1]);
-    if (!(s->pz_c[s->npz - 1] > 0))
-        st = rpiv_fail(RPIV_EFORMAT, "%s: P(z) integrates to zero", path);
-out_close:
-    fclose(fp);
-    return st;
-}
-
-/* z* from the density: uniform on [0, 1], or the inverse of the cumulative integral of the
- * piecewise-linear table (exact: a quadratic in each segment). */
-static double sample_z(const rpiv_synth *s, gsl_rng *r)
-{
-    double u = gsl_rng_uniform(r);
-    if (!s->npz)
-        return u;
-    double t = u * s->pz_c[s->npz - 1];
-    size_t lo = 0, hi = s->npz - 1;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (s->pz_c[mid] <= t)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    double dz = s->pz_z[hi] - s->pz_z[lo], p0 = s->pz_p[lo];
-    double a = (s->pz_p[hi] - p0) / dz, rem = t - s->pz_c[lo];
-    double den = p0 + sqrt(p0 * p0 + 2 * a * rem);
-    double xi = den > 0 ? 2 * rem / den : 0;
-    if (xi > dz)
-        xi = dz;
-    return s->pz_z[lo] + xi;
-}
-
 /* ---- making a generator ----------------------------------------------------------------- */
-
-/* Range of counts tabulated for Poisson(mu): beyond 12 sd + 40 counts either side the mass is
- * below 1e-30. */
-static void pois_range(double mu, long *k0, long *k1)
-{
-    double sd = sqrt(mu);
-    *k0 = (long)floor(mu - 12 * sd - 40);
-    *k1 = (long)ceil(mu + 12 * sd + 40);
-    if (*k0 < 0)
-        *k0 = 0;
-}
-
-static rpiv_status poisson_tables(rpiv_synth *s)
-{
-    double bg = s->e.synth.background;
-    long k0, k1;
-    /* at most POIS_ENTRIES table entries in all (16 bytes each): fewer tables for a high
-     * background */
-    int nt = POIS_TABLES;
-    for (;;) {
-        pois_range(bg + (nt - 1) * POIS_STEP, &k0, &k1);
-        if (nt == 1 || (double)nt * (double)(k1 - k0 + 1) <= POIS_ENTRIES)
-            break;
-        nt /= 2;
-    }
-    s->npt = nt;
-    s->ptab = calloc((size_t)nt, sizeof *s->ptab);
-    s->ptab_k0 = calloc((size_t)nt, sizeof *s->ptab_k0);
-    double *p = malloc((size_t)(k1 - k0 + 1) * sizeof *p); /* the largest table */
-    if (!s->ptab || !s->ptab_k0 || !p)
-        goto out_nomem;
-    for (int t = 0; t < nt; t++) {
-        double mu = bg + t * POIS_STEP;
-        if (mu == 0)
-            continue; /* Poisson(0) = 0: no table */
-        pois_range(mu, &k0, &k1);
-        /* the pmf from its mode outward by the ratios p(k+1)/p(k) = mu/(k+1) */
-        long km = (long)floor(mu), n = k1 - k0 + 1;
-        p[km - k0] = gsl_ran_poisson_pdf((unsigned int)km, mu);
-        for (long k = km + 1; k <= k1; k++)
-            p[k - k0] = p[k - 1 - k0] * mu / (double)k;
-        for (long k = km - 1; k >= k0; k--)
-            p[k - k0] = p[k + 1 - k0] * (double)(k + 1) / mu;
-        s->ptab[t] = gsl_ran_discrete_preproc((size_t)n, p);
-        if (!s->ptab[t])
-            goto out_nomem;
-        s->ptab_k0[t] = k0;
-    }
-    free(p);
-    return RPIV_OK;
-out_nomem:
-    free(p);
-    return rpiv_fail(RPIV_ENOMEM, "synth: out of memory (shot-noise tables)");
-}
 
 /* A Poisson count of mean m >= background (see POIS_STEP). */
 static double shot(const rpiv_synth *s, double m, gsl_rng *r)
@@ -348,7 +168,7 @@ rpiv_status rpiv_synth_new(const rpiv_synth_setup *e, const rpiv_flow *flow, rpi
     s->maxval = ldexp(1.0, e->synth.bits) - 1;
     if ((st = rpiv_sheet_new(&e->sheet, &s->sheet)))
         goto out_free;
-    if (e->synth.pz_profile[0] && (st = pz_load(s, e->synth.pz_profile)))
+    if (e->synth.pz_profile[0] && (st = synth_pz_load(s, e->synth.pz_profile)))
         goto out_free;
     if (flow)
         s->flow = *flow;
@@ -379,7 +199,7 @@ rpiv_status rpiv_synth_new(const rpiv_synth_setup *e, const rpiv_flow *flow, rpi
     double dp0 = e->particles.dp_m;
     s->de0_m = rpiv_imaging_de_m(cam, dp0, 0);
     s->norm = e->synth.peak_counts / rpiv_imaging_peak(cam, dp0 * dp0, s->de0_m, 0);
-    if (e->synth.shot_noise && (st = poisson_tables(s)))
+    if (e->synth.shot_noise && (st = synth_poisson_tables(s)))
         goto out_free;
     *out = s;
     return RPIV_OK;
@@ -444,7 +264,7 @@ rpiv_status rpiv_synth_particles_new(const rpiv_synth *s, unsigned long index,
     for (size_t i = 0; i < s->n; i++) {
         p[i].x = s->reg[0] + wx * gsl_rng_uniform(r);
         p[i].y = s->reg[1] + wy * gsl_rng_uniform(r);
-        p[i].z = sample_z(s, r);
+        p[i].z = synth_pz_sample(s, r);
         p[i].dp_m = dp + spread * (2 * gsl_rng_uniform(r) - 1);
     }
     gsl_rng_free(r);
@@ -829,5 +649,3 @@ void rpiv_synth_truth(const rpiv_synth *s, rpiv_field *f)
     f->scale_mm_per_px = s->pix_m / s->e.camera.magnification * 1e3;
     f->dt_s = s->e.synth.dt_s;
 }
-
-/* ---- parameters file -------------------------------------------------------------------- */

@@ -3,11 +3,14 @@
  * window at random heights, N_im pairs summed, R repetitions. */
 #include "ccm_impl.h"
 
+#include "base/atomic.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include <gsl/gsl_interp.h>
 #include <gsl/gsl_rng.h>
 #include <omp.h>
 
@@ -110,14 +113,8 @@ static double sampler_draw(const sampler *s, gsl_rng *rng)
     double u = gsl_rng_uniform(rng), lo = s->m->zlo, hi = s->m->zhi;
     if (!s->cdf)
         return lo + u * (hi - lo);
-    size_t a = 0, b = s->n - 1;
-    while (b - a > 1) {
-        size_t mid = (a + b) / 2;
-        if (s->cdf[mid] <= u)
-            a = mid;
-        else
-            b = mid;
-    }
+    /* the cell by GSL's bisection (the CDF is flat where P = 0, which gsl_interp refuses) */
+    size_t a = gsl_interp_bsearch(s->cdf, u, 0, s->n - 1), b = a + 1;
     double da = s->cdf[b] - s->cdf[a], f = da > 0 ? (u - s->cdf[a]) / da : 0;
     return lo + (hi - lo) * ((double)a + f) / (double)(s->n - 1);
 }
@@ -259,11 +256,11 @@ rpiv_status rpiv_ccm_mc_save(const rpiv_ccm_mc_result *r, double scale_px, doubl
 {
     if (!(fabs(scale_px) > 0))
         return rpiv_fail(RPIV_EINVAL, "ccm: displacement scale is zero");
-    char tmp[RPIV_PATH_MAX + 16];
-    FILE *fp;
-    rpiv_status st = ccm_file_begin(path, tmp, &fp);
+    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&af, path, 1);
     if (st)
         return st;
+    FILE *fp = af.fp;
     fprintf(fp, "# rpiv-ccm-mc 1\n");
     ccm_file_header(fp, hdr);
     fprintf(fp, "# repetitions = %zu\n", r->repeats);
@@ -274,5 +271,5 @@ rpiv_status rpiv_ccm_mc_save(const rpiv_ccm_mc_result *r, double scale_px, doubl
         fprintf(fp, "%zu %.10g %.6e %.10g %.6e\n", r->nim[k], r->mean[k] / scale_px,
                 r->std[k] / fabs(scale_px), r->mean_sub[k] / scale_px,
                 r->std_sub[k] / fabs(scale_px));
-    return ccm_file_end(fp, tmp, path);
+    return atomic_commit(&af);
 }

@@ -3,6 +3,8 @@
  * scanned with the object plane on the sheet or fixed, and R-PIV along the inclined sheet. */
 #include "ccm_impl.h"
 
+#include "base/atomic.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -229,11 +231,11 @@ out_free:
 
 rpiv_status rpiv_ccm_table_save(const rpiv_ccm_table *t, const char *hdr, const char *path)
 {
-    char tmp[RPIV_PATH_MAX + 16];
-    FILE *fp;
-    rpiv_status st = ccm_file_begin(path, tmp, &fp);
+    atomic_file af; /* unique temporary name, fsync, rename, fsync of the folder */
+    rpiv_status st = atomic_begin(&af, path, 1);
     if (st)
         return st;
+    FILE *fp = af.fp;
     fprintf(fp, "# rpiv-ccm 1\n");
     ccm_file_header(fp, hdr);
     fprintf(fp, "# E1 = %.6g (continuous peak), %.6g (sub-pixel estimator)\n", t->e1, t->e1_sub);
@@ -245,5 +247,5 @@ rpiv_status rpiv_ccm_table_save(const rpiv_ccm_table *t, const char *hdr, const 
         fprintf(fp, "%.8g %.8g %.10g %.10g %.10g %.6e %.6e %d\n", r->xstar, r->zstar, r->uref,
                 r->umodel, r->usub, r->err, r->err_sub, r->mirrored);
     }
-    return ccm_file_end(fp, tmp, path);
+    return atomic_commit(&af);
 }
