@@ -71,32 +71,6 @@ static void header_line(const char *s, int *is_rpiv, double *scale, double *dt)
 
 #define MAXCOL 7
 
-/* Parse one data line into vals; returns the number of columns or sets an error (< 0). */
-static int split_numbers(char *s, const char *path, long lineno, double *vals, rpiv_status *st)
-{
-    int nc = 0;
-    char *save = NULL;
-    for (char *tok = strtok_r(s, " \t\r\n,", &save); tok; tok = strtok_r(NULL, " \t\r\n,", &save)) {
-        char *end;
-        errno = 0;
-        double d = strtod(tok, &end);
-        if (end == tok || *end) {
-            *st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: column %d: '%.40s' is not a number", path,
-                            lineno, nc + 1, tok);
-            return -1;
-        }
-        if (!isfinite(d)) {
-            *st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: column %d is %s", path, lineno, nc + 1,
-                            isnan(d) ? "NaN" : "infinite");
-            return -1;
-        }
-        if (nc < MAXCOL)
-            vals[nc] = d;
-        nc++;
-    }
-    return nc;
-}
-
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
@@ -241,7 +215,7 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
         if (*s == '\0')
             continue;
         double val[MAXCOL] = {0};
-        int nc = split_numbers(s, path, lineno, val, &st);
+        int nc = text_columns(s, val, MAXCOL, path, lineno, &st);
         if (nc < 0)
             goto out_free;
         if (nc < 4) {
@@ -332,7 +306,7 @@ rpiv_status rpiv_text_columns(const char *path, int *ncol)
         if (*s == '#' || *s == '\0')
             continue;
         double val[MAXCOL];
-        int nc = split_numbers(s, path, lineno, val, &st);
+        int nc = text_columns(s, val, MAXCOL, path, lineno, &st);
         if (nc >= 0) {
             *ncol = nc;
             st = RPIV_OK;
@@ -366,7 +340,7 @@ rpiv_status rpiv_profile_load(const char *path, rpiv_profile **out)
         if (*s == '#' || *s == '\0')
             continue;
         double val[MAXCOL];
-        int nc = split_numbers(s, path, lineno, val, &st);
+        int nc = text_columns(s, val, MAXCOL, path, lineno, &st);
         if (nc < 0)
             goto out_close;
         if (nc < 2) {
