@@ -1,0 +1,66 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/series/series_impl.h - what the files of the series module share: the batch's state
+ * (batch.c: dealing, skipping, the loops), its checkpoints (checkpoint.c) and its background
+ * (background.c). */
+#ifndef RPIV_SERIES_IMPL_H
+#define RPIV_SERIES_IMPL_H
+
+#include "rpiv/batch.h"
+#include "rpiv/ensemble.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+enum { DONE = 1, BAD = 2 }; /* per-pair state bits: added in this pass; unreadable */
+
+struct rpiv_batch {
+    const rpiv_pairs *pairs;
+    const rpiv_mpi *mpi;
+    rpiv_batch_params p;
+    char *ckpt;           /* this rank's checkpoint path, NULL = none         */
+    unsigned char *state; /* pairs->n entries                                 */
+    size_t *skipped, nskipped;
+    int resumed, resume_pass;
+    size_t resume_done, npairs_last;
+};
+
+/* ---- batch.c: unreadable pairs ------------------------------------------------------------ */
+
+/* The failures that make a pair unreadable (skipped with skip_bad). */
+int batch_unreadable(rpiv_status st);
+/* Pair i could not be read (the message is current): mark it and tell the caller. */
+void batch_mark_bad(rpiv_batch *b, size_t i, int notify);
+/* Load pair i; frames of another size than w x h (w > 0) are an error naming the pair. */
+RPIV_NODISCARD rpiv_status batch_load_pair(const rpiv_batch *b, size_t i, int w, int h,
+                                           rpiv_image **a, rpiv_image **bb);
+/* Merge the BAD marks of all ranks and rebuild the list of skipped pairs. Collective. */
+RPIV_NODISCARD rpiv_status batch_sync_bad(rpiv_batch *b);
+
+/* ---- checkpoint.c ------------------------------------------------------------------------- */
+
+/* What ties a checkpoint to its run: the series and the plan, as text (for messages) and as
+ * a hash (the plan's also covers the mask and background frames). */
+typedef struct ck_ident {
+    char series[256], plan[768];
+    uint64_t series_hash, plan_hash;
+} ck_ident;
+
+/* The identity of the run of plan pv over b's pairs. */
+void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id);
+/* Write this rank's state in pass `pass`: predictor pred (NULL in pass 0), sums of e. */
+RPIV_NODISCARD rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, int pass,
+                                   const rpiv_field *pred, rpiv_ensemble *e);
+/* Remove the temporary files a killed run left next to path (path.tmp<pid>). */
+void ck_remove_stale(const char *path);
+/* Is there a file at path? */
+int ck_exists(const char *path);
+/* Resume from the ranks' checkpoints (collective): *pass0 the pass to continue, *pred its
+ * predictor and *e this rank's sums (NULL if this rank starts the pass afresh). */
+RPIV_NODISCARD rpiv_status ck_resume(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
+                                     const char *user_path, int *pass0, rpiv_field **pred,
+                                     rpiv_ensemble **e);
+/* A failed run keeps its checkpoint: save the state and say so after the message. */
+RPIV_NODISCARD rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, int pass,
+                                   const rpiv_field *pred, rpiv_ensemble *e, rpiv_status st);
+
+#endif /* RPIV_SERIES_IMPL_H */
