@@ -280,7 +280,7 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
             for (size_t i = 0; i < N; i++)
                 b->state[i] &= BAD;
             if (!(st = rpiv_ensemble_new(pv, k, pred, &e)) && b->ckpt)
-                saved_ok = !(st = ck_save(b, &id, npass, k, pred, e));
+                saved_ok = !(st = ck_save(b, &id, npass, e));
         }
         if ((st = rpiv_mpi_agree(m, st)))
             break;
@@ -293,7 +293,7 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
                 break;
             since += (size_t)added;
             if (b->ckpt && b->p.checkpoint_every && since >= b->p.checkpoint_every) {
-                saved_ok = !(st = ck_save(b, &id, npass, k, pred, e));
+                saved_ok = !(st = ck_save(b, &id, npass, e));
                 since = 0;
             }
             if (!st && rpiv_progress_report(progress, ++done, total))
@@ -304,7 +304,7 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
         }
         if ((st = rpiv_mpi_agree(m, st))) {
             if (b->ckpt && saved_ok)
-                st = ck_stop(b, &id, npass, k, pred, e, st);
+                st = ck_stop(b, &id, npass, e, st);
             break;
         }
         rpiv_field *f = NULL;

@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* src/series/checkpoint.c - the batch's checkpoints (rpiv/batch.h): what identifies a run,
- * the file of a rank's state, its atomic writing, and resuming from the ranks' files. */
+ * the identity block a rank's checkpoint carries, and resuming from the ranks' files. The file
+ * itself (header, predictor, sums, checksum, atomic writing) is the accumulator's:
+ * rpiv_ensemble_save_block / rpiv_ensemble_load_new (rpiv/ensemble.h). */
 #include "series_impl.h"
 
 #include "base/hash.h"
@@ -8,24 +10,19 @@
 
 #include <dirent.h>
 #include <errno.h>
-#include <fcntl.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
-/* ---- checkpoint files -------------------------------------------------------------------- */
-
-#define CK_MAGIC "RPIVCKP1"
-
-typedef struct ck_header {
-    char magic[8];
-    uint32_t endian, version;
-    int32_t rank, nranks, pass, npass, has_pred, pad;
-    uint64_t npairs, series_hash, plan_hash, nsums, nadded;
+/* The batch's block in a checkpoint: the rank, the run's identity (ck_ident), then one state
+ * byte per pair (DONE: summed in the checkpoint's pass; BAD: unreadable). */
+typedef struct ck_block {
+    int32_t rank, nranks, npass, pad;
+    uint64_t npairs, series_hash, plan_hash;
     char series[256], plan[768];
-} ck_header;
+} ck_block;
 
 void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
 {
@@ -62,113 +59,31 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     id->plan_hash = rpiv_piv_hash_frames(pv, h);
 }
 
-/* Sequential writing and reading with a running hash of the bytes. */
-typedef struct ck_io {
-    FILE *fp;
-    uint64_t h;
-    int bad;
-} ck_io;
-
-static void put(ck_io *io, const void *p, size_t n)
+rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, const rpiv_ensemble *e)
 {
-    if (!io->bad && n && fwrite(p, 1, n, io->fp) != n)
-        io->bad = 1;
-    io->h = hash_bytes(io->h, p, n);
-}
-
-static int get(ck_io *io, void *p, size_t n)
-{
-    if (io->bad || (n && fread(p, 1, n, io->fp) != n))
-        return !(io->bad = 1);
-    io->h = hash_bytes(io->h, p, n);
-    return 1;
-}
-
-/* fsync the folder holding path, so that a rename in it is on disk. */
-static int sync_dir(const char *path)
-{
-    char dir[4096];
-    const char *slash = strrchr(path, '/');
-    if (!slash)
-        snprintf(dir, sizeof dir, ".");
-    else
-        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path) + (slash == path), path);
-    int fd = open(dir, O_RDONLY);
-    if (fd < 0)
-        return -1;
-    int r = fsync(fd);
-    close(fd);
-    return r;
-}
-
-/* Write this rank's state in pass `pass`: predictor pred (NULL in pass 0), sums of e. */
-rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, int pass,
-                    const rpiv_field *pred, rpiv_ensemble *e)
-{
-    ck_header hd;
-    size_t nsums;
-    float *sums = rpiv_ensemble_data(e, &nsums);
-    memset(&hd, 0, sizeof hd);
-    memcpy(hd.magic, CK_MAGIC, 8);
-    hd.endian = 0x01020304u;
-    hd.version = 1;
-    hd.rank = rpiv_mpi_rank(b->mpi);
-    hd.nranks = rpiv_mpi_size(b->mpi);
-    hd.pass = pass;
-    hd.npass = npass;
-    hd.has_pred = pred != NULL;
-    hd.npairs = b->pairs->n;
-    hd.series_hash = id->series_hash;
-    hd.plan_hash = id->plan_hash;
-    hd.nsums = nsums;
-    hd.nadded = rpiv_ensemble_npairs(e);
-    memcpy(hd.series, id->series, sizeof hd.series);
-    memcpy(hd.plan, id->plan, sizeof hd.plan);
-
-    size_t len = strlen(b->ckpt) + 32;
-    char *tmp = malloc(len);
-    if (!tmp)
+    size_t n = b->pairs->n;
+    unsigned char *buf = malloc(sizeof(ck_block) + n);
+    if (!buf)
         return rpiv_fail(RPIV_ENOMEM, "checkpoint: out of memory");
-    snprintf(tmp, len, "%s.tmp%ld", b->ckpt, (long)getpid());
-    rpiv_status st = RPIV_OK;
-    ck_io io = {fopen(tmp, "wb"), HASH0, 0};
-    if (!io.fp) {
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write checkpoint: %s", b->ckpt, strerror(errno));
-        goto out_free;
-    }
-    put(&io, &hd, sizeof hd);
-    if (pred) {
-        size_t n = (size_t)pred->nx * (size_t)pred->ny;
-        int32_t dims[2] = {pred->nx, pred->ny};
-        double g[6] = {pred->x0, pred->y0, pred->dx, pred->dy, pred->scale_mm_per_px, pred->dt_s};
-        put(&io, dims, sizeof dims);
-        put(&io, g, sizeof g);
-        put(&io, pred->u, n * sizeof *pred->u);
-        put(&io, pred->v, n * sizeof *pred->v);
-        put(&io, pred->peak_ratio, n * sizeof *pred->peak_ratio);
-        put(&io, pred->corr, n * sizeof *pred->corr);
-        put(&io, pred->flag, n);
-    }
-    put(&io, b->state, b->pairs->n);
-    put(&io, sums, nsums * sizeof *sums);
-    uint64_t sum = io.h;
-    put(&io, &sum, sizeof sum);
-    int bad = io.bad || fflush(io.fp) != 0 || fsync(fileno(io.fp)) != 0;
-    int err = errno;
-    bad |= fclose(io.fp) != 0;
-    if (bad || rename(tmp, b->ckpt) != 0) {
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write checkpoint: %s", b->ckpt,
-                       strerror(bad && err ? err : errno));
-        remove(tmp);
-        goto out_free;
-    }
-    sync_dir(b->ckpt); /* best effort: the file itself is complete either way */
-out_free:
-    free(tmp);
+    ck_block bk;
+    memset(&bk, 0, sizeof bk);
+    bk.rank = rpiv_mpi_rank(b->mpi);
+    bk.nranks = rpiv_mpi_size(b->mpi);
+    bk.npass = npass;
+    bk.npairs = n;
+    bk.series_hash = id->series_hash;
+    bk.plan_hash = id->plan_hash;
+    memcpy(bk.series, id->series, sizeof bk.series);
+    memcpy(bk.plan, id->plan, sizeof bk.plan);
+    memcpy(buf, &bk, sizeof bk);
+    memcpy(buf + sizeof bk, b->state, n);
+    rpiv_status st = rpiv_ensemble_save_block(e, buf, sizeof bk + n, b->ckpt);
+    free(buf);
     return st;
 }
 
-/* Remove the temporary files a killed run left next to path (path.tmp<pid>). */
+/* Remove the temporary files a killed run left next to path: path.tmp-<pid>-<hex> (base/atomic.h),
+ * and path.tmp<pid> of earlier versions. */
 void ck_remove_stale(const char *path)
 {
     char dir[4096], name[4096];
@@ -215,6 +130,47 @@ static rpiv_status ck_missing(const rpiv_batch *b, const char *user_path)
     return RPIV_OK;
 }
 
+/* What check_block compares a checkpoint's block with. */
+typedef struct ck_want {
+    rpiv_batch *b;
+    const rpiv_piv *pv;
+    const ck_ident *id;
+} ck_want;
+
+/* The block of this rank's checkpoint (rpiv_ensemble_block_fn): refuse one of another rank,
+ * series or plan, naming what differs; else take the pair states. */
+static rpiv_status check_block(void *user, const void *block, size_t nblock)
+{
+    const ck_want *cw = user;
+    rpiv_batch *b = cw->b;
+    const char *path = b->ckpt;
+    int K = rpiv_mpi_size(b->mpi), r = rpiv_mpi_rank(b->mpi);
+    ck_block hd;
+    if (nblock < sizeof hd)
+        return rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (identity block)", path);
+    memcpy(&hd, block, sizeof hd);
+    hd.series[sizeof hd.series - 1] = hd.plan[sizeof hd.plan - 1] = '\0';
+    if (hd.nranks != K || hd.rank != r)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: checkpoint of rank %d of a %d-rank run; this is rank "
+                         "%d of %d (resume with mpirun -np %d)",
+                         path, hd.rank, hd.nranks, r, K, hd.nranks);
+    if (hd.npairs != b->pairs->n || hd.series_hash != cw->id->series_hash)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: checkpoint of another series of pairs (%s); this "
+                         "run has %s",
+                         path, hd.series, cw->id->series);
+    if (hd.plan_hash != cw->id->plan_hash || hd.npass != rpiv_piv_npass(cw->pv))
+        return rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of another plan (%s); this run: %s%s", path,
+                         hd.plan, cw->id->plan,
+                         strcmp(hd.plan, cw->id->plan) ? ""
+                                                       : " (the mask or background frames differ)");
+    if (nblock != sizeof hd + b->pairs->n)
+        return rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (identity block)", path);
+    memcpy(b->state, (const unsigned char *)block + sizeof hd, b->pairs->n);
+    return RPIV_OK;
+}
+
 /* Read this rank's checkpoint: *found = 0 if there is none; else its pass, predictor (NULL in
  * pass 0), an accumulator holding its sums, and the pair states. */
 static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id, const char *user_path,
@@ -223,103 +179,29 @@ static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id, cons
     *found = 0;
     *pred = NULL;
     *e = NULL;
-    const char *path = b->ckpt;
-    ck_io io = {fopen(path, "rb"), HASH0, 0};
-    if (!io.fp)
-        return errno == ENOENT ? ck_missing(b, user_path)
-                               : rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
-    ck_header hd;
-    rpiv_status st = RPIV_OK;
-    int K = rpiv_mpi_size(b->mpi), r = rpiv_mpi_rank(b->mpi);
-    if (!get(&io, &hd, sizeof hd) || memcmp(hd.magic, CK_MAGIC, 8) != 0) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: not an rpiv checkpoint", path);
-        goto out_fail;
+    if (access(b->ckpt, F_OK) != 0 && errno == ENOENT)
+        return ck_missing(b, user_path);
+    ck_want cw = {b, pv, id};
+    rpiv_status st = rpiv_ensemble_load_new(pv, b->ckpt, check_block, &cw, e);
+    if (!st) {
+        const rpiv_field *p = rpiv_ensemble_predictor(*e);
+        *pass = rpiv_ensemble_pass(*e);
+        if ((p != NULL) != (*pass > 0))
+            st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (pass %d of %d)", b->ckpt,
+                           *pass + 1, rpiv_piv_npass(pv));
+        else if (p)
+            st = rpiv_field_copy(p, pred);
     }
-    hd.series[sizeof hd.series - 1] = hd.plan[sizeof hd.plan - 1] = '\0';
-    if (hd.endian != 0x01020304u || hd.version != 1) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of another rpiv version or machine", path);
-        goto out_fail;
+    if (st) {
+        rpiv_ensemble_free(*e);
+        *e = NULL;
+        memset(b->state, 0, b->pairs->n);
+        return st;
     }
-    if (hd.nranks != K || hd.rank != r) {
-        st = rpiv_fail(RPIV_EFORMAT,
-                       "%s: checkpoint of rank %d of a %d-rank run; this is rank "
-                       "%d of %d (resume with mpirun -np %d)",
-                       path, hd.rank, hd.nranks, r, K, hd.nranks);
-        goto out_fail;
-    }
-    if (hd.npairs != b->pairs->n || hd.series_hash != id->series_hash) {
-        st = rpiv_fail(RPIV_EFORMAT,
-                       "%s: checkpoint of another series of pairs (%s); this "
-                       "run has %s",
-                       path, hd.series, id->series);
-        goto out_fail;
-    }
-    if (hd.plan_hash != id->plan_hash || hd.npass != rpiv_piv_npass(pv)) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of another plan (%s); this run: %s%s", path,
-                       hd.plan, id->plan,
-                       strcmp(hd.plan, id->plan) ? "" : " (the mask or background frames differ)");
-        goto out_fail;
-    }
-    if (hd.pass < 0 || hd.pass >= hd.npass || hd.has_pred != (hd.pass > 0)) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (pass %d of %d)", path, hd.pass + 1,
-                       hd.npass);
-        goto out_fail;
-    }
-    if (hd.has_pred) {
-        int32_t dims[2];
-        double g[6];
-        if (!get(&io, dims, sizeof dims) || !get(&io, g, sizeof g))
-            goto out_truncated;
-        if ((st = rpiv_field_new(dims[0], dims[1], g[0], g[1], g[2], g[3], pred))) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (predictor grid)", path);
-            goto out_fail;
-        }
-        (*pred)->scale_mm_per_px = g[4];
-        (*pred)->dt_s = g[5];
-        size_t n = (size_t)dims[0] * (size_t)dims[1];
-        rpiv_field *f = *pred;
-        if (!get(&io, f->u, n * sizeof *f->u) || !get(&io, f->v, n * sizeof *f->v) ||
-            !get(&io, f->peak_ratio, n * sizeof *f->peak_ratio) ||
-            !get(&io, f->corr, n * sizeof *f->corr) || !get(&io, f->flag, n))
-            goto out_truncated;
-    }
-    if (!get(&io, b->state, b->pairs->n))
-        goto out_truncated;
-    if ((st = rpiv_ensemble_new(pv, hd.pass, *pred, e)))
-        goto out_fail;
-    size_t nsums;
-    float *sums = rpiv_ensemble_data(*e, &nsums);
-    if (nsums != hd.nsums) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (%llu sums, the plan has %zu)", path,
-                       (unsigned long long)hd.nsums, nsums);
-        goto out_fail;
-    }
-    if (!get(&io, sums, nsums * sizeof *sums))
-        goto out_truncated;
-    uint64_t want = io.h, sum;
-    if (!get(&io, &sum, sizeof sum))
-        goto out_truncated;
-    if (sum != want) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (checksum mismatch)", path);
-        goto out_fail;
-    }
-    rpiv_ensemble_set_npairs(*e, (size_t)hd.nadded);
     for (size_t i = 0; i < b->pairs->n; i++)
         b->state[i] &= DONE | BAD;
-    fclose(io.fp);
     *found = 1;
-    *pass = hd.pass;
     return RPIV_OK;
-out_truncated:
-    st = rpiv_fail(RPIV_EFORMAT, "%s: truncated checkpoint", path);
-out_fail:
-    fclose(io.fp);
-    rpiv_ensemble_free(*e);
-    rpiv_field_free(*pred);
-    *e = NULL;
-    *pred = NULL;
-    memset(b->state, 0, b->pairs->n);
-    return st;
 }
 
 /* Resume from the ranks' checkpoints (collective): *pass0 the pass to continue, *pred its
@@ -379,12 +261,12 @@ out_fail:
 }
 
 /* A failed run keeps its checkpoint: save the state and say so after the message. */
-rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, int pass,
-                    const rpiv_field *pred, rpiv_ensemble *e, rpiv_status st)
+rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, const rpiv_ensemble *e,
+                    rpiv_status st)
 {
     char msg[1024];
     snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-    rpiv_status cs = ck_save(b, id, npass, pass, pred, e);
+    rpiv_status cs = ck_save(b, id, npass, e);
     if (cs) {
         char cmsg[512];
         snprintf(cmsg, sizeof cmsg, "%s", rpiv_errmsg());
@@ -393,6 +275,6 @@ rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, int pass
     return rpiv_fail(st,
                      "%s; checkpoint %s saved (pass %d, %zu pair%s summed there by this "
                      "process)",
-                     msg, b->ckpt, pass + 1, rpiv_ensemble_npairs(e),
+                     msg, b->ckpt, rpiv_ensemble_pass(e) + 1, rpiv_ensemble_npairs(e),
                      rpiv_ensemble_npairs(e) == 1 ? "" : "s");
 }

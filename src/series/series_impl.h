@@ -47,10 +47,13 @@ typedef struct ck_ident {
 
 /* The identity of the run of plan pv over b's pairs. */
 void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id);
-/* Write this rank's state in pass `pass`: predictor pred (NULL in pass 0), sums of e. */
-RPIV_NODISCARD rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, int pass,
-                                   const rpiv_field *pred, rpiv_ensemble *e);
-/* Remove the temporary files a killed run left next to path (path.tmp<pid>). */
+/* Write this rank's state to its checkpoint b->ckpt: the identity block (the rank, id, npass,
+ * the pair states) and the accumulator e (its pass, predictor, sums and their pair count), in
+ * the accumulator's file format (rpiv_ensemble_save_block). */
+RPIV_NODISCARD rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass,
+                                   const rpiv_ensemble *e);
+/* Remove the temporary files a killed run left next to path: path.tmp-<pid>-<hex> (base/atomic.h),
+ * and path.tmp<pid> of earlier versions. */
 void ck_remove_stale(const char *path);
 /* Is there a file at path? */
 int ck_exists(const char *path);
@@ -59,8 +62,9 @@ int ck_exists(const char *path);
 RPIV_NODISCARD rpiv_status ck_resume(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
                                      const char *user_path, int *pass0, rpiv_field **pred,
                                      rpiv_ensemble **e);
-/* A failed run keeps its checkpoint: save the state and say so after the message. */
-RPIV_NODISCARD rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, int pass,
-                                   const rpiv_field *pred, rpiv_ensemble *e, rpiv_status st);
+/* A failed run keeps its checkpoint: save the state (ck_save) and say so after the message of
+ * st, which is returned. */
+RPIV_NODISCARD rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass,
+                                   const rpiv_ensemble *e, rpiv_status st);
 
 #endif /* RPIV_SERIES_IMPL_H */
