@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* src/series/batch.c - long runs over a series (rpiv/batch.h): pairs dealt out to a team,
  * skipped when unreadable, and the loops over pairs (ensemble passes, per-pair fields). The
- * numerical work is rpiv_ensemble_add/_finish and rpiv_piv_run; this file decides which pair
- * goes where and when. Checkpoints are in checkpoint.c, the background in background.c. */
+ * numerical work is rpiv_ensemble_add/_finish and rpiv_piv_load/_step; this file decides which
+ * pair goes where and when. Checkpoints are in checkpoint.c, the background in background.c. */
 #include "rpiv/batch.h"
 
 #include "rpiv/ensemble.h"
@@ -329,20 +329,36 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
 
 /* ---- per-pair fields --------------------------------------------------------------------- */
 
-/* Process pair i: *f its field, NULL if skipped. */
+/* Process pair i: *f its field, NULL if skipped. The images are freed as soon as the plan
+ * holds them (rpiv_piv_load), so memory holds the plan's frames only; then every pass runs,
+ * as in rpiv_piv_run. */
 static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **f)
 {
     rpiv_image *a = NULL, *bb = NULL;
+    rpiv_field *prev = NULL;
     int w, h_px;
+    *f = NULL;
     rpiv_piv_size(pv, &w, &h_px);
     rpiv_status st = batch_load_pair(b, i, w, h_px, &a, &bb);
-    if (!st && (st = rpiv_piv_run(pv, a, bb, f))) {
-        char msg[768];
-        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-        st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+    if (!st) {
+        st = rpiv_piv_load(pv, a, bb);
+        rpiv_image_free(a);
+        rpiv_image_free(bb);
+        for (int k = 0; !st && k < rpiv_piv_npass(pv); k++) {
+            rpiv_field *next = NULL;
+            st = rpiv_piv_step(pv, k, prev, &next);
+            rpiv_field_free(prev);
+            prev = next;
+        }
+        if (st) {
+            char msg[768];
+            snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+            st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+            rpiv_field_free(prev);
+            prev = NULL;
+        }
     }
-    rpiv_image_free(a);
-    rpiv_image_free(bb);
+    *f = prev;
     if (st && b->p.skip_bad && batch_unreadable(st)) {
         batch_mark_bad(b, i, 1);
         st = RPIV_OK;

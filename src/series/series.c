@@ -5,48 +5,21 @@
 
 #include "rpiv/batch.h"
 
-#include <float.h>
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
-
-/* Re-raise the current failure with the pair named in front of its message. */
-static rpiv_status pair_fail(rpiv_status st, const rpiv_pairs *pairs, size_t i)
-{
-    char msg[768];
-    snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-    return rpiv_fail(st, "pair %zu (%s): %s", i + 1, pairs->pair[i].path_a, msg);
-}
 
 rpiv_status rpiv_series_run(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_series_sink sink,
                             void *user, const rpiv_progress *progress)
 {
+    /* the loop (with skipping and MPI dealing when asked) is rpiv_batch_series */
     if (!pairs->n)
         return rpiv_fail(RPIV_EINVAL, "piv: no image pairs");
-    for (size_t i = 0; i < pairs->n; i++) {
-        rpiv_image *a = NULL, *b = NULL;
-        rpiv_field *prev = NULL, *f = NULL;
-        rpiv_status st = rpiv_pairs_load(pairs, i, &a, &b);
-        if (!st && (st = rpiv_piv_load(pv, a, b)))
-            st = pair_fail(st, pairs, i);
-        rpiv_image_free(a);
-        rpiv_image_free(b);
-        for (int k = 0; !st && k < rpiv_piv_npass(pv); k++) {
-            st = rpiv_piv_step(pv, k, prev, &f);
-            rpiv_field_free(prev);
-            prev = f;
-        }
-        if (!st)
-            st = sink(user, i, prev);
-        rpiv_field_free(prev);
-        if (st)
-            return st;
-        if (rpiv_progress_report(progress, i + 1, pairs->n))
-            return rpiv_fail(RPIV_EINTR, "piv: interrupted after %zu of %zu pairs", i + 1,
-                             pairs->n);
-    }
-    return RPIV_OK;
+    rpiv_batch *b = NULL;
+    rpiv_status st = rpiv_batch_new(pairs, NULL, NULL, &b);
+    if (!st)
+        st = rpiv_batch_series(b, pv, sink, NULL, user, progress);
+    rpiv_batch_free(b);
+    return st;
 }
 
 /* ---- mean and RMS ------------------------------------------------------------------------ */
