@@ -35,6 +35,8 @@ void rpiv_batch_free(rpiv_batch *b)
     free(b->ckpt);
     free(b->state);
     free(b->skipped);
+    rpiv_image_free(b->ia);
+    rpiv_image_free(b->ib);
     free(b);
 }
 
@@ -74,6 +76,31 @@ rpiv_status rpiv_batch_new(const rpiv_pairs *pairs, const rpiv_batch_params *p, 
 out_nomem:
     rpiv_batch_free(b);
     return rpiv_fail(RPIV_ENOMEM, "batch: out of memory");
+}
+
+rpiv_status batch_new_source(const rpiv_series_source *src, const rpiv_piv *pv, rpiv_batch **out)
+{
+    *out = NULL;
+    if (!src->n)
+        return rpiv_fail(RPIV_EINVAL, "batch: no image pairs");
+    rpiv_batch *b = calloc(1, sizeof *b);
+    if (!b)
+        return rpiv_fail(RPIV_ENOMEM, "batch: out of memory");
+    int w, h;
+    rpiv_piv_size(pv, &w, &h);
+    b->src = src;
+    b->made.n = src->n;
+    b->pairs = &b->made;
+    b->p = rpiv_batch_params_default();
+    rpiv_status st = RPIV_OK;
+    if (!(b->state = calloc(src->n, 1)))
+        st = rpiv_fail(RPIV_ENOMEM, "batch: out of memory");
+    if (st || (st = rpiv_image_new(w, h, &b->ia)) || (st = rpiv_image_new(w, h, &b->ib))) {
+        rpiv_batch_free(b);
+        return st;
+    }
+    *out = b;
+    return RPIV_OK;
 }
 
 size_t rpiv_batch_nskipped(const rpiv_batch *b)
@@ -191,22 +218,40 @@ rpiv_status rpiv_batch_size(rpiv_batch *b, int *w, int *h)
 
 /* ---- the ensemble run -------------------------------------------------------------------- */
 
-/* Add pair i to e (plan pv): RPIV_OK when added or (skip_bad) skipped; else the error. */
-static rpiv_status add_pair(rpiv_batch *b, const rpiv_piv *pv, rpiv_ensemble *e, size_t i,
+/* Pair i of a source (b->src) into the batch's images, added to e, then the source's hook:
+ * the errors are the source's, the accumulator's and the hook's, as they are. */
+static rpiv_status add_made(rpiv_batch *b, rpiv_ensemble *e, int pass, size_t i)
+{
+    const rpiv_series_source *src = b->src;
+    rpiv_status st;
+    if ((st = src->pair(src->user, i, pass, b->ia, b->ib)) ||
+        (st = rpiv_ensemble_add(e, b->ia, b->ib)))
+        return st;
+    return src->added ? src->added(src->user, pass, i, e) : RPIV_OK;
+}
+
+/* Add pair i to e (plan pv) in pass `pass`: RPIV_OK when added or (skip_bad) skipped; else
+ * the error. */
+static rpiv_status add_pair(rpiv_batch *b, const rpiv_piv *pv, rpiv_ensemble *e, int pass, size_t i,
                             int *added)
 {
     rpiv_image *a = NULL, *bb = NULL;
     int w, h_px;
-    rpiv_piv_size(pv, &w, &h_px);
-    rpiv_status st = batch_load_pair(b, i, w, h_px, &a, &bb);
+    rpiv_status st;
     *added = 0;
-    if (!st && (st = rpiv_ensemble_add(e, a, bb))) {
-        char msg[768];
-        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-        st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+    if (b->src) {
+        st = add_made(b, e, pass, i);
+    } else {
+        rpiv_piv_size(pv, &w, &h_px);
+        st = batch_load_pair(b, i, w, h_px, &a, &bb);
+        if (!st && (st = rpiv_ensemble_add(e, a, bb))) {
+            char msg[768];
+            snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+            st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+        }
+        rpiv_image_free(a);
+        rpiv_image_free(bb);
     }
-    rpiv_image_free(a);
-    rpiv_image_free(bb);
     if (!st) {
         b->state[i] |= DONE;
         *added = 1;
@@ -289,7 +334,7 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
             int added;
             if (b->state[i] & (DONE | BAD))
                 continue;
-            if ((st = add_pair(b, pv, e, i, &added)))
+            if ((st = add_pair(b, pv, e, k, i, &added)))
                 break;
             since += (size_t)added;
             if (b->ckpt && b->p.checkpoint_every && since >= b->p.checkpoint_every) {

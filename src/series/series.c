@@ -5,6 +5,8 @@
 
 #include "rpiv/batch.h"
 
+#include "series_impl.h"
+
 #include <math.h>
 #include <stdlib.h>
 
@@ -146,6 +148,20 @@ rpiv_status rpiv_series_ensemble(rpiv_piv *pv, const rpiv_pairs *pairs,
         return rpiv_fail(RPIV_EINVAL, "ensemble: no image pairs");
     rpiv_batch *b = NULL;
     rpiv_status st = rpiv_batch_new(pairs, NULL, NULL, &b);
+    if (!st)
+        st = rpiv_batch_ensemble(b, pv, progress, out);
+    rpiv_batch_free(b);
+    return st;
+}
+
+rpiv_status rpiv_series_ensemble_source(rpiv_piv *pv, const rpiv_series_source *src,
+                                        const rpiv_progress *progress, rpiv_field **out)
+{
+    *out = NULL;
+    if (!src->n)
+        return rpiv_fail(RPIV_EINVAL, "ensemble: no image pairs");
+    rpiv_batch *b = NULL;
+    rpiv_status st = batch_new_source(src, pv, &b);
     if (!st)
         st = rpiv_batch_ensemble(b, pv, progress, out);
     rpiv_batch_free(b);

@@ -14,7 +14,10 @@
 enum { DONE = 1, BAD = 2 }; /* per-pair state bits: added in this pass; unreadable */
 
 struct rpiv_batch {
-    const rpiv_pairs *pairs;
+    const rpiv_pairs *pairs;       /* the files, or &made for a source                   */
+    const rpiv_series_source *src; /* pairs made in memory (rpiv/series.h), or NULL     */
+    rpiv_pairs made;               /* {src->n, NULL} for a source                       */
+    rpiv_image *ia, *ib;           /* a source's pair, reused for every pair            */
     const rpiv_mpi *mpi;
     rpiv_batch_params p;
     char *ckpt;           /* this rank's checkpoint path, NULL = none         */
@@ -26,6 +29,10 @@ struct rpiv_batch {
 
 /* ---- batch.c: unreadable pairs ------------------------------------------------------------ */
 
+/* A batch of this process alone over the pairs of a source, with default parameters (no
+ * checkpoint, no skipping), for rpiv_batch_ensemble only; its two images have pv's size. */
+RPIV_NODISCARD rpiv_status batch_new_source(const rpiv_series_source *src, const rpiv_piv *pv,
+                                            rpiv_batch **out);
 /* The failures that make a pair unreadable (skipped with skip_bad). */
 int batch_unreadable(rpiv_status st);
 /* Pair i could not be read (the message is current): mark it and tell the caller. */
