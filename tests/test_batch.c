@@ -4,7 +4,8 @@
  * stopped after any pair of any pass and resumed from its checkpoint ends with the same bits;
  * unreadable pairs are reported once, listed and left out (the result equals the run over
  * the readable pairs, background included); per-pair sinks see every field in order; and
- * every parameter error. The MPI side runs for real in tests/cli/mpi.sh. */
+ * every parameter error; the ensemble over pairs made in memory (rpiv_series_source) equals the
+ * one over files. The MPI side runs for real in tests/cli/mpi.sh. */
 #include "check.h"
 #include "piv_testimg.h"
 
@@ -351,6 +352,69 @@ out:
     rpiv_pairs_free(bad);
 }
 
+/* Pairs made in memory (here: read from the files, so the result can be compared), with a
+ * count of the hook's calls; pair `fail_at` (0-based, -1 none) is refused. */
+typedef struct made {
+    const rpiv_pairs *pp;
+    int fail_at, nadded, order_ok;
+} made;
+
+static rpiv_status made_pair(void *user, size_t i, int pass, rpiv_image *a, rpiv_image *b)
+{
+    made *m = user;
+    rpiv_image *fa = NULL, *fb = NULL;
+    (void)pass;
+    if ((int)i == m->fail_at)
+        return rpiv_fail(RPIV_EIO, "source: pair %zu refused", i + 1);
+    rpiv_status st = rpiv_pairs_load(m->pp, i, &fa, &fb);
+    if (!st && (fa->w != a->w || fa->h != a->h))
+        st = rpiv_fail(RPIV_ESIZE, "source: pair %zu has another size", i + 1);
+    if (!st) {
+        memcpy(a->px, fa->px, sizeof(float) * (size_t)a->w * (size_t)a->h);
+        memcpy(b->px, fb->px, sizeof(float) * (size_t)b->w * (size_t)b->h);
+    }
+    rpiv_image_free(fa);
+    rpiv_image_free(fb);
+    return st;
+}
+
+static rpiv_status made_added(void *user, int pass, size_t i, const rpiv_ensemble *e)
+{
+    made *m = user;
+    m->order_ok &= rpiv_ensemble_pass(e) == pass && rpiv_ensemble_npairs(e) == i + 1;
+    m->nadded++;
+    return RPIV_OK;
+}
+
+/* The ensemble over a source is the ensemble over the same pairs in files, to the bit; the
+ * hook sees every pair of every pass in order; a source's error stops the run as it is. */
+static void ensemble_over_a_source_equals_the_files(void)
+{
+    rpiv_pairs *pp = pairs_of(GOOD);
+    rpiv_piv *pv = plan();
+    rpiv_field *ff = NULL, *fm = NULL;
+    made m = {pp, -1, 0, 1};
+    rpiv_series_source src = {pp ? pp->n : 0, made_pair, made_added, &m};
+    if (!pp || !pv)
+        goto out;
+    CHECK_OK(rpiv_series_ensemble(pv, pp, NULL, &ff));
+    CHECK_OK(rpiv_series_ensemble_source(pv, &src, NULL, &fm));
+    CHECK(same_field(ff, fm));
+    CHECK(m.nadded == NP * rpiv_piv_npass(pv) && m.order_ok);
+    rpiv_field_free(fm);
+    fm = NULL;
+    m.fail_at = 2;
+    CHECK_FAILS(rpiv_series_ensemble_source(pv, &src, NULL, &fm), RPIV_EIO);
+    CHECK(fm == NULL && !strcmp(rpiv_errmsg(), "source: pair 3 refused"));
+    src.n = 0;
+    CHECK_FAILS(rpiv_series_ensemble_source(pv, &src, NULL, &fm), RPIV_EINVAL);
+out:
+    rpiv_field_free(ff);
+    rpiv_field_free(fm);
+    rpiv_piv_free(pv);
+    rpiv_pairs_free(pp);
+}
+
 int main(void)
 {
     rpiv_init();
@@ -361,6 +425,7 @@ int main(void)
     RUN_TEST(resume_after_any_pair_is_bit_identical);
     RUN_TEST(unreadable_pairs_are_skipped_and_listed);
     RUN_TEST(series_calls_the_sinks_in_order);
+    RUN_TEST(ensemble_over_a_source_equals_the_files);
     remove_files();
     return check_summary();
 }

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* Ensemble (sum-of-correlation) PIV: accuracy on sparse pairs, determinism, merging,
- * checkpoint files, the series run. */
+ * checkpoint files (with a caller's block, and the refusal of older formats), the series run. */
 #include "check.h"
 #include "piv_testimg.h"
 #include "rpiv/ensemble.h"
@@ -339,6 +339,107 @@ static void ensemble_merge_save_and_load(void)
     rpiv_piv_free(pv);
 }
 
+/* The caller's block of a checkpoint: compared with the one expected, or refused. */
+typedef struct block_want {
+    const char *bytes;
+    int calls, refuse;
+} block_want;
+
+static rpiv_status check_block(void *user, const void *block, size_t n)
+{
+    block_want *bw = user;
+    bw->calls++;
+    if (bw->refuse)
+        return rpiv_fail(RPIV_EFORMAT, "block refused");
+    if (n != strlen(bw->bytes) || memcmp(block, bw->bytes, n) != 0)
+        return rpiv_fail(RPIV_EFORMAT, "block differs");
+    return RPIV_OK;
+}
+
+/* A checkpoint with the caller's block and a predictor reads back into a new accumulator of
+ * the file's pass and predictor, to the bit; the block is checked before the sums; files of
+ * the earlier formats are refused by name. */
+static void checkpoint_block_predictor_and_older_formats(void)
+{
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    rpiv_piv *pv = NULL;
+    rpiv_field *f0 = NULL;
+    rpiv_ensemble *e0 = NULL, *e1 = NULL, *back = NULL;
+    char dir[] = "/tmp/rpiv_ensck_XXXXXX", path[256], old[256];
+    CHECK(mkdtemp(dir) != NULL);
+    snprintf(path, sizeof path, "%s/pass2.ck", dir);
+    snprintf(old, sizeof old, "%s/old.ck", dir);
+    CHECK_OK(rpiv_piv_new(&prm, W, H, NULL, &pv));
+    if (!pv)
+        goto out;
+    e0 = accumulate(pv, 0, NULL, 0, 3);
+    CHECK_OK(rpiv_ensemble_finish(e0, &f0));
+    e1 = accumulate(pv, 1, f0, 0, 2);
+    if (!e1)
+        goto out;
+    const char *bytes = "identity and 3 state bytes";
+    CHECK_OK(rpiv_ensemble_save_block(e1, bytes, strlen(bytes), path));
+    block_want bw = {bytes, 0, 0};
+    CHECK_OK(rpiv_ensemble_load_new(pv, path, check_block, &bw, &back));
+    CHECK(bw.calls == 1);
+    if (back) {
+        size_t n, nb;
+        float *d = rpiv_ensemble_data(e1, &n), *db = rpiv_ensemble_data(back, &nb);
+        CHECK(rpiv_ensemble_pass(back) == 1 && rpiv_ensemble_npairs(back) == 2);
+        CHECK(n == nb && !memcmp(d, db, n * sizeof *d));
+        const rpiv_field *p = rpiv_ensemble_predictor(back);
+        CHECK(p && p->nx == f0->nx && p->ny == f0->ny && p->x0 == f0->x0 && p->dy == f0->dy);
+        if (p) {
+            size_t np = (size_t)p->nx * (size_t)p->ny;
+            CHECK(!memcmp(p->u, f0->u, np * sizeof *p->u) &&
+                  !memcmp(p->v, f0->v, np * sizeof *p->v) && !memcmp(p->flag, f0->flag, np));
+        }
+        /* the same sums finish into the same field */
+        rpiv_field *fa = NULL, *fb = NULL;
+        CHECK_OK(rpiv_ensemble_finish(e1, &fa));
+        CHECK_OK(rpiv_ensemble_finish(back, &fb));
+        CHECK(fa && fb && !memcmp(fa->u, fb->u, sizeof(float) * (size_t)fa->nx * (size_t)fa->ny));
+        rpiv_field_free(fa);
+        rpiv_field_free(fb);
+    }
+    rpiv_ensemble_free(back);
+    back = NULL;
+    /* the plain reader passes over the block */
+    rpiv_ensemble *into = NULL;
+    CHECK_OK(rpiv_ensemble_new(pv, 1, f0, &into));
+    if (into)
+        CHECK_OK(rpiv_ensemble_load(into, path));
+    rpiv_ensemble_free(into);
+    /* the caller's check runs first and its refusal stands */
+    bw.refuse = 1;
+    CHECK_FAILS(rpiv_ensemble_load_new(pv, path, check_block, &bw, &back), RPIV_EFORMAT);
+    CHECK(back == NULL && !strcmp(rpiv_errmsg(), "block refused"));
+    /* files of the earlier formats: named, refused */
+    const char *magic[2] = {"RPIVENS1", "RPIVCKP1"};
+    for (int k = 0; k < 2; k++) {
+        FILE *fp = fopen(old, "wb");
+        CHECK(fp != NULL);
+        if (!fp)
+            break;
+        char junk[200] = {0};
+        memcpy(junk, magic[k], 8);
+        CHECK(fwrite(junk, 1, sizeof junk, fp) == sizeof junk);
+        fclose(fp);
+        CHECK_FAILS(rpiv_ensemble_load_new(pv, old, NULL, NULL, &back), RPIV_EFORMAT);
+        CHECK(strstr(rpiv_errmsg(), "old.ck: checkpoint of an older rpiv format") != NULL);
+        CHECK_FAILS(rpiv_ensemble_load(e1, old), RPIV_EFORMAT);
+        CHECK(strstr(rpiv_errmsg(), "older rpiv format") != NULL);
+    }
+out:
+    remove(path);
+    remove(old);
+    rmdir(dir);
+    rpiv_field_free(f0);
+    rpiv_ensemble_free(e0);
+    rpiv_ensemble_free(e1);
+    rpiv_piv_free(pv);
+}
+
 /* rpiv_series_ensemble over files equals the accumulation done by hand. */
 static void ensemble_run_over_a_file_series(void)
 {
@@ -407,6 +508,7 @@ int main(void)
     RUN_TEST(ensemble_sums_identical_for_1_and_2_threads);
     RUN_TEST(ensemble_of_one_pair_is_the_instantaneous_field);
     RUN_TEST(ensemble_merge_save_and_load);
+    RUN_TEST(checkpoint_block_predictor_and_older_formats);
     RUN_TEST(ensemble_run_over_a_file_series);
     return check_summary();
 }

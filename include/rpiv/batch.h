@@ -19,7 +19,8 @@
  * Checkpoints (ensemble only). With params.checkpoint = FILE, every rank writes its state to
  * FILE (one process) or FILE.rank<r> (K > 1): the pass, its predictor (the field of the
  * previous pass), the float sums of the pairs it added in this pass, which pairs are done and
- * which were skipped, and what identifies the series and the plan. It is written atomically
+ * which were skipped, and what identifies the series and the plan, in the accumulator's
+ * checkpoint format (rpiv_ensemble_save_block, rpiv/ensemble.h). It is written atomically
  * (temporary file in the same folder, fsync, rename, fsync of the folder) at the start of
  * every pass, after every params.checkpoint_every pairs the rank added, and when the run
  * stops on an error or a stop request; a finished run removes it. With params.resume the

@@ -23,8 +23,11 @@
  *
  * Scale-out and checkpoints: rpiv_ensemble_data exposes the raw sums as one float array
  * (MPI_Reduce with MPI_FLOAT/MPI_SUM into a root accumulator, then rpiv_ensemble_set_npairs
- * with the total), rpiv_ensemble_save/_load write and read them with a header that ties them
- * to the plan, the pass and the predictor. */
+ * with the total). rpiv_ensemble_save/_load write and read an accumulator as a checkpoint
+ * file, the one checkpoint format of rpiv (magic RPIVCKP2): a header that ties the sums to the
+ * pass, the windows, the grid and the image size, a block of the caller's bytes (rpiv/batch.h
+ * keeps the identity of its series, plan and rank there, and which pairs are done), the
+ * predictor, the sums and their pair count, and a 64-bit checksum of all of it. */
 #ifndef RPIV_ENSEMBLE_H
 #define RPIV_ENSEMBLE_H
 
@@ -61,14 +64,35 @@ size_t rpiv_ensemble_npairs(const rpiv_ensemble *e);
 void rpiv_ensemble_set_npairs(rpiv_ensemble *e, size_t npairs);
 int rpiv_ensemble_pass(const rpiv_ensemble *e);
 
-/* Write the sums to path (atomically: temporary file, then rename) with a header recording
- * the image size, pass, window, grid, pair count and a hash of the predictor. */
-RPIV_NODISCARD rpiv_status rpiv_ensemble_save(const rpiv_ensemble *e, const char *path);
+/* The predictor the accumulator was made with (its copy), NULL for none. */
+const rpiv_field *rpiv_ensemble_predictor(const rpiv_ensemble *e);
 
-/* Read sums written by rpiv_ensemble_save into e, replacing its own. RPIV_EIO (cannot read),
- * RPIV_EFORMAT (not such a file, truncated, or written for another plan, pass or predictor:
- * the message says which). */
+/* Write e to path as a checkpoint (see above), atomically: under a temporary name in the same
+ * folder, fsync'd, renamed over path; on failure the old file is left as it was. The header
+ * records the pass, image size, windows, grid, pair count and a hash of the predictor. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_save(const rpiv_ensemble *e, const char *path);
+/* The same, with nblock bytes of the caller's (block may be NULL when nblock is 0) stored
+ * between the header and the predictor, under the checksum. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_save_block(const rpiv_ensemble *e, const void *block,
+                                                    size_t nblock, const char *path);
+
+/* Read a checkpoint written by rpiv_ensemble_save(_block) into e, replacing its sums and pair
+ * count (a caller's block is passed over). RPIV_EIO (cannot open), RPIV_EFORMAT (not a
+ * checkpoint, one of an older rpiv format, truncated, corrupt, or written for another pass,
+ * layout or predictor: the message names the file and says which). On failure e is unchanged. */
 RPIV_NODISCARD rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path);
+
+/* Checks the caller's block of a checkpoint being read (before the sums are): a non-OK return
+ * (with its message) stops the reading with that status. */
+typedef rpiv_status (*rpiv_ensemble_block_fn)(void *user, const void *block, size_t nblock);
+
+/* Read a checkpoint into a new accumulator of plan pv for the pass and predictor the file
+ * holds. `check` (may be NULL) is called with the caller's block once the header is read;
+ * then the pass, layout, predictor, sums and checksum are read and checked. Errors as
+ * rpiv_ensemble_load's, plus check's own; on failure *out is NULL. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_load_new(rpiv_piv *pv, const char *path,
+                                                  rpiv_ensemble_block_fn check, void *user,
+                                                  rpiv_ensemble **out);
 
 /* Locate the peak of every summed plane: the ensemble field of the pass (predictor plus
  * residual, correlation coefficient from the summed energies, peak ratio), validated and

@@ -1,10 +1,12 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* rpiv/series.h - the loops over the pairs of a series: instantaneous fields, background,
- * mean and RMS, and the ensemble (sum-of-correlation) run. rpiv/batch.h runs the same loops
- * with checkpoints, skipping of bad pairs and MPI dealing. */
+ * mean and RMS, and the ensemble (sum-of-correlation) run, over image files or over pairs made
+ * in memory (rpiv_series_source). The loops are those of rpiv/batch.h, which adds
+ * checkpoints, skipping of bad pairs and MPI dealing; here they run in one process. */
 #ifndef RPIV_SERIES_H
 #define RPIV_SERIES_H
 
+#include "rpiv/ensemble.h"
 #include "rpiv/error.h"
 #include "rpiv/field.h"
 #include "rpiv/image.h"
@@ -53,5 +55,25 @@ RPIV_NODISCARD rpiv_status rpiv_series_stats_finish(const rpiv_series_stats *s, 
  * passes; a stop request returns RPIV_EINTR. *out is the last pass's field. */
 RPIV_NODISCARD rpiv_status rpiv_series_ensemble(rpiv_piv *pv, const rpiv_pairs *pairs,
                                                 const rpiv_progress *progress, rpiv_field **out);
+
+/* A series whose pairs are made on demand rather than read from files (synthesised, decoded
+ * from a stream). `pair` fills a and b, two images of the plan's size that the run owns and
+ * reuses, with pair i (0-based) of pass `pass` (0-based): every pass reads every pair, in order,
+ * so a source may cache them. `added` (NULL: none) is called after pair i was added in pass
+ * `pass`: e then holds the sums of pairs 0..i of the pass (rpiv_ensemble_finish gives their
+ * field). A non-OK return from either stops the run with that status and message. */
+typedef struct rpiv_series_source {
+    size_t n; /* pairs */
+    rpiv_status (*pair)(void *user, size_t i, int pass, rpiv_image *a, rpiv_image *b);
+    rpiv_status (*added)(void *user, int pass, size_t i, const rpiv_ensemble *e);
+    void *user;
+} rpiv_series_source;
+
+/* rpiv_series_ensemble over the pairs of a source: the same loop (rpiv_batch_ensemble), with
+ * the same result as over files holding the same pairs. RPIV_EINVAL for no pairs; the source's
+ * and the hook's errors as they returned them. */
+RPIV_NODISCARD rpiv_status rpiv_series_ensemble_source(rpiv_piv *pv, const rpiv_series_source *src,
+                                                       const rpiv_progress *progress,
+                                                       rpiv_field **out);
 
 #endif /* RPIV_SERIES_H */

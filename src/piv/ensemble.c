@@ -1,9 +1,11 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/ensemble.c - sum-of-correlation accumulators, their files, and the ensemble run. */
+/* src/piv/ensemble.c - sum-of-correlation accumulators and their checkpoint files (the one
+ * checkpoint format of rpiv; rpiv/batch.h adds its identity block to them). */
 #include "rpiv/ensemble.h"
 
 #include "piv_impl.h"
 
+#include "base/atomic.h"
 #include "base/hash.h"
 
 #include <errno.h>
@@ -12,7 +14,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 struct rpiv_ensemble {
     rpiv_piv *pv;
@@ -156,6 +157,11 @@ int rpiv_ensemble_pass(const rpiv_ensemble *e)
     return e->pass;
 }
 
+const rpiv_field *rpiv_ensemble_predictor(const rpiv_ensemble *e)
+{
+    return e->predictor;
+}
+
 rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
 {
     *out = NULL;
@@ -189,115 +195,282 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
     return RPIV_OK;
 }
 
-/* ---- files ----------------------------------------------------------------------------------- */
+/* ---- checkpoint files ------------------------------------------------------------------------ */
 
-#define MAGIC "RPIVENS1"
+/* The one checkpoint format of rpiv, in the byte order of the machine that wrote it:
+ *   header     file_header below
+ *   block      nblock bytes of the caller's (rpiv/batch.h: its run's identity, the pair states)
+ *   predictor  if has_pred: nx, ny (int32), x0, y0, dx, dy, scale_mm_per_px, dt_s (double),
+ *              u, v, peak_ratio, corr (nx*ny floats each), flag (nx*ny bytes)
+ *   sums       nsums floats, as rpiv_ensemble_data gives them
+ *   checksum   FNV-1a (base/hash.h) of every byte before it, uint64
+ * RPIVENS1 (an accumulator's sums) and RPIVCKP1 (the batch's checkpoint) came before. */
+#define MAGIC  "RPIVCKP2"
+#define ENDIAN 0x01020304u
 
 typedef struct file_header {
     char magic[8];
-    uint32_t endian; /* 0x01020304 as written */
-    int32_t pass, ww, wh, nx, ny, ox, oy, w, h;
-    uint64_t npairs, n, pred_hash, data_hash;
+    uint32_t endian; /* ENDIAN as written */
+    int32_t pass, ww, wh, nx, ny, ox, oy, w, h, has_pred, pad;
+    uint64_t npairs, nsums, pred_hash, nblock;
 } file_header;
 
-static void header_of(const rpiv_ensemble *e, file_header *hd)
+/* The layout of pass `pass` of pv as a header (magic, byte order, pass and layout only). */
+static void layout_of(const rpiv_piv *pv, int pass, file_header *hd)
 {
-    const piv_pass *ps = &e->pv->pass[e->pass];
+    const piv_pass *ps = &pv->pass[pass];
     memset(hd, 0, sizeof *hd);
     memcpy(hd->magic, MAGIC, 8);
-    hd->endian = 0x01020304u;
-    hd->pass = e->pass;
+    hd->endian = ENDIAN;
+    hd->pass = pass;
     hd->ww = ps->ww;
     hd->wh = ps->wh;
     hd->nx = ps->nx;
     hd->ny = ps->ny;
     hd->ox = ps->ox;
     hd->oy = ps->oy;
-    hd->w = e->pv->w;
-    hd->h = e->pv->h;
-    hd->npairs = e->npairs;
-    hd->n = e->n;
-    hd->pred_hash = e->pred_hash;
+    hd->w = pv->w;
+    hd->h = pv->h;
+    hd->nsums = ps->nwin * ((size_t)ps->ww * (size_t)ps->wh + 2);
+}
+
+/* Sequential writing and reading with a running hash of the bytes. */
+typedef struct ck_io {
+    FILE *fp;
+    uint64_t h;
+    int bad;
+} ck_io;
+
+static void put(ck_io *io, const void *p, size_t n)
+{
+    if (!io->bad && n && fwrite(p, 1, n, io->fp) != n)
+        io->bad = 1;
+    io->h = hash_bytes(io->h, p, n);
+}
+
+static int get(ck_io *io, void *p, size_t n)
+{
+    if (io->bad || (n && fread(p, 1, n, io->fp) != n))
+        return !(io->bad = 1);
+    io->h = hash_bytes(io->h, p, n);
+    return 1;
+}
+
+rpiv_status rpiv_ensemble_save_block(const rpiv_ensemble *e, const void *block, size_t nblock,
+                                     const char *path)
+{
+    const rpiv_field *f = e->predictor;
+    file_header hd;
+    layout_of(e->pv, e->pass, &hd);
+    hd.has_pred = f != NULL;
+    hd.npairs = e->npairs;
+    hd.nsums = e->n;
+    hd.pred_hash = e->pred_hash;
+    hd.nblock = nblock;
+    atomic_file af;
+    rpiv_status st = atomic_begin(&af, path, 1);
+    if (st)
+        return st;
+    ck_io io = {af.fp, HASH0, 0};
+    put(&io, &hd, sizeof hd);
+    put(&io, block, nblock);
+    if (f) {
+        size_t n = (size_t)f->nx * (size_t)f->ny;
+        int32_t dims[2] = {f->nx, f->ny};
+        double g[6] = {f->x0, f->y0, f->dx, f->dy, f->scale_mm_per_px, f->dt_s};
+        put(&io, dims, sizeof dims);
+        put(&io, g, sizeof g);
+        put(&io, f->u, n * sizeof *f->u);
+        put(&io, f->v, n * sizeof *f->v);
+        put(&io, f->peak_ratio, n * sizeof *f->peak_ratio);
+        put(&io, f->corr, n * sizeof *f->corr);
+        put(&io, f->flag, n);
+    }
+    put(&io, e->data, e->n * sizeof *e->data);
+    uint64_t sum = io.h;
+    put(&io, &sum, sizeof sum);
+    if (io.bad) {
+        int err = errno;
+        atomic_abort(&af);
+        return rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(err));
+    }
+    return atomic_commit(&af);
 }
 
 rpiv_status rpiv_ensemble_save(const rpiv_ensemble *e, const char *path)
 {
+    return rpiv_ensemble_save_block(e, NULL, 0, path);
+}
+
+/* A checkpoint being read. */
+typedef struct reader {
+    const char *path;
+    ck_io io;
+    long size; /* of the file, bytes */
     file_header hd;
-    header_of(e, &hd);
-    hd.data_hash = hash_bytes(HASH0, e->data, e->n * sizeof *e->data);
-    size_t len = strlen(path);
-    char *tmp = malloc(len + 16);
-    if (!tmp)
-        return rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory");
-    snprintf(tmp, len + 16, "%s.tmp%ld", path, (long)getpid());
+} reader;
+
+static rpiv_status truncated(const reader *r)
+{
+    return rpiv_fail(RPIV_EFORMAT, "%s: truncated checkpoint", r->path);
+}
+
+/* Open path and read its header and the caller's block (checked by `check`). */
+static rpiv_status read_head(reader *r, const char *path, rpiv_ensemble_block_fn check, void *user)
+{
+    memset(r, 0, sizeof *r);
+    r->path = path;
+    r->io.h = HASH0;
+    if (!(r->io.fp = fopen(path, "rb")))
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    file_header *hd = &r->hd;
+    if (fseek(r->io.fp, 0, SEEK_END) != 0 || (r->size = ftell(r->io.fp)) < 0 ||
+        fseek(r->io.fp, 0, SEEK_SET) != 0)
+        return rpiv_fail(RPIV_EIO, "%s: cannot read: %s", path, strerror(errno));
+    if (!get(&r->io, hd->magic, 8) ||
+        (memcmp(hd->magic, "RPIVENS", 7) && memcmp(hd->magic, "RPIVCKP", 7)))
+        return rpiv_fail(RPIV_EFORMAT, "%s: not an rpiv checkpoint", path);
+    if (memcmp(hd->magic, MAGIC, 8) != 0)
+        return rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of an older rpiv format", path);
+    if (!get(&r->io, (char *)hd + 8, sizeof *hd - 8))
+        return truncated(r);
+    if (hd->endian != ENDIAN)
+        return rpiv_fail(RPIV_EFORMAT, "%s: checkpoint written on a machine of another byte order",
+                         path);
+    if (hd->nblock > (uint64_t)r->size)
+        return truncated(r);
+    void *block = malloc(hd->nblock ? (size_t)hd->nblock : 1);
+    if (!block)
+        return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
     rpiv_status st = RPIV_OK;
-    FILE *fp = fopen(tmp, "wb");
-    if (!fp) {
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(errno));
-        goto out_free;
-    }
-    int bad =
-        fwrite(&hd, sizeof hd, 1, fp) != 1 || fwrite(e->data, sizeof *e->data, e->n, fp) != e->n;
-    bad |= fflush(fp) != 0 || fsync(fileno(fp)) != 0;
-    bad |= fclose(fp) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(errno));
-        remove(tmp);
-    }
-out_free:
-    free(tmp);
+    if (!get(&r->io, block, (size_t)hd->nblock))
+        st = truncated(r);
+    else if (check)
+        st = check(user, block, (size_t)hd->nblock);
+    free(block);
     return st;
+}
+
+/* The header's pass and layout are those of `want` (the plan's). */
+static rpiv_status check_layout(const reader *r, const file_header *want)
+{
+    const file_header *hd = &r->hd;
+    if (hd->w != want->w || hd->h != want->h || hd->pass != want->pass || hd->ww != want->ww ||
+        hd->wh != want->wh || hd->nx != want->nx || hd->ny != want->ny || hd->ox != want->ox ||
+        hd->oy != want->oy || hd->nsums != want->nsums)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: sums of pass %d with %dx%d windows on a %dx%d grid of "
+                         "%dx%d images; this run's pass %d has %dx%d windows on %dx%d of %dx%d",
+                         r->path, hd->pass + 1, hd->ww, hd->wh, hd->nx, hd->ny, hd->w, hd->h,
+                         want->pass + 1, want->ww, want->wh, want->nx, want->ny, want->w, want->h);
+    return RPIV_OK;
+}
+
+/* Read the predictor, if the file has one, into a new field (*f NULL if none). */
+static rpiv_status read_pred(reader *r, rpiv_field **f)
+{
+    *f = NULL;
+    if (!r->hd.has_pred)
+        return RPIV_OK;
+    int32_t dims[2];
+    double g[6];
+    if (!get(&r->io, dims, sizeof dims) || !get(&r->io, g, sizeof g))
+        return truncated(r);
+    if (dims[0] < 1 || dims[1] < 1)
+        return rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (predictor grid)", r->path);
+    if ((double)dims[0] * (double)dims[1] * 17 > (double)r->size) /* 4 floats and a flag */
+        return truncated(r);
+    if (rpiv_field_new(dims[0], dims[1], g[0], g[1], g[2], g[3], f))
+        return rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (predictor grid)", r->path);
+    rpiv_field *p = *f;
+    p->scale_mm_per_px = g[4];
+    p->dt_s = g[5];
+    size_t n = (size_t)dims[0] * (size_t)dims[1];
+    if (get(&r->io, p->u, n * sizeof *p->u) && get(&r->io, p->v, n * sizeof *p->v) &&
+        get(&r->io, p->peak_ratio, n * sizeof *p->peak_ratio) &&
+        get(&r->io, p->corr, n * sizeof *p->corr) && get(&r->io, p->flag, n))
+        return RPIV_OK;
+    rpiv_field_free(p);
+    *f = NULL;
+    return truncated(r);
+}
+
+/* Read the nsums sums into data, then the checksum, and compare it. */
+static rpiv_status read_sums(reader *r, float *data)
+{
+    uint64_t want, sum;
+    if (!get(&r->io, data, (size_t)r->hd.nsums * sizeof *data))
+        return truncated(r);
+    want = r->io.h;
+    if (!get(&r->io, &sum, sizeof sum))
+        return truncated(r);
+    if (sum != want)
+        return rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (checksum mismatch)", r->path);
+    return RPIV_OK;
 }
 
 rpiv_status rpiv_ensemble_load(rpiv_ensemble *e, const char *path)
 {
-    FILE *fp = fopen(path, "rb");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
-    file_header hd, want;
-    rpiv_status st = RPIV_OK;
+    reader r;
+    file_header want;
+    rpiv_field *pred = NULL;
     float *buf = NULL;
-    header_of(e, &want);
-    if (fread(&hd, sizeof hd, 1, fp) != 1 || memcmp(hd.magic, MAGIC, 8) != 0) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: not an rpiv ensemble checkpoint", path);
-        goto out_close;
-    }
-    if (hd.endian != want.endian) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: written on a machine of another byte order", path);
-        goto out_close;
-    }
-    if (hd.w != want.w || hd.h != want.h || hd.pass != want.pass || hd.ww != want.ww ||
-        hd.wh != want.wh || hd.nx != want.nx || hd.ny != want.ny || hd.ox != want.ox ||
-        hd.oy != want.oy || hd.n != want.n) {
-        st = rpiv_fail(RPIV_EFORMAT,
-                       "%s: sums of pass %d with %dx%d windows on a %dx%d grid of "
-                       "%dx%d images; this run's pass %d has %dx%d windows on %dx%d of %dx%d",
-                       path, hd.pass + 1, hd.ww, hd.wh, hd.nx, hd.ny, hd.w, hd.h, want.pass + 1,
-                       want.ww, want.wh, want.nx, want.ny, want.w, want.h);
-        goto out_close;
-    }
-    if (hd.pred_hash != want.pred_hash) {
+    layout_of(e->pv, e->pass, &want);
+    rpiv_status st = read_head(&r, path, NULL, NULL);
+    if (!st && !(st = check_layout(&r, &want)) && r.hd.pred_hash != e->pred_hash)
         st = rpiv_fail(RPIV_EFORMAT, "%s: made with another predictor than this run's pass %d",
-                       path, want.pass + 1);
+                       path, e->pass + 1);
+    if (st || (st = read_pred(&r, &pred)))
         goto out_close;
-    }
-    buf = malloc(e->n * sizeof *buf);
-    if (!buf) {
+    if (!(buf = malloc(e->n * sizeof *buf))) {
         st = rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory");
         goto out_close;
     }
-    if (fread(buf, sizeof *buf, e->n, fp) != e->n) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: truncated", path);
+    if ((st = read_sums(&r, buf)))
         goto out_close;
-    }
-    if (hash_bytes(HASH0, buf, e->n * sizeof *buf) != hd.data_hash) {
-        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt (checksum mismatch)", path);
-        goto out_close;
-    }
     memcpy(e->data, buf, e->n * sizeof *buf);
-    e->npairs = (size_t)hd.npairs;
+    e->npairs = (size_t)r.hd.npairs;
 out_close:
     free(buf);
-    fclose(fp);
+    rpiv_field_free(pred);
+    if (r.io.fp)
+        fclose(r.io.fp);
+    return st;
+}
+
+rpiv_status rpiv_ensemble_load_new(rpiv_piv *pv, const char *path, rpiv_ensemble_block_fn check,
+                                   void *user, rpiv_ensemble **out)
+{
+    reader r;
+    file_header want;
+    rpiv_field *pred = NULL;
+    rpiv_ensemble *e = NULL;
+    *out = NULL;
+    rpiv_status st = read_head(&r, path, check, user);
+    if (st)
+        goto out_close;
+    if (r.hd.pass < 0 || r.hd.pass >= pv->npass) {
+        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (pass %d of %d)", path, r.hd.pass + 1,
+                       pv->npass);
+        goto out_close;
+    }
+    layout_of(pv, r.hd.pass, &want);
+    if ((st = check_layout(&r, &want)) || (st = read_pred(&r, &pred)) ||
+        (st = rpiv_ensemble_new(pv, r.hd.pass, pred, &e)))
+        goto out_close;
+    if (e->pred_hash != r.hd.pred_hash) {
+        st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (predictor)", path);
+        goto out_close;
+    }
+    if ((st = read_sums(&r, e->data)))
+        goto out_close;
+    e->npairs = (size_t)r.hd.npairs;
+    *out = e;
+    e = NULL;
+out_close:
+    rpiv_ensemble_free(e);
+    rpiv_field_free(pred);
+    if (r.io.fp)
+        fclose(r.io.fp);
     return st;
 }

@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* The demo's image series: the image band and the PIV grid (step 2 with the duct), the P-PIV
  * z-scan (step 3) and the R-PIV series (step 4). Each series is synthesised by the synth module
- * and processed by the PIV engine's sum of correlation (ensemble.h), pass by pass, exactly as
- * `rpiv piv --ensemble` processes image files. */
+ * and processed by the sum of correlation of the series module (rpiv_series_ensemble_source:
+ * the loop of `rpiv piv --ensemble` over image files, here over pairs made in memory). */
 #include "demo_impl.h"
 
 #include "rpiv/ensemble.h"
@@ -214,20 +214,60 @@ static rpiv_status save_pair(demo_ctx *c, const char *label, const rpiv_image *a
     return RPIV_OK;
 }
 
-/* Synthesise and process a series: every pass reads all the pairs, adds them to the pass's
- * accumulator, and the finished field predicts the next pass; the last pass is also finished
- * after snap[k] pairs (the sum of correlation of the first snap[k] pairs, with the predictor
- * of all pairs). */
+/* The pairs of a series for the ensemble run (rpiv_series_source): synthesised, or taken from
+ * the cache after the first pass, with the demo's progress, pair 0 saved, and the last pass
+ * finished after snap[k] pairs (the sum of correlation of the first snap[k] pairs, with the
+ * predictor of all pairs). */
+typedef struct series_src {
+    demo_ctx *c;
+    series *sr;
+    const rpiv_synth *s;
+    uint16_t *cache; /* NULL: synthesised at every pass */
+    int npass;
+    size_t ks; /* snapshots taken */
+} series_src;
+
+static rpiv_status src_pair(void *user, size_t i, int pass, rpiv_image *a, rpiv_image *b)
+{
+    series_src *q = user;
+    rpiv_status st;
+    int fresh = !q->cache || pass == 0;
+    if ((st = get_pair(q->s, q->cache, pass > 0, i, a, b)))
+        return st;
+    if (fresh && (st = demo_tick(q->c, 1)))
+        return st;
+    if (pass == 0 && i == 0 && q->sr->save_first) {
+        if ((st = save_pair(q->c, q->sr->label, a, b)) || (st = rpiv_image_copy(a, &q->sr->sample)))
+            return st;
+    }
+    return RPIV_OK;
+}
+
+static rpiv_status src_added(void *user, int pass, size_t i, const rpiv_ensemble *e)
+{
+    series_src *q = user;
+    series *sr = q->sr;
+    rpiv_status st;
+    if ((st = demo_tick(q->c, 1)))
+        return st;
+    if (pass == q->npass - 1 && q->ks < sr->nsnap && (int)(i + 1) == sr->snap[q->ks]) {
+        if ((st = rpiv_ensemble_finish(e, &sr->snapf[q->ks])))
+            return st;
+        q->ks++;
+    }
+    return RPIV_OK;
+}
+
+/* Synthesise and process a series: the ensemble run of the series module over the source
+ * above (every pass reads all the pairs, adds them to the pass's accumulator, and the finished
+ * field predicts the next pass). */
 static rpiv_status series_run(demo_ctx *c, series *sr)
 {
     rpiv_status st;
     rpiv_synth *s = NULL;
     rpiv_piv *pv = NULL;
-    rpiv_image *a = NULL, *b = NULL;
-    rpiv_field *pred = NULL;
-    rpiv_ensemble *acc = NULL;
     uint16_t *cache = NULL;
-    size_t n = (size_t)sr->npairs, ks = 0;
+    size_t n = (size_t)sr->npairs;
 
     sr->e.synth.pairs = sr->npairs;
     if ((st = rpiv_config_synth_new(&sr->e, NULL, &s)))
@@ -246,8 +286,6 @@ static rpiv_status series_run(demo_ctx *c, series *sr)
             (st = rpiv_config_save_synth(&sr->e, s, path)))
             goto out;
     }
-    if ((st = rpiv_image_new(c->w, c->h, &a)) || (st = rpiv_image_new(c->w, c->h, &b)))
-        goto out;
     if ((st = rpiv_piv_new(&sr->e.piv, c->w, c->h, c->mask, &pv)))
         goto out;
     double mb = 4.0 * (double)n * (double)c->w * (double)c->h / 1048576.0;
@@ -255,53 +293,20 @@ static rpiv_status series_run(demo_ctx *c, series *sr)
         cache = malloc(2 * n * (size_t)c->w * (size_t)c->h * sizeof *cache);
         /* no memory for the cache: synthesise again at every pass instead */
     }
-    int npass = rpiv_piv_npass(pv);
-    for (int k = 0; k < npass; k++) {
-        if ((st = rpiv_ensemble_new(pv, k, pred, &acc)))
-            goto out;
-        for (size_t i = 0; i < n; i++) {
-            int fresh = !cache || k == 0;
-            if ((st = get_pair(s, cache, k > 0, i, a, b)))
-                goto out;
-            if (fresh && (st = demo_tick(c, 1)))
-                goto out;
-            if (k == 0 && i == 0 && sr->save_first) {
-                if ((st = save_pair(c, sr->label, a, b)) || (st = rpiv_image_copy(a, &sr->sample)))
-                    goto out;
-            }
-            if ((st = rpiv_ensemble_add(acc, a, b)) || (st = demo_tick(c, 1)))
-                goto out;
-            if (k == npass - 1 && ks < sr->nsnap && (int)(i + 1) == sr->snap[ks]) {
-                if ((st = rpiv_ensemble_finish(acc, &sr->snapf[ks])))
-                    goto out;
-                ks++;
-            }
-        }
-        rpiv_field *f;
-        if ((st = rpiv_ensemble_finish(acc, &f)))
-            goto out;
-        rpiv_ensemble_free(acc);
-        acc = NULL;
-        rpiv_field_free(pred);
-        pred = f;
-    }
-    if ((st = rpiv_field_copy(pred, &sr->truth)))
+    series_src q = {c, sr, s, cache, rpiv_piv_npass(pv), 0};
+    rpiv_series_source src = {n, src_pair, src_added, &q};
+    if ((st = rpiv_series_ensemble_source(pv, &src, NULL, &sr->final)) ||
+        (st = rpiv_field_copy(sr->final, &sr->truth)))
         goto out;
     rpiv_synth_truth(s, sr->truth);
-    sr->final = pred;
-    pred = NULL;
 out:
     if (st && st != RPIV_EINTR) {
         char msg[512];
         snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
         st = rpiv_fail(st, "demo: %s: %s", sr->label, msg);
     }
-    rpiv_ensemble_free(acc);
-    rpiv_field_free(pred);
     free(cache);
     rpiv_piv_free(pv);
-    rpiv_image_free(a);
-    rpiv_image_free(b);
     rpiv_synth_free(s);
     return st;
 }

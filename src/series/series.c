@@ -1,121 +1,27 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/series/series.c - series of pairs: background, instantaneous processing, mean and RMS,
- * the ensemble run. */
+/* src/series/series.c - series of pairs: instantaneous processing, mean and RMS, the ensemble
+ * run (the background is in background.c). */
 #include "rpiv/series.h"
 
 #include "rpiv/batch.h"
 
-#include <float.h>
+#include "series_impl.h"
+
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
-
-/* Re-raise the current failure with the pair named in front of its message. */
-static rpiv_status pair_fail(rpiv_status st, const rpiv_pairs *pairs, size_t i)
-{
-    char msg[768];
-    snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-    return rpiv_fail(st, "pair %zu (%s): %s", i + 1, pairs->pair[i].path_a, msg);
-}
-
-rpiv_status rpiv_series_background(const rpiv_pairs *pairs, rpiv_background kind,
-                                   const rpiv_progress *progress, rpiv_image **bg_a,
-                                   rpiv_image **bg_b)
-{
-    *bg_a = *bg_b = NULL;
-    if (kind != RPIV_BACKGROUND_MIN && kind != RPIV_BACKGROUND_MEAN)
-        return rpiv_fail(RPIV_EINVAL, "piv.background: no background kind chosen");
-    if (!pairs->n)
-        return rpiv_fail(RPIV_EINVAL, "piv.background: no image pairs");
-    rpiv_image *ga = NULL, *gb = NULL;
-    double *sum = NULL;
-    rpiv_status st = RPIV_OK;
-    size_t n = 0;
-    for (size_t i = 0; i < pairs->n && !st; i++) {
-        rpiv_image *a = NULL, *b = NULL;
-        if ((st = rpiv_pairs_load(pairs, i, &a, &b)))
-            break;
-        if (!ga) {
-            n = (size_t)a->w * (size_t)a->h;
-            if ((st = rpiv_image_copy(a, &ga)) || (st = rpiv_image_copy(b, &gb)))
-                goto next;
-            if (kind == RPIV_BACKGROUND_MEAN) {
-                sum = calloc(2 * n, sizeof *sum);
-                if (!sum) {
-                    st = rpiv_fail(RPIV_ENOMEM, "piv.background: out of memory");
-                    goto next;
-                }
-            }
-        } else if (a->w != ga->w || a->h != ga->h) {
-            st = rpiv_fail(RPIV_ESIZE,
-                           "pair %zu (%s): %dx%d frames, the series' first pair "
-                           "has %dx%d",
-                           i + 1, pairs->pair[i].path_a, a->w, a->h, ga->w, ga->h);
-            goto next;
-        }
-        if (kind == RPIV_BACKGROUND_MEAN) {
-            for (size_t k = 0; k < n; k++) {
-                sum[k] += (double)a->px[k];
-                sum[n + k] += (double)b->px[k];
-            }
-        } else {
-            for (size_t k = 0; k < n; k++) {
-                ga->px[k] = fminf(ga->px[k], a->px[k]);
-                gb->px[k] = fminf(gb->px[k], b->px[k]);
-            }
-        }
-        if (rpiv_progress_report(progress, i + 1, pairs->n))
-            st = rpiv_fail(RPIV_EINTR, "piv.background: interrupted after %zu of %zu pairs", i + 1,
-                           pairs->n);
-    next:
-        rpiv_image_free(a);
-        rpiv_image_free(b);
-    }
-    if (!st && kind == RPIV_BACKGROUND_MEAN)
-        for (size_t k = 0; k < n; k++) {
-            ga->px[k] = (float)(sum[k] / (double)pairs->n);
-            gb->px[k] = (float)(sum[n + k] / (double)pairs->n);
-        }
-    free(sum);
-    if (st) {
-        rpiv_image_free(ga);
-        rpiv_image_free(gb);
-        return st;
-    }
-    *bg_a = ga;
-    *bg_b = gb;
-    return RPIV_OK;
-}
 
 rpiv_status rpiv_series_run(rpiv_piv *pv, const rpiv_pairs *pairs, rpiv_series_sink sink,
                             void *user, const rpiv_progress *progress)
 {
+    /* the loop (with skipping and MPI dealing when asked) is rpiv_batch_series */
     if (!pairs->n)
         return rpiv_fail(RPIV_EINVAL, "piv: no image pairs");
-    for (size_t i = 0; i < pairs->n; i++) {
-        rpiv_image *a = NULL, *b = NULL;
-        rpiv_field *prev = NULL, *f = NULL;
-        rpiv_status st = rpiv_pairs_load(pairs, i, &a, &b);
-        if (!st && (st = rpiv_piv_load(pv, a, b)))
-            st = pair_fail(st, pairs, i);
-        rpiv_image_free(a);
-        rpiv_image_free(b);
-        for (int k = 0; !st && k < rpiv_piv_npass(pv); k++) {
-            st = rpiv_piv_step(pv, k, prev, &f);
-            rpiv_field_free(prev);
-            prev = f;
-        }
-        if (!st)
-            st = sink(user, i, prev);
-        rpiv_field_free(prev);
-        if (st)
-            return st;
-        if (rpiv_progress_report(progress, i + 1, pairs->n))
-            return rpiv_fail(RPIV_EINTR, "piv: interrupted after %zu of %zu pairs", i + 1,
-                             pairs->n);
-    }
-    return RPIV_OK;
+    rpiv_batch *b = NULL;
+    rpiv_status st = rpiv_batch_new(pairs, NULL, NULL, &b);
+    if (!st)
+        st = rpiv_batch_series(b, pv, sink, NULL, user, progress);
+    rpiv_batch_free(b);
+    return st;
 }
 
 /* ---- mean and RMS ------------------------------------------------------------------------ */
@@ -242,6 +148,20 @@ rpiv_status rpiv_series_ensemble(rpiv_piv *pv, const rpiv_pairs *pairs,
         return rpiv_fail(RPIV_EINVAL, "ensemble: no image pairs");
     rpiv_batch *b = NULL;
     rpiv_status st = rpiv_batch_new(pairs, NULL, NULL, &b);
+    if (!st)
+        st = rpiv_batch_ensemble(b, pv, progress, out);
+    rpiv_batch_free(b);
+    return st;
+}
+
+rpiv_status rpiv_series_ensemble_source(rpiv_piv *pv, const rpiv_series_source *src,
+                                        const rpiv_progress *progress, rpiv_field **out)
+{
+    *out = NULL;
+    if (!src->n)
+        return rpiv_fail(RPIV_EINVAL, "ensemble: no image pairs");
+    rpiv_batch *b = NULL;
+    rpiv_status st = batch_new_source(src, pv, &b);
     if (!st)
         st = rpiv_batch_ensemble(b, pv, progress, out);
     rpiv_batch_free(b);
