@@ -54,11 +54,6 @@ rpiv_status rpiv_ccm_params_check(const rpiv_ccm_params *p)
     return RPIV_OK;
 }
 
-rpiv_status ccm_gsl_fail(int gsl_status, const char *what)
-{
-    return rpiv_fail(RPIV_ENUMERIC, "ccm: %s failed: %s", what, gsl_strerror(gsl_status));
-}
-
 void ccm_file_header(FILE *fp, const char *hdr)
 {
     const char *s = hdr;

@@ -5,6 +5,7 @@
 
 #include "rpiv/ccm.h"
 
+#include <gsl/gsl_errno.h>
 #include <gsl/gsl_integration.h>
 #include <stdio.h>
 
@@ -69,6 +70,9 @@ unsigned long ccm_seed(unsigned long seed, unsigned long index);
 void ccm_file_header(FILE *fp, const char *hdr);
 
 /* GSL status -> rpiv status with a message naming what failed. */
-rpiv_status ccm_gsl_fail(int gsl_status, const char *what);
+static inline rpiv_status ccm_gsl_fail(int gsl_status, const char *what)
+{
+    return rpiv_fail(RPIV_ENUMERIC, "ccm: %s failed: %s", what, gsl_strerror(gsl_status));
+}
 
 #endif /* RPIV_CCM_IMPL_H */

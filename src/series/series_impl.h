@@ -27,7 +27,8 @@ struct rpiv_batch {
     size_t resume_done, npairs_last;
 };
 
-/* ---- batch.c: unreadable pairs ------------------------------------------------------------ */
+/* ---- batch.c, batch_pairs.c: making a batch, unreadable pairs
+ * ------------------------------------------------------------ */
 
 /* A batch of this process alone over the pairs of a source, with default parameters (no
  * checkpoint, no skipping), for rpiv_batch_ensemble only; its two images have pv's size. */
