@@ -4,6 +4,7 @@
  * A failure at any step removes the temporary file and leaves the old file intact. */
 #include "atomic.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <stdio.h>
@@ -128,4 +129,25 @@ rpiv_status atomic_commit(atomic_file *af)
     }
     atomic_release(af);
     return RPIV_OK;
+}
+
+/* Remove the temporary files a killed run left next to path: path.tmp-<pid>-<hex> (what
+ * atomic_begin names them), and path.tmp<pid> of earlier versions. */
+void atomic_remove_stale(const char *path)
+{
+    char dir[4096], name[4096];
+    const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
+    if (!slash)
+        snprintf(dir, sizeof dir, ".");
+    else
+        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path) + (slash == path), path);
+    size_t nb = strlen(base);
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    for (struct dirent *de; (de = readdir(d));)
+        if (!strncmp(de->d_name, base, nb) && !strncmp(de->d_name + nb, ".tmp", 4) &&
+            snprintf(name, sizeof name, "%s/%s", dir, de->d_name) < (int)sizeof name)
+            remove(name);
+    closedir(d);
 }

@@ -28,4 +28,9 @@ RPIV_NODISCARD rpiv_status atomic_commit(atomic_file *af);
 /* Remove the temporary file and free af. */
 void atomic_abort(atomic_file *af);
 
+/* Remove the temporary files that writers of path killed before their commit left in its
+ * folder (path.tmp-<pid>-<hex>, and path.tmp<pid> of earlier rpiv versions). Best effort:
+ * call it only where no other process may be writing path at the same time. */
+void atomic_remove_stale(const char *path);
+
 #endif /* RPIV_BASE_ATOMIC_H */

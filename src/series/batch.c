@@ -8,6 +8,8 @@
 
 #include "rpiv/ensemble.h"
 
+#include "base/atomic.h"
+
 #include "mpi_impl.h"
 #include "series_impl.h"
 
@@ -213,7 +215,7 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
         b->state[i] &= BAD;
     b->resumed = 0;
     if (b->ckpt) {
-        ck_remove_stale(b->ckpt);
+        atomic_remove_stale(b->ckpt);
         /* an interrupted run's checkpoint is not overwritten by a new run by mistake */
         if (!b->p.resume && ck_exists(b->ckpt))
             st = rpiv_fail(RPIV_EINVAL,

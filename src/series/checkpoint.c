@@ -8,7 +8,6 @@
 #include "base/hash.h"
 #include "mpi_impl.h"
 
-#include <dirent.h>
 #include <errno.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -80,27 +79,6 @@ rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, const rp
     rpiv_status st = rpiv_ensemble_save_block(e, buf, sizeof bk + n, b->ckpt);
     free(buf);
     return st;
-}
-
-/* Remove the temporary files a killed run left next to path: path.tmp-<pid>-<hex> (base/atomic.h),
- * and path.tmp<pid> of earlier versions. */
-void ck_remove_stale(const char *path)
-{
-    char dir[4096], name[4096];
-    const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
-    if (!slash)
-        snprintf(dir, sizeof dir, ".");
-    else
-        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path) + (slash == path), path);
-    size_t nb = strlen(base);
-    DIR *d = opendir(dir);
-    if (!d)
-        return;
-    for (struct dirent *de; (de = readdir(d));)
-        if (!strncmp(de->d_name, base, nb) && !strncmp(de->d_name + nb, ".tmp", 4) &&
-            snprintf(name, sizeof name, "%s/%s", dir, de->d_name) < (int)sizeof name)
-            remove(name);
-    closedir(d);
 }
 
 /* Is there a file at path? */

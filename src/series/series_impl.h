@@ -60,9 +60,6 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id);
  * the accumulator's file format (rpiv_ensemble_save_block). */
 RPIV_NODISCARD rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass,
                                    const rpiv_ensemble *e);
-/* Remove the temporary files a killed run left next to path: path.tmp-<pid>-<hex> (base/atomic.h),
- * and path.tmp<pid> of earlier versions. */
-void ck_remove_stale(const char *path);
 /* Is there a file at path? */
 int ck_exists(const char *path);
 /* Resume from the ranks' checkpoints (collective): *pass0 the pass to continue, *pred its
