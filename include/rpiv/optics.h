@@ -73,6 +73,9 @@ RPIV_NODISCARD rpiv_status rpiv_laser_check(const rpiv_laser *l);
 RPIV_NODISCARD rpiv_status rpiv_prism_check(const rpiv_prism *p);
 
 /* Short names: "p", "s", "unpolarised"; "air", "pmma". */
+/* The names in enum order (NULL-terminated), as the INI file spells them. */
+extern const char *const rpiv_polar_names[];
+extern const char *const rpiv_beta1_side_names[];
 const char *rpiv_polar_name(rpiv_polar pol);
 const char *rpiv_beta1_side_name(rpiv_beta1_side side);
 

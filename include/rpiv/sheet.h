@@ -24,6 +24,9 @@ typedef enum rpiv_sheet_kind {
     RPIV_SHEET_UNIFORM = 2
 } rpiv_sheet_kind;
 
+/* The kinds' names in enum order (NULL-terminated): "gauss", "selfsim", "uniform". */
+extern const char *const rpiv_sheet_kind_names[];
+
 #define RPIV_PATH_MAX 512
 
 typedef struct rpiv_sheet_params {

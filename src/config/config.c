@@ -35,10 +35,6 @@ typedef struct key_spec {
 
 #define OFF(m) offsetof(rpiv_experiment, m)
 
-static const char *const sheet_kinds[] = {"gauss", "selfsim", "uniform", NULL};
-static const char *const polars[] = {"p", "s", "unpolarised", NULL};
-static const char *const beta1_sides[] = {"air", "pmma", NULL};
-
 static const key_spec keys[] = {
     /* [camera] */
     {"camera", "width_px", KEY_INT, OFF(camera.width_px), 8, 65536, 1, "px", "sensor width", 0},
@@ -99,12 +95,13 @@ static const key_spec keys[] = {
     {"laser", "beta1_deg", KEY_DOUBLE, OFF(laser.beta1_deg), -45, 45, 1, "deg",
      "beam axis deviation from the inclined face's normal, towards the vertical", 0},
     {"laser", "beta1_side", KEY_ENUM, OFF(laser.beta1_side), 0, 0, 1, "-",
-     "side of the face beta1 is measured on: air (incidence) or pmma (inside)", beta1_sides},
+     "side of the face beta1 is measured on: air (incidence) or pmma (inside)",
+     rpiv_beta1_side_names},
     {"laser", "bundle_mm", KEY_DOUBLE, OFF(laser.bundle_m), 0.01, 1000, 1e-3, "mm",
      "full width of the equally spaced ray bundle at the lens", 0},
     {"laser", "rays", KEY_LONG, OFF(laser.nrays), 1, 1e8, 1, "-", "number of rays traced", 0},
     {"laser", "polarisation", KEY_ENUM, OFF(laser.polar), 0, 0, 1, "-",
-     "Fresnel transmission: p (paper), s or unpolarised", polars},
+     "Fresnel transmission: p (paper), s or unpolarised", rpiv_polar_names},
     /* [prism] */
     {"prism", "inclination_deg", KEY_DOUBLE, OFF(prism.theta_p_deg), 1, 89, 1, "deg",
      "inclination theta_p of the inclined face", 0},
@@ -116,7 +113,7 @@ static const key_spec keys[] = {
     {"prism", "n_air", KEY_DOUBLE, OFF(prism.n_air), 1, 4, 1, "-", "refractive index of air", 0},
     /* [sheet] */
     {"sheet", "kind", KEY_ENUM, OFF(sheet.kind), 0, 0, 1, "-",
-     "gauss (P-PIV), selfsim (R-PIV) or uniform (volume)", sheet_kinds},
+     "gauss (P-PIV), selfsim (R-PIV) or uniform (volume)", rpiv_sheet_kind_names},
     {"sheet", "zb", KEY_DOUBLE, OFF(sheet.zb_star), -10, 10, 1, "h", "gauss: centre z*_B", 0},
     {"sheet", "thickness", KEY_DOUBLE, OFF(sheet.e_star), 1e-4, 100, 1, "h",
      "gauss: thickness e* at a quarter of the maximum", 0},

@@ -25,28 +25,17 @@ rpiv_prism rpiv_prism_default(void)
         .theta_p_deg = 64, .thickness_m = 49e-3, .n_pmma = 1.49, .n_water = 1.33, .n_air = 1.0};
 }
 
+const char *const rpiv_polar_names[] = {"p", "s", "unpolarised", NULL};
+const char *const rpiv_beta1_side_names[] = {"air", "pmma", NULL};
+
 const char *rpiv_polar_name(rpiv_polar pol)
 {
-    switch (pol) {
-    case RPIV_POLAR_P:
-        return "p";
-    case RPIV_POLAR_S:
-        return "s";
-    case RPIV_POLAR_UNPOLARISED:
-        return "unpolarised";
-    }
-    return "?";
+    return pol >= RPIV_POLAR_P && pol <= RPIV_POLAR_UNPOLARISED ? rpiv_polar_names[pol] : "?";
 }
 
 const char *rpiv_beta1_side_name(rpiv_beta1_side side)
 {
-    switch (side) {
-    case RPIV_BETA1_PMMA:
-        return "pmma";
-    case RPIV_BETA1_AIR:
-        return "air";
-    }
-    return "?";
+    return side >= RPIV_BETA1_AIR && side <= RPIV_BETA1_PMMA ? rpiv_beta1_side_names[side] : "?";
 }
 
 static int bad(double v, double lo, double hi)

@@ -13,6 +13,8 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_interp.h>
 
+const char *const rpiv_sheet_kind_names[] = {"gauss", "selfsim", "uniform", NULL};
+
 struct rpiv_sheet {
     rpiv_sheet_params p;
     size_t n;          /* shape table rows (0 = default analytic shape) */

@@ -25,8 +25,6 @@ typedef struct ck_block {
 
 void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
 {
-    static const char *const sub[] = {"gauss", "parabola", "centroid"};
-    static const char *const bg[] = {"none", "min", "mean"};
     const rpiv_pairs *pp = b->pairs;
     const rpiv_piv_params *p = rpiv_piv_params_of(pv);
     int w, h_px;
@@ -49,9 +47,9 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     snprintf(id->plan, sizeof id->plan,
              "%dx%d frames, windows %.100s, overlap %.15g, step %d px, subpixel %s, median %.15g "
              "(eps %.15g px), deform %d, background %s, roi %d,%d,%d,%d, mask %.300s",
-             w, h_px, win, p->overlap, p->step_px, sub[p->subpixel], p->median_thr, p->median_eps,
-             p->deform, bg[p->background], p->roi[0], p->roi[1], p->roi[2], p->roi[3],
-             p->mask[0] ? p->mask : "none");
+             w, h_px, win, p->overlap, p->step_px, rpiv_subpixel_names[p->subpixel], p->median_thr,
+             p->median_eps, p->deform, rpiv_background_names[p->background], p->roi[0], p->roi[1],
+             p->roi[2], p->roi[3], p->mask[0] ? p->mask : "none");
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
     h = hash_bytes(HASH0, id->plan, strlen(id->plan));
     h = hash_bytes(h, exact, sizeof exact);
