@@ -5,7 +5,7 @@
 
 #include "rpiv/calib.h"
 #include "rpiv/image.h"
-#include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -309,35 +309,6 @@ static rpiv_status out_path(char *buf, const char *dir, const char *name)
     return RPIV_OK;
 }
 
-static rpiv_status write_table(const char *path, const void *obj,
-                               rpiv_status (*fn)(const void *, FILE *))
-{
-    FILE *fp = fopen(path, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create", path);
-    rpiv_status st = fn(obj, fp);
-    if (fclose(fp) != 0 && st == RPIV_OK)
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    return st;
-}
-
-static rpiv_status w_plates(const void *r, FILE *fp)
-{
-    return rpiv_calib_sheet_write_plates(r, fp);
-}
-static rpiv_status w_profiles(const void *r, FILE *fp)
-{
-    return rpiv_calib_sheet_write_profiles(r, fp);
-}
-static rpiv_status w_focus(const void *c, FILE *fp)
-{
-    return rpiv_calib_focus_write(c, fp);
-}
-static rpiv_status w_dots(const void *r, FILE *fp)
-{
-    return rpiv_calib_dof_write_dots(r, fp);
-}
-
 /* ---- images ------------------------------------------------------------------------------ */
 
 typedef struct images {
@@ -389,107 +360,10 @@ static rpiv_status load_images(job *j, int nargs, char **args, const char *name,
 
 /* ---- sheet ------------------------------------------------------------------------------- */
 
-static rpiv_status plot_sheet(const rpiv_calib_sheet_result *r, const char *dir)
-{
-    char path[RPIV_PATH_MAX];
-    size_t n = r->nplates, ns = n < 12 ? n : 12;
-    rpiv_plot_series *ser = calloc(ns + 1, sizeof *ser);
-    char(*lab)[40] = calloc(ns + 1, sizeof *lab);
-    double *zp = NULL, *lines = NULL;
-    rpiv_status st = RPIV_OK;
-    if (!ser || !lab) {
-        st = rpiv_fail(RPIV_ENOMEM, "calib sheet: out of memory (plot)");
-        goto out;
-    }
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.xmin = 0;
-    o.xmax = 1.05;
-    /* the profiles as the paper draws them: I0* across, z* up */
-    for (size_t s = 0; s < ns; s++) {
-        const rpiv_calib_sheet_plate *pl = &r->plate[ns > 1 ? s * (n - 1) / (ns - 1) : 0];
-        snprintf(lab[s], sizeof lab[s], "x* = %.2f", pl->x_max);
-        ser[s] = (rpiv_plot_series){pl->inten, pl->z, pl->n, lab[s], RPIV_PLOT_LINE};
-    }
-    o.ymin = 0;
-    o.ymax = 1;
-    if ((st = out_path(path, dir, "calib_sheet_profiles.png")) ||
-        (st = rpiv_plot_lines(path, "sheet profiles along the plates", "I#d0#u*", "z*", ser, ns,
-                              &o)))
-        goto out;
-    /* the mean shape and the plates in z+ */
-    size_t nmax = 0;
-    for (size_t i = 0; i < n; i++)
-        nmax = r->plate[i].n > nmax ? r->plate[i].n : nmax;
-    zp = malloc(ns * nmax * sizeof *zp);
-    if (!zp) {
-        st = rpiv_fail(RPIV_ENOMEM, "calib sheet: out of memory (plot)");
-        goto out;
-    }
-    for (size_t s = 0; s < ns; s++) {
-        const rpiv_calib_sheet_plate *pl = &r->plate[ns > 1 ? s * (n - 1) / (ns - 1) : 0];
-        for (size_t k = 0; k < pl->n; k++) {
-            double x = pl->x[k];
-            zp[s * nmax + k] = (pl->z[k] - (r->zm0 + r->zm1 * x)) / (r->e0 + r->e1 * x);
-        }
-        ser[s].y = zp + s * nmax;
-        ser[s].style = RPIV_PLOT_POINTS;
-    }
-    ser[ns] = (rpiv_plot_series){r->shape, r->zplus, r->nshape, "mean", RPIV_PLOT_LINE};
-    o.ymin = o.ymax = 0;
-    if ((st = out_path(path, dir, "calib_sheet_shape.png")) ||
-        (st = rpiv_plot_lines(path, "self-similar shape", "I#d0#u*", "z#u+#d = (z* - z*#dmax#u)/e*",
-                              ser, ns + 1, &o)))
-        goto out;
-    /* edges and peak along x*, with the fitted lines */
-    lines = malloc((6 * n + 8) * sizeof *lines);
-    if (!lines) {
-        st = rpiv_fail(RPIV_ENOMEM, "calib sheet: out of memory (plot)");
-        goto out;
-    }
-    double *xi = lines, *zi = lines + n, *xm = lines + 2 * n, *zm = lines + 3 * n,
-           *xs = lines + 4 * n, *zs = lines + 5 * n, *lx = lines + 6 * n, *fi = lx + 2,
-           *fm = lx + 4, *fs = lx + 6;
-    lx[0] = HUGE_VAL;
-    lx[1] = -HUGE_VAL;
-    for (size_t i = 0; i < n; i++) {
-        const rpiv_calib_sheet_plate *pl = &r->plate[i];
-        xi[i] = pl->x_inf;
-        zi[i] = pl->raw.zinf;
-        xm[i] = pl->x_max;
-        zm[i] = pl->raw.zmax;
-        xs[i] = pl->x_sup;
-        zs[i] = pl->raw.zsup;
-        lx[0] = fmin(lx[0], fmin(pl->x_inf, pl->x_sup));
-        lx[1] = fmax(lx[1], fmax(pl->x_inf, pl->x_sup));
-    }
-    for (int k = 0; k < 2; k++) {
-        fi[k] = r->inf0 + r->inf1 * lx[k];
-        fm[k] = r->zm0 + r->zm1 * lx[k];
-        fs[k] = r->sup0 + r->sup1 * lx[k];
-    }
-    rpiv_plot_series e[6] = {
-        {xs, zs, n, "z*#dsup#u", RPIV_PLOT_POINTS}, {xm, zm, n, "z*#dmax#u", RPIV_PLOT_POINTS},
-        {xi, zi, n, "z*#dinf#u", RPIV_PLOT_POINTS}, {lx, fs, 2, "fitted lines", RPIV_PLOT_LINE},
-        {lx, fm, 2, NULL, RPIV_PLOT_LINE},          {lx, fi, 2, NULL, RPIV_PLOT_LINE}};
-    rpiv_plot_opts oe = rpiv_plot_opts_default();
-    oe.ymin = 0;
-    oe.ymax = 1.25; /* room for the legend */
-    if (!(st = out_path(path, dir, "calib_sheet_edges.png")))
-        st = rpiv_plot_lines(path, "sheet edges where each plate meets them", "x*", "z*", e,
-                             n > 1 ? 6 : 3, &oe);
-out:
-    free(ser);
-    free(lab);
-    free(zp);
-    free(lines);
-    return st;
-}
-
 static rpiv_status run_sheet(job *j, int nargs, char **args)
 {
     images s = {0, NULL, NULL, NULL};
     rpiv_calib_sheet_result *r = NULL;
-    char path[RPIV_PATH_MAX];
     rpiv_calib_sheet_params p = rpiv_calib_sheet_params_default();
     p.geom = j->geom;
     if (j->smooth_set)
@@ -513,7 +387,7 @@ static rpiv_status run_sheet(job *j, int nargs, char **args)
     }
     printf("self-similar sheet: z*_max = %.4f + %.5f x* (inclination %.3f deg), e* = %.4f + "
            "%.5f x*%s\n",
-           r->zm0, r->zm1, atan(r->zm1) * 180 / M_PI, r->e0, r->e1,
+           r->zm0, r->zm1, rpiv_report_incl_deg(r->zm1), r->e0, r->e1,
            r->nplates > 1 ? "" : " (one plate: no slopes)");
     const char *prof = j->profile;
     char ppath[RPIV_PATH_MAX];
@@ -523,12 +397,9 @@ static rpiv_status run_sheet(job *j, int nargs, char **args)
         prof = ppath;
     }
     if ((st = rpiv_calib_sheet_save_profile(r, prof)) ||
-        (st = out_path(path, j->dir, "calib_sheet_plates.txt")) ||
-        (st = write_table(path, r, w_plates)) ||
-        (st = out_path(path, j->dir, "calib_sheet_profiles.txt")) ||
-        (st = write_table(path, r, w_profiles)))
+        (st = rpiv_report_calib_sheet_tables(r, j->dir)))
         goto out;
-    if (j->png && (st = plot_sheet(r, j->dir)))
+    if (j->png && (st = rpiv_report_calib_sheet(r, j->dir)))
         goto out;
     if (!j->c.quiet)
         printf("wrote %s (sheet.kind = selfsim, sheet.profile = %s); tables%s in %s/ "
@@ -542,43 +413,11 @@ out:
 
 /* ---- dof --------------------------------------------------------------------------------- */
 
-static rpiv_status plot_dof(const rpiv_calib_focus *c, const rpiv_calib_focus *m, double shift,
-                            const char *dir)
-{
-    char path[RPIV_PATH_MAX], title[128];
-    double *zm = NULL;
-    rpiv_plot_series ser[3] = {{c->z, c->g, c->n, "measured", RPIV_PLOT_POINTS},
-                               {c->z, c->gfit, c->n, "local fit", RPIV_PLOT_LINE},
-                               {NULL, NULL, 0, "model", RPIV_PLOT_LINE}};
-    size_t ns = 2;
-    if (m && m->n) {
-        zm = malloc(m->n * sizeof *zm);
-        if (!zm)
-            return rpiv_fail(RPIV_ENOMEM, "calib dof: out of memory (plot)");
-        for (size_t i = 0; i < m->n; i++)
-            zm[i] = m->z[i] + shift;
-        ser[2].x = zm;
-        ser[2].y = m->g;
-        ser[2].n = m->n;
-        ns = 3;
-    }
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.xmin = 0;
-    o.xmax = 1;
-    snprintf(title, sizeof title, "focus: DOF* = %.3f, z*#dOP#u = %.3f", c->dof, c->zop);
-    rpiv_status st = out_path(path, dir, "calib_dof.png");
-    if (!st)
-        st = rpiv_plot_lines(path, title, "z*", "(1/I* - 1) normalised", ser, ns, &o);
-    free(zm);
-    return st;
-}
-
 static rpiv_status run_dof(job *j, int nargs, char **args)
 {
     images s = {0, NULL, NULL, NULL};
     rpiv_calib_dof_result *r = NULL;
     rpiv_calib_focus model;
-    char path[RPIV_PATH_MAX];
     memset(&model, 0, sizeof model);
     rpiv_calib_dof_params p = rpiv_calib_dof_params_default();
     p.geom = j->geom;
@@ -620,14 +459,9 @@ static rpiv_status run_dof(job *j, int nargs, char **args)
                j->refl_set ? "" : " matching the measured peak", model.dof, model.inv_max);
     else
         printf("model: not available (%s)\n", rpiv_errmsg());
-    if ((st = out_path(path, j->dir, "calib_dof_curve.txt")) ||
-        (st = write_table(path, c, w_focus)) ||
-        (st = out_path(path, j->dir, "calib_dof_dots.txt")) || (st = write_table(path, r, w_dots)))
+    if ((st = rpiv_report_calib_dof_tables(r, model.n ? &model : NULL, j->dir)))
         goto out;
-    if (model.n && ((st = out_path(path, j->dir, "calib_dof_model.txt")) ||
-                    (st = write_table(path, &model, w_focus))))
-        goto out;
-    if (j->png && (st = plot_dof(c, model.n ? &model : NULL, 0, j->dir)))
+    if (j->png && (st = rpiv_report_calib_dof(c, model.n ? &model : NULL, 0, j->dir)))
         goto out;
     if (!j->c.quiet)
         printf("tables%s in %s/ (calib_dof_*)\n", j->png ? " and plot" : "", j->dir);

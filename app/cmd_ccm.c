@@ -3,8 +3,7 @@
  * and the correction of the R-PIV bias (docs/ccm.md). */
 #include "cli.h"
 #include "rpiv/ccm.h"
-#include "rpiv/plot.h"
-#include "rpiv/synth.h"
+#include "rpiv/report.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -272,55 +271,6 @@ static void header(const run *r, const char *scenario, char *buf, size_t n)
              r->m.dp_m * 1e6, prof, r->presence ? "tabulated" : "uniform");
 }
 
-/* The paper's figures 19-22: the profiles (left panel) and the pointwise relative error
- * (right panel), one series per table. */
-static rpiv_status plot_tables(const run *r, const char *name, rpiv_ccm_table *const *t,
-                               const double *e, size_t nt)
-{
-    rpiv_status st = RPIV_OK;
-    size_t nmax = 0;
-    for (size_t k = 0; k < nt; k++)
-        nmax = t[k]->n > nmax ? t[k]->n : nmax;
-    double *buf = malloc(4 * nt * nmax * sizeof *buf);
-    char(*lab)[64] = calloc(nt + 1, sizeof *lab);
-    rpiv_plot_series *ser = calloc(2 * nt + 1, sizeof *ser);
-    if (!buf || !lab || !ser) {
-        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
-        goto out_free;
-    }
-    for (size_t k = 0; k < nt; k++) {
-        double *z = buf + 4 * k * nmax, *um = z + nmax, *ur = um + nmax, *er = ur + nmax;
-        for (size_t i = 0; i < t[k]->n; i++) {
-            z[i] = t[k]->row[i].zstar;
-            um[i] = t[k]->row[i].umodel;
-            ur[i] = t[k]->row[i].uref;
-            er[i] = 100 * t[k]->row[i].err;
-        }
-        if (e)
-            snprintf(lab[k], sizeof lab[k], "model, e* = %g", e[k]);
-        else
-            snprintf(lab[k], sizeof lab[k], "model, velocity at z*_max");
-        ser[k + 1] = (rpiv_plot_series){z, um, t[k]->n, lab[k], RPIV_PLOT_BOTH};
-        if (!k)
-            ser[0] = (rpiv_plot_series){z, ur, t[k]->n, "reference (White)", RPIV_PLOT_LINE};
-        ser[nt + 1 + k] = (rpiv_plot_series){z, er, t[k]->n, lab[k], RPIV_PLOT_BOTH};
-    }
-    char path[RPIV_PATH_MAX + 64], title[128];
-    snprintf(path, sizeof path, "%s/ccm_%s_profile.png", r->out, name);
-    snprintf(title, sizeof title, "%s: U*(z*)", name);
-    if ((st = rpiv_plot_lines(path, title, "z*", "U*", ser, nt + 1, NULL)))
-        goto out_free;
-    snprintf(path, sizeof path, "%s/ccm_%s_error.png", r->out, name);
-    snprintf(title, sizeof title, "%s: pointwise relative error", name);
-    st = rpiv_plot_lines(path, title, "z*", "(U*#dmodel#u - U*#dref#u) / U*#dref#u (%)",
-                         ser + nt + 1, nt, NULL);
-out_free:
-    free(buf);
-    free(lab);
-    free(ser);
-    return st;
-}
-
 static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
 {
     rpiv_status st = RPIV_OK;
@@ -357,10 +307,7 @@ static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
         }
         if ((st = rpiv_ccm_table_save(t, hdr, path)))
             break;
-        size_t worst = 0;
-        for (size_t i = 0; i < t->n; i++)
-            if (fabs(t->row[i].err) > fabs(t->row[worst].err) + 1e-12)
-                worst = i;
+        size_t worst = rpiv_report_ccm_worst(t);
         printf("%s", name);
         if (kind != RPIV_CCM_RPIV)
             printf(" e*=%g", sc.e_star);
@@ -370,7 +317,8 @@ static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
                100 * t->maxerr_sub, path);
     }
     if (!st && r->c.exp.output.plots)
-        st = plot_tables(r, name, tabs, kind == RPIV_CCM_RPIV ? NULL : r->o.thick, done);
+        st = rpiv_report_ccm_tables(r->out, name, tabs, kind == RPIV_CCM_RPIV ? NULL : r->o.thick,
+                                    done);
     for (size_t k = 0; k < done; k++)
         rpiv_ccm_table_free(tabs[k]);
     return st;
@@ -411,33 +359,9 @@ static rpiv_status do_convergence(run *r)
     snprintf(path, sizeof path, "%s/ccm_convergence.txt", r->out);
     if ((st = rpiv_ccm_mc_save(res, r->m.scale_px, pk.dx, pk.dx_sub, hdr, path)))
         goto out_free;
-    if (r->c.exp.output.plots) {
-        size_t K = res->nnim;
-        double *v = malloc(5 * K * sizeof *v);
-        if (!v) {
-            st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
-            goto out_free;
-        }
-        double *lx = v, *mn = v + K, *lo = v + 2 * K, *hi = v + 3 * K, *in = v + 4 * K;
-        for (size_t i = 0; i < K; i++) {
-            lx[i] = log10((double)res->nim[i]);
-            mn[i] = res->mean[i] / r->m.scale_px;
-            lo[i] = mn[i] - res->std[i] / r->m.scale_px;
-            hi[i] = mn[i] + res->std[i] / r->m.scale_px;
-            in[i] = pk.dx / r->m.scale_px;
-        }
-        rpiv_plot_series ser[4] = {{lx, mn, K, "mean of the repetitions", RPIV_PLOT_BOTH},
-                                   {lx, lo, K, "mean - std", RPIV_PLOT_LINE},
-                                   {lx, hi, K, "mean + std", RPIV_PLOT_LINE},
-                                   {lx, in, K, "integral (Eq. statform)", RPIV_PLOT_LINE}};
-        char png[RPIV_PATH_MAX + 64];
-        snprintf(png, sizeof png, "%s/ccm_convergence.png", r->out);
-        st = rpiv_plot_lines(png, "Monte-Carlo sum of correlation", "log#d10#u N#dim#u", "U*", ser,
-                             4, NULL);
-        free(v);
-        if (st)
-            goto out_free;
-    }
+    if (r->c.exp.output.plots &&
+        (st = rpiv_report_ccm_convergence(r->out, res, r->m.scale_px, pk.dx)))
+        goto out_free;
     size_t k = res->nnim - 1;
     printf("convergence: integral U* = %.6f; N_im = %zu: mean %.6f std %.6f (sub-pixel %.6f "
            "std %.6f); N_im = %zu: std %.6f -> %s\n",
@@ -450,73 +374,14 @@ out_free:
     return st;
 }
 
-/* A vector file of rpiv piv, or rows "x* U* [sigma]". */
-static rpiv_status load_measurements(run *r, rpiv_ccm_curve **out)
-{
-    *out = NULL;
-    FILE *fp = fopen(r->o.input, "r");
-    char line[64] = "";
-    if (fp) {
-        if (!fgets(line, sizeof line, fp))
-            line[0] = 0;
-        fclose(fp);
-    }
-    if (strncmp(line, "# rpiv vector field", 19))
-        return rpiv_ccm_curve_load(r->o.input, out);
-    rpiv_field *f = NULL;
-    rpiv_synth *s = NULL;
-    rpiv_status st = rpiv_field_load_txt(r->o.input, &f);
-    if (!st)
-        st = rpiv_config_synth_new(&r->c.exp, NULL, &s);
-    if (!st) {
-        rpiv_synth_info in;
-        rpiv_synth_get_info(s, &in);
-        rpiv_ccm_geometry g = {in.x0_star, in.y0_star, in.star_per_px};
-        st = rpiv_ccm_profile_of_field(f, &g, r->m.scale_px, r->o.ystar, out);
-    }
-    rpiv_synth_free(s);
-    rpiv_field_free(f);
-    return st;
-}
-
-static rpiv_status plot_invert(const run *r, const rpiv_ccm_invert_result *res)
-{
-    size_t n = res->nout, m = res->nmeas;
-    double *v = malloc((4 * n + 2 * m) * sizeof *v);
-    if (!v)
-        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
-    double *lo = v, *hi = v + n, *ref = v + 2 * n, *zr = v + 3 * n, *zm = v + 4 * n, *um = zm + m;
-    for (size_t i = 0; i < n; i++) {
-        lo[i] = res->u[i] - 2 * res->u_std[i];
-        hi[i] = res->u[i] + 2 * res->u_std[i];
-        zr[i] = res->z[i];
-        ref[i] = r->m.u.fn(r->m.u.user, res->z[i]);
-    }
-    for (size_t j = 0; j < m; j++) {
-        zm[j] = res->zmax[j];
-        um[j] = res->umeas[j];
-    }
-    rpiv_plot_series ser[5] = {
-        {zm, um, m, "measured, at z*#dmax#u (association)", RPIV_PLOT_POINTS},
-        {zr, res->u, n, "corrected (inverse CCM)", RPIV_PLOT_LINE},
-        {zr, lo, n, "corrected - 2 sigma", RPIV_PLOT_LINE},
-        {zr, hi, n, "corrected + 2 sigma", RPIV_PLOT_LINE},
-        {zr, ref, n, "reference", RPIV_PLOT_LINE}};
-    char path[RPIV_PATH_MAX + 64];
-    snprintf(path, sizeof path, "%s/ccm_invert.png", r->out);
-    rpiv_status st =
-        rpiv_plot_lines(path, "R-PIV bias correction", "z*", "U*", ser, r->o.compare ? 5 : 4, NULL);
-    free(v);
-    return st;
-}
-
 static rpiv_status do_invert(run *r)
 {
     if (!r->o.input)
         return cli_usage_error("ccm", "invert needs --input FILE");
     rpiv_ccm_curve *in = NULL;
     rpiv_ccm_invert_result *res = NULL;
-    rpiv_status st = load_measurements(r, &in);
+    rpiv_status st =
+        rpiv_report_ccm_measurements(&r->c.exp, r->o.input, r->m.scale_px, r->o.ystar, &in);
     if (st)
         return st;
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
@@ -543,7 +408,8 @@ static rpiv_status do_invert(run *r)
     snprintf(path, sizeof path, "%s/ccm_invert.txt", r->out);
     if ((st = rpiv_ccm_invert_save(res, hdr, path)))
         goto out_free;
-    if (r->c.exp.output.plots && (st = plot_invert(r, res)))
+    if (r->c.exp.output.plots &&
+        (st = rpiv_report_ccm_invert(r->out, res, r->o.compare ? &r->m.u : NULL)))
         goto out_free;
     printf("invert: %zu measurements, %zu iterations, sigma %.5g, chi2 %.5g -> %s\n", res->nmeas,
            res->iterations, res->sigma, res->chi2, path);

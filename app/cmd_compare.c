@@ -4,7 +4,7 @@
 #include "cli.h"
 
 #include "rpiv/field.h"
-#include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -55,13 +55,8 @@ static rpiv_status compare_profiles(const char *ref_path, const char *cmp_path, 
     }
     print_result(&r);
     printf("range %.10g %.10g\n", r.alpha0, r.alpha1);
-    if (png) {
-        char title[64];
-        snprintf(title, sizeof title, "E#d1#u = %.4g", r.e1);
-        rpiv_plot_series s[2] = {{ref->alpha, ref->value, ref->n, ref_path, RPIV_PLOT_LINE},
-                                 {cmp->alpha, cmp->value, cmp->n, cmp_path, RPIV_PLOT_POINTS}};
-        st = rpiv_plot_lines(png, title, "#ga", "value", s, 2, NULL);
-    }
+    if (png)
+        st = rpiv_report_compare_profiles(png, ref, cmp, ref_path, cmp_path, &r);
 out:
     rpiv_profile_free(ref);
     rpiv_profile_free(cmp);
@@ -73,7 +68,6 @@ static rpiv_status compare_fields(const char *ref_path, const char *cmp_path, rp
 {
     rpiv_field *ref = NULL, *cmp = NULL;
     rpiv_compare r;
-    double *d = NULL;
     rpiv_status st = rpiv_field_load_txt(ref_path, &ref);
     if (!st)
         st = rpiv_field_load_txt(cmp_path, &cmp);
@@ -85,38 +79,9 @@ static rpiv_status compare_fields(const char *ref_path, const char *cmp_path, rp
     }
     printf("component %s\n", cname);
     print_result(&r);
-    if (png) {
-        size_t np = (size_t)ref->nx * (size_t)ref->ny;
-        d = malloc(np * sizeof *d);
-        if (!d) {
-            st = rpiv_fail(RPIV_ENOMEM, "compare: out of memory");
-            goto out;
-        }
-        for (size_t k = 0; k < np; k++) {
-            double a = c == RPIV_COMPONENT_U   ? (double)ref->u[k]
-                       : c == RPIV_COMPONENT_V ? (double)ref->v[k]
-                                               : hypot((double)ref->u[k], (double)ref->v[k]);
-            double b = c == RPIV_COMPONENT_U   ? (double)cmp->u[k]
-                       : c == RPIV_COMPONENT_V ? (double)cmp->v[k]
-                                               : hypot((double)cmp->u[k], (double)cmp->v[k]);
-            int masked = ref->flag[k] == RPIV_FLAG_MASKED || cmp->flag[k] == RPIV_FLAG_MASKED;
-            d[k] = masked ? (double)NAN : a - b;
-        }
-        double ext[4] = {ref->x0 - 0.5 * ref->dx, ref->x0 + (ref->nx - 0.5) * ref->dx,
-                         ref->y0 - 0.5 * ref->dy, ref->y0 + (ref->ny - 0.5) * ref->dy};
-        char title[96], zl[32];
-        snprintf(title, sizeof title, "REF - CMP (%s), E#d1#u = %.4g", cname, r.e1);
-        snprintf(zl, sizeof zl, "#gD%s (px)", cname);
-        rpiv_plot_opts o = rpiv_plot_opts_default();
-        o.cmap = RPIV_PLOT_CMAP_DIVERGING;
-        double m = r.max_abs > 0 ? r.max_abs : 1;
-        o.zmin = -m;
-        o.zmax = m;
-        o.zlabel = zl;
-        st = rpiv_plot_map(png, title, d, ref->nx, ref->ny, ext, &o);
-    }
+    if (png)
+        st = rpiv_report_compare_fields(png, ref, cmp, c, cname, &r);
 out:
-    free(d);
     rpiv_field_free(ref);
     rpiv_field_free(cmp);
     return st;

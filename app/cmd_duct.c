@@ -2,8 +2,7 @@
 /* rpiv duct - print (and plot) the analytic square-duct profile U*(y*, z*) along y* or z*. */
 #include "cli.h"
 
-#include "rpiv/flow.h"
-#include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <errno.h>
 #include <math.h>
@@ -129,7 +128,7 @@ rpiv_status cmd_duct(int argc, char **argv)
         zarg = "0:1:0.01";
     if (!yarg)
         yarg = strchr(zarg, ':') ? "0.5" : "0:1:0.01";
-    double *ys = NULL, *zs = NULL, *u = NULL;
+    double *ys = NULL, *zs = NULL;
     size_t ny = 0, nz = 0;
     int yr = 0, zr = 0;
     if ((st = parse_range("--y", yarg, &ys, &ny, &yr)) ||
@@ -145,32 +144,9 @@ rpiv_status cmd_duct(int argc, char **argv)
     const double *al = along_y ? ys : zs;
     size_t n = along_y ? ny : nz;
     double fixed = along_y ? zs[0] : ys[0];
-    u = malloc(n * sizeof *u);
-    if (!u) {
-        st = rpiv_fail(RPIV_ENOMEM, "duct: out of memory");
-        goto out;
-    }
-    for (size_t k = 0; k < n; k++)
-        u[k] = along_y ? rpiv_duct_u(al[k], fixed) : rpiv_duct_u(fixed, al[k]);
-    printf("# rpiv duct: square-duct laminar profile U* = U/U_bulk (Eq. \"White\"), %s* = %.10g\n",
-           along_y ? "z" : "y", fixed);
-    printf("# %s* U*\n", along_y ? "y" : "z");
-    for (size_t k = 0; k < n; k++)
-        printf("%.10g %.10g\n", al[k], u[k]);
-    if (fflush(stdout) != 0) {
-        st = rpiv_fail(RPIV_EIO, "duct: cannot write the table: %s", strerror(errno));
-        goto out;
-    }
-    if (png) {
-        char title[96], label[96];
-        snprintf(title, sizeof title, "Square duct, %s* = %.4g", along_y ? "z" : "y", fixed);
-        snprintf(label, sizeof label, "U*(%s* = %.4g)", along_y ? "z" : "y", fixed);
-        rpiv_plot_series s = {al, u, n, label, n > 1 ? RPIV_PLOT_LINE : RPIV_PLOT_POINTS};
-        st = rpiv_plot_lines(png, title, along_y ? "y*" : "z*", "U* = U / U#dbulk#u", &s, 1, NULL);
-    }
+    st = rpiv_report_duct(stdout, al, n, along_y, fixed, png);
 out:
     free(ys);
     free(zs);
-    free(u);
     return st;
 }

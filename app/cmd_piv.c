@@ -10,6 +10,7 @@
 #include "rpiv/mpi.h"
 #include "rpiv/piv.h"
 #include "rpiv/plot.h"
+#include "rpiv/report.h"
 #include "rpiv/version.h"
 
 #include <stdio.h>
@@ -132,10 +133,8 @@ static rpiv_status root_sink(void *user, size_t i, const rpiv_field *f)
 {
     run_ctx *r = user;
     rpiv_status st = RPIV_OK;
-    size_t n = (size_t)f->nx * (size_t)f->ny;
-    r->nvec += n;
-    for (size_t k = 0; k < n; k++)
-        r->nreplaced += f->flag[k] == RPIV_FLAG_REPLACED;
+    r->nvec += (size_t)f->nx * (size_t)f->ny;
+    r->nreplaced += rpiv_report_nreplaced(f);
     if (r->series)
         st = rpiv_field_series_append(r->series, f, (double)i);
     if (!st && r->stats)
@@ -492,10 +491,8 @@ out_agree:
         if (root &&
             ((st = add_skipped(&meta, batch, pairs)) || (st = rpiv_field_save(field, &meta, out))))
             goto out_free;
-        size_t n = (size_t)field->nx * (size_t)field->ny;
-        r.nvec = n;
-        for (size_t k = 0; k < n; k++)
-            r.nreplaced += field->flag[k] == RPIV_FLAG_REPLACED;
+        r.nvec = (size_t)field->nx * (size_t)field->ny;
+        r.nreplaced = rpiv_report_nreplaced(field);
     } else {
         st = rpiv_batch_series(batch, pv, local_sink, root_sink, &r, &pr);
         if (r.series) {

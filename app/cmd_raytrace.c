@@ -3,7 +3,7 @@
 #include "cli.h"
 
 #include "rpiv/optics.h"
-#include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -107,201 +107,6 @@ typedef struct job {
     rpiv_optics_opts o;
 } job;
 
-/* ---- plots ------------------------------------------------------------------------------ */
-
-/* Copy the series that have a finite point (the plot refuses the others); returns how many. */
-static size_t finite_series(const rpiv_plot_series *in, size_t n, rpiv_plot_series *out)
-{
-    size_t nu = 0;
-    for (size_t q = 0; q < n; q++) {
-        int any = 0;
-        for (size_t k = 0; k < in[q].n; k++)
-            any |= isfinite(in[q].y[k]);
-        if (any)
-            out[nu++] = in[q];
-    }
-    return nu;
-}
-
-/* Profile k of r as I0* (x) against z* (y), the way the paper draws sheet profiles. */
-static rpiv_status plot_profile(const rpiv_optics_result *r, const char *dir)
-{
-    char path[RPIV_PATH_MAX], title[128];
-    rpiv_status st;
-    double *in = malloc(r->nz * sizeof *in);
-    if (!in)
-        return rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (plot)");
-    rpiv_optics_profile_norm(r, 0, in);
-    snprintf(title, sizeof title, "sheet at x* = %g, #gb#d1#u = %g deg (%s), %s-polarised",
-             r->xstar[0], r->laser.beta1_deg, rpiv_beta1_side_name(r->laser.beta1_side),
-             rpiv_polar_name(r->laser.polar));
-    rpiv_plot_series ser = {in, r->zstar, r->nz, NULL, RPIV_PLOT_LINE};
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.ymin = 0;
-    o.ymax = 1;
-    if (!(st = out_path(path, dir, "raytrace_profile.png")))
-        st = rpiv_plot_lines(path, title, "I#d0#u* = I / I#dmax#u", "z*", &ser, 1, &o);
-    free(in);
-    return st;
-}
-
-/* z*_inf, z*_max, z*_sup along x* (paper fig. 8) with the fitted z*_max line. */
-static rpiv_status plot_metrics(const rpiv_optics_result *v, const rpiv_optics_selfsim *f,
-                                const char *dir)
-{
-    char path[RPIV_PATH_MAX];
-    rpiv_status st;
-    size_t n = v->nx;
-    double *a = malloc(5 * n * sizeof *a);
-    if (!a)
-        return rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (plot)");
-    double *zi = a, *zm = a + n, *zs = a + 2 * n, *fit = a + 3 * n, *e = a + 4 * n;
-    for (size_t k = 0; k < n; k++) {
-        rpiv_sheet_metrics m;
-        if (rpiv_optics_metrics(v, k, &m)) {
-            rpiv_errclear();
-            m.zinf = m.zmax = m.zsup = m.e = (double)NAN;
-        }
-        zi[k] = m.zinf;
-        zm[k] = m.zmax;
-        zs[k] = m.zsup;
-        e[k] = m.e;
-        fit[k] = f ? f->zm0 + f->zm1 * v->xstar[k] : (double)NAN;
-    }
-    rpiv_plot_series ser[5] = {{v->xstar, zs, n, "z*#dsup#u", RPIV_PLOT_BOTH},
-                               {v->xstar, zm, n, "z*#dmax#u", RPIV_PLOT_BOTH},
-                               {v->xstar, zi, n, "z*#dinf#u", RPIV_PLOT_BOTH},
-                               {v->xstar, e, n, "e*", RPIV_PLOT_POINTS},
-                               {v->xstar, fit, n, "z*#dmax#u fit", RPIV_PLOT_LINE}};
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.ymin = 0;
-    o.ymax = 1;
-    st = out_path(path, dir, "raytrace_metrics.png");
-    if (!st) {
-        rpiv_plot_series use[5];
-        size_t nu = finite_series(ser, 5, use);
-        st = nu ? rpiv_plot_lines(path, "sheet edges and thickness along x*", "x*", "z*, e*", use,
-                                  nu, &o)
-                : RPIV_OK;
-    }
-    free(a);
-    return st;
-}
-
-/* The sheet's normalised fluence rate over (x*, z*): a trace at many stations. */
-static rpiv_status plot_map(const job *j, const char *dir)
-{
-    enum { NXM = 200 };
-    double xs[NXM], x0 = -0.5, x1 = j->stations[j->nst - 1] > 1 ? j->stations[j->nst - 1] : 9;
-    char path[RPIV_PATH_MAX];
-    rpiv_optics_result *r = NULL;
-    rpiv_status st;
-    for (int k = 0; k < NXM; k++)
-        xs[k] = x0 + (x1 - x0) * (k + 0.5) / NXM;
-    if ((st = rpiv_optics_trace(&j->c.exp.laser, &j->c.exp.prism, j->c.exp.channel.h_m, xs, NXM,
-                                &j->o, NULL, &r)))
-        return st;
-    size_t nz = r->nz;
-    double *z = malloc(NXM * nz * sizeof *z), *col = malloc(nz * sizeof *col);
-    if (!z || !col) {
-        st = rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (map)");
-        goto out;
-    }
-    for (int k = 0; k < NXM; k++) {
-        rpiv_optics_profile_norm(r, (size_t)k, col);
-        for (size_t q = 0; q < nz; q++)
-            z[q * NXM + (size_t)k] = col[q];
-    }
-    double ext[4] = {x0, x1, 0, 1};
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.y_axis = RPIV_PLOT_UP;
-    o.aspect = RPIV_PLOT_FREE;
-    o.xlabel = "x*";
-    o.ylabel = "z*";
-    o.zlabel = "I / I#dmax#u(x*)";
-    o.zmin = 0;
-    o.zmax = 1;
-    if (!(st = out_path(path, dir, "raytrace_map.png")))
-        st = rpiv_plot_map(path, "the refracted sheet, normalised at each x*", z, NXM, (int)nz, ext,
-                           &o);
-out:
-    free(z);
-    free(col);
-    rpiv_optics_result_free(r);
-    return st;
-}
-
-static rpiv_status plot_sweep(const job *j, const rpiv_optics_sweep_row *rows, const double *prof,
-                              const char *dir)
-{
-    char path[RPIV_PATH_MAX], title[96];
-    size_t n = j->nsweep, nz = rpiv_optics_nbins(&j->o), ns = n < 12 ? n : 12;
-    rpiv_status st;
-    double *z = malloc(nz * sizeof *z), *a = malloc(4 * n * sizeof *a);
-    rpiv_plot_series *ser = malloc(ns * sizeof *ser);
-    char(*lab)[32] = malloc(ns * sizeof *lab);
-    if (!z || !a || !ser || !lab) {
-        st = rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (plot)");
-        goto out;
-    }
-    for (size_t q = 0; q < nz; q++)
-        z[q] = ((double)q + 0.5) / (double)nz;
-    /* at most 12 profiles, evenly picked (fig. 11) */
-    for (size_t s = 0; s < ns; s++) {
-        size_t i = ns > 1 ? s * (n - 1) / (ns - 1) : 0;
-        snprintf(lab[s], sizeof lab[s], "%g deg", rows[i].beta1_deg);
-        ser[s] = (rpiv_plot_series){prof + i * nz, z, nz, lab[s], RPIV_PLOT_LINE};
-    }
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.ymin = 0;
-    o.ymax = 1;
-    snprintf(title, sizeof title, "profiles at x* = %g against #gb#d1#u", j->x);
-    if ((st = out_path(path, dir, "raytrace_sweep_profiles.png")) ||
-        (st = rpiv_plot_lines(path, title, "I#d0#u*", "z*", ser, ns, &o)))
-        goto out;
-    /* fig. 12 (and e*) */
-    double *b = a, *e = a + n, *it = a + 2 * n, *ip = a + 3 * n;
-    for (size_t i = 0; i < n; i++) {
-        b[i] = rows[i].beta1_deg;
-        e[i] = rows[i].e;
-        it[i] = rows[i].it_ig;
-        ip[i] = rows[i].ipeak_star;
-    }
-    rpiv_plot_series s3[3] = {{b, it, n, "I#dt#u/I#dg#u", RPIV_PLOT_BOTH},
-                              {b, ip, n, "I*#dpeak#u", RPIV_PLOT_BOTH},
-                              {b, e, n, "e*", RPIV_PLOT_BOTH}};
-    rpiv_plot_series use[3];
-    size_t nu = finite_series(s3, 3, use);
-    snprintf(title, sizeof title, "transmission, peak and thickness at x* = %g", j->x);
-    if (!(st = out_path(path, dir, "raytrace_sweep.png")) && nu)
-        st = rpiv_plot_lines(path, title, "#gb#d1#u (deg)", "", use, nu, NULL);
-out:
-    free(z);
-    free(a);
-    free(ser);
-    free(lab);
-    return st;
-}
-
-static rpiv_status plot_sensitivity(const rpiv_optics_sens_row *rows, size_t n, double beta1,
-                                    const char *dir)
-{
-    char path[RPIV_PATH_MAX], title[96];
-    double de[128], th[128], tt[128];
-    for (size_t i = 0; i < n && i < 128; i++) {
-        de[i] = rows[i].deta;
-        th[i] = rows[i].transmitted ? rows[i].dtheta_rel : (double)NAN;
-        tt[i] = rows[i].dT_rel;
-    }
-    rpiv_plot_series ser[2] = {{de, th, n, "#gd#gh#dt#u/#gh#dt0#u", RPIV_PLOT_BOTH},
-                               {de, tt, n, "#gdT/T#d0#u", RPIV_PLOT_BOTH}};
-    snprintf(title, sizeof title, "one ray at #gb#d1#u = %g deg", beta1);
-    rpiv_status st = out_path(path, dir, "raytrace_sensitivity.png");
-    return st ? st
-              : rpiv_plot_lines(path, title, "#gd#gy  (#gy = n#dPMMA#u / n#dwater#u)",
-                                "relative change", ser, 2, NULL);
-}
-
 static void print_summary(const rpiv_optics_result *r)
 {
     const rpiv_optics_axis *a = &r->axis;
@@ -361,8 +166,8 @@ static rpiv_status run_trace(job *j, const rpiv_progress *prog)
         printf("sheet along x* (%zu of %zu stations): z*_max = %.4f + %.5f x* (inclination %.3f "
                "deg, rms %.3g), e* = %.4f + %.5f x* (de*/dx* %.5f, rms %.3g); shape rms %.3g "
                "from self-similar\n",
-               f->nused, j->nst, f->zm0, f->zm1, atan(f->zm1) * 180 / M_PI, f->rms_zm, f->e0, f->e1,
-               f->e1, f->rms_e, f->rms_shape);
+               f->nused, j->nst, f->zm0, f->zm1, rpiv_report_incl_deg(f->zm1), f->rms_zm, f->e0,
+               f->e1, f->e1, f->rms_e, f->rms_shape);
         if (j->fit && (st = rpiv_optics_selfsim_save(f, j->fit)))
             goto out;
         if (j->fit && !j->c.quiet)
@@ -373,8 +178,11 @@ static rpiv_status run_trace(job *j, const rpiv_progress *prog)
         printf("sheet along x*: no fit (%s)\n", rpiv_errmsg());
         st = RPIV_OK;
     }
-    if (j->png && ((st = plot_profile(r, j->dir)) || (st = plot_metrics(&view, f, j->dir)) ||
-                   (st = plot_map(j, j->dir))))
+    if (j->png &&
+        ((st = rpiv_report_optics_profile(r, j->dir)) ||
+         (st = rpiv_report_optics_metrics_plot(&view, f, j->dir)) ||
+         (st = rpiv_report_optics_map(&j->c.exp.laser, &j->c.exp.prism, j->c.exp.channel.h_m,
+                                      j->stations[j->nst - 1], &j->o, j->dir))))
         goto out;
 out:
     rpiv_optics_selfsim_free(f);
@@ -402,7 +210,7 @@ static rpiv_status run_sweep(job *j, const rpiv_progress *prog)
         (st = rpiv_optics_save_sweep(&j->c.exp.laser, &j->c.exp.prism, j->x, rows, j->nsweep, path,
                                      prof, &j->o, ppath)))
         goto out;
-    if (j->png && (st = plot_sweep(j, rows, prof, j->dir)))
+    if (j->png && (st = rpiv_report_optics_sweep(rows, j->nsweep, prof, nz, j->x, j->dir)))
         goto out;
     if (!j->c.quiet) {
         printf("beta1 sweep at x* = %g (I*_peak = I_peak / I_peak(2 deg)):\n", j->x);
@@ -431,7 +239,7 @@ static rpiv_status run_sensitivity(job *j)
     if (st || (st = out_path(path, j->dir, "raytrace_sensitivity.txt")) ||
         (st = rpiv_optics_save_sensitivity(&l, &j->c.exp.prism, rows, SENS_ROWS, cut, path)))
         return st;
-    if (j->png && (st = plot_sensitivity(rows, SENS_ROWS, l.beta1_deg, j->dir)))
+    if (j->png && (st = rpiv_report_optics_sensitivity(rows, SENS_ROWS, l.beta1_deg, j->dir)))
         return st;
     printf("one ray at beta1 %g deg (%s side): deta = -0.016 gives dtheta_t/theta_t0 = %+.4f, "
            "dT/T0 = %+.4f; totally reflected for deta > %.5f\n",
