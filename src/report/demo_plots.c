@@ -2,9 +2,11 @@
 /* Step 6 of the demo, its figures: the PNG plots of every step (plot.h), which the report
  * (demo_report.c) shows. */
 #include "demo_impl.h"
+#include "fig_impl.h"
 
 #include "rpiv/flow.h"
 #include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -13,22 +15,18 @@
 
 /* ---- plots ---------------------------------------------------------------------------------- */
 
-static size_t nfinite(const double *x, const double *y, size_t n)
+/* A plot written into DIR: counted in the result and as a unit of work. */
+static rpiv_status done(demo_ctx *c, const char *name)
 {
-    size_t k = 0;
-    for (size_t i = 0; i < n; i++)
-        k += isfinite(x[i]) && isfinite(y[i]);
-    return k;
+    demo_add_plot(c, name);
+    return demo_tick(c, 1);
 }
 
 /* A line plot of the series that have finite points; nothing if none has. */
 static rpiv_status lines(demo_ctx *c, const char *name, const char *title, const char *xl,
                          const char *yl, rpiv_plot_series *s, size_t ns, const rpiv_plot_opts *o)
 {
-    size_t m = 0;
-    for (size_t k = 0; k < ns; k++)
-        if (nfinite(s[k].x, s[k].y, s[k].n))
-            s[m++] = s[k];
+    size_t m = fig_keep_finite(s, ns);
     if (!m) {
         demo_note(c, "  %s: no data, not plotted", name);
         return RPIV_OK;
@@ -52,8 +50,25 @@ static rpiv_status lines(demo_ctx *c, const char *name, const char *title, const
     if ((st = demo_path(c, name, path, sizeof path)) ||
         (st = rpiv_plot_lines(path, title, xl, yl, s, m, &oo)))
         return st;
-    demo_add_plot(c, name);
-    return demo_tick(c, 1);
+    return done(c, name);
+}
+
+/* Traced profiles I0*(z*) as rpiv raytrace draws them, with room for the legend on the right;
+ * nothing if no series has finite points. */
+static rpiv_status profiles(demo_ctx *c, const char *name, const char *title, rpiv_plot_series *s,
+                            size_t ns)
+{
+    size_t m = fig_keep_finite(s, ns);
+    if (!m) {
+        demo_note(c, "  %s: no data, not plotted", name);
+        return RPIV_OK;
+    }
+    char path[RPIV_PATH_MAX];
+    rpiv_status st;
+    if ((st = demo_path(c, name, path, sizeof path)) ||
+        (st = rpiv_report_sheet_profiles(path, title, "I0*", s, m, 1.8)))
+        return st;
+    return done(c, name);
 }
 
 static rpiv_status plot_sheet(demo_ctx *c)
@@ -81,14 +96,7 @@ static rpiv_status plot_sheet(demo_ctx *c)
         s[ns] = (rpiv_plot_series){p, t->zstar, nz, lab[ns], RPIV_PLOT_LINE};
         ns++;
     }
-    /* profiles on the left, the legend on the right */
-    rpiv_plot_opts op = rpiv_plot_opts_default();
-    op.xmin = 0;
-    op.xmax = 1.8;
-    op.ymin = 0;
-    op.ymax = 1;
-    if ((st = lines(c, "sheet_profiles.png", "Traced sheet I0*(z*) (paper figs 7b, 11)", "I0*",
-                    "z*", s, ns, &op)))
+    if ((st = profiles(c, "sheet_profiles.png", "Traced sheet I0*(z*) (paper figs 7b, 11)", s, ns)))
         goto out;
     /* fig 11: beta1 sweep at x* = 4.455 */
     ns = 0;
@@ -96,8 +104,8 @@ static rpiv_status plot_sheet(demo_ctx *c)
         snprintf(lab[q], sizeof lab[q], "#gb#d1#u = %.2g deg", c->sweep_beta[q]);
         s[ns++] = (rpiv_plot_series){c->sweep_prof + q * nz, t->zstar, nz, lab[q], RPIV_PLOT_LINE};
     }
-    if ((st = lines(c, "sheet_beta1.png", "Traced I0*(z*) at x* = 4.455 vs #gb#d1#u (fig 11)",
-                    "I0*", "z*", s, ns, &op)))
+    if ((st = profiles(c, "sheet_beta1.png", "Traced I0*(z*) at x* = 4.455 vs #gb#d1#u (fig 11)", s,
+                       ns)))
         goto out;
     /* fig 8: z*_inf, z*_max, z*_sup along x*, traced and as synthesised, and z*_OP */
     double xr[2] = {c->res->x0_star, c->res->x1_star}, zr[2];
@@ -210,8 +218,7 @@ static rpiv_status section(demo_ctx *c, const char *name, const char *title, int
     free(z);
     if (st)
         return st;
-    demo_add_plot(c, name);
-    return demo_tick(c, 1);
+    return done(c, name);
 }
 
 /* A plot size for the band's aspect ratio, with room for the axes and a colour bar. */
@@ -240,8 +247,7 @@ static rpiv_status quiver(demo_ctx *c, const char *name, const char *title, cons
     rpiv_status st;
     if ((st = demo_path(c, name, path, sizeof path)) || (st = rpiv_plot_quiver(f, path, title, &o)))
         return st;
-    demo_add_plot(c, name);
-    return demo_tick(c, 1);
+    return done(c, name);
 }
 
 /* U* of a field over the compared rows (a contiguous band of rows, no blank cell), in x*, y*. */
@@ -282,8 +288,7 @@ static rpiv_status field_map(demo_ctx *c, const char *name, const char *title, c
     free(z);
     if (st)
         return st;
-    demo_add_plot(c, name);
-    return demo_tick(c, 1);
+    return done(c, name);
 }
 
 static rpiv_status plot_image(demo_ctx *c)
@@ -312,8 +317,7 @@ static rpiv_status plot_image(demo_ctx *c)
     free(z);
     if (st)
         return st;
-    demo_add_plot(c, "rpiv_image.png");
-    return demo_tick(c, 1);
+    return done(c, "rpiv_image.png");
 }
 
 static rpiv_status plot_compare(demo_ctx *c)

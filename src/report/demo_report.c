@@ -6,6 +6,8 @@
 
 #include "rpiv/version.h"
 
+#include "base/atomic.h"
+
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -325,18 +327,20 @@ static void write_body(rep *r, const demo_ctx *c)
     r_list(r, files, sizeof files / sizeof files[0]);
 }
 
+/* Both files through base's atomic writer: a failure leaves an older report intact. */
 static rpiv_status write_report(demo_ctx *c)
 {
     char pmd[RPIV_PATH_MAX], phtml[RPIV_PATH_MAX];
+    atomic_file md, html;
     rpiv_status st;
     if ((st = demo_path(c, "report.md", pmd, sizeof pmd)) ||
-        (st = demo_path(c, "report.html", phtml, sizeof phtml)))
+        (st = demo_path(c, "report.html", phtml, sizeof phtml)) || (st = atomic_begin(&md, pmd, 1)))
         return st;
-    rep r = {fopen(pmd, "w"), fopen(phtml, "w")};
-    if (!r.md || !r.html) {
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write", r.md ? phtml : pmd);
-        goto out_close;
+    if ((st = atomic_begin(&html, phtml, 1))) {
+        atomic_abort(&md);
+        return st;
     }
+    rep r = {md.fp, html.fp};
     fputs("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
           "<title>rpiv demo report</title>\n<style>\n"
           "body{font-family:sans-serif;max-width:60em;margin:auto;padding:1em;line-height:1.4}\n"
@@ -346,12 +350,11 @@ static rpiv_status write_report(demo_ctx *c)
           r.html);
     write_body(&r, c);
     fputs("</body></html>\n", r.html);
-out_close:
-    if (r.md && fclose(r.md) && !st)
-        st = rpiv_fail(RPIV_EIO, "%s: write error", pmd);
-    if (r.html && fclose(r.html) && !st)
-        st = rpiv_fail(RPIV_EIO, "%s: write error", phtml);
-    return st;
+    if ((st = atomic_commit(&md))) {
+        atomic_abort(&html);
+        return st;
+    }
+    return atomic_commit(&html);
 }
 
 rpiv_status demo_report(demo_ctx *c)
