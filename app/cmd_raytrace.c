@@ -6,45 +6,12 @@
 #include "rpiv/report.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 rpiv_status cmd_raytrace(int argc, char **argv);
-
-static void help(void)
-{
-    printf(
-        "usage: rpiv raytrace [--config FILE] [--set SEC.KEY=VALUE]... [--rays N] [--x X*]\n"
-        "                     [--beta1 DEG] [--polar p|s|unpolarised] [--stations A:B:STEP]\n"
-        "                     [--dz DZ*] [--smooth SIGMA*] [--sweep beta1:A:B:STEP]\n"
-        "                     [--sensitivity[=DEG]] [--fit PROFILE_OUT] [--out DIR] [--png]\n"
-        "                     [--threads N] [--quiet]\n\n"
-        "Trace the laser sheet through the lens, the prism's inclined face (air/PMMA) and the\n"
-        "channel floor (PMMA/water) with Snell-Descartes and Fresnel at each interface, from\n"
-        "the [laser] and [prism] sections of the configuration, and write into DIR:\n"
-        "  raytrace_profile.txt    I0(z*) at x* = X (default 4.455, paper fig. 11)\n"
-        "  raytrace_metrics.txt    z*_inf, z*_max, z*_sup, e* at the stations (default 1:9:0.5)\n"
-        "and print the power bookkeeping, the sheet's inclination and thickness growth.\n"
-        "  --x X*            station of the profile (4.455)\n"
-        "  --stations A:B:STEP  stations of the metrics and the fit (1:9:0.5)\n"
-        "  --rays N          rays traced (laser.rays; up to 1e8)\n"
-        "  --beta1 DEG       incidence on the inclined face (laser.beta1_deg; the side it is\n"
-        "                    measured on is laser.beta1_side = air|pmma)\n"
-        "  --polar P         Fresnel transmission: p (paper, default), s or unpolarised\n"
-        "  --dz DZ*          profile bin width in z* (0.005); --smooth: Gaussian sigma in z*\n"
-        "  --sweep beta1:A:B:STEP  profiles, e*, It/Ig, I*_peak at x* = X for each beta1\n"
-        "                    (raytrace_sweep.txt, raytrace_sweep_profiles.txt; figs 11-12)\n"
-        "  --sensitivity[=DEG]  the axis ray at beta1 = DEG (1.5, paper fig. 10):\n"
-        "                    dtheta_t/theta_t0 and dT/T0 for deta in [-0.016, 0.016] with\n"
-        "                    eta = n_pmma / n_water (raytrace_sensitivity.txt)\n"
-        "  --fit FILE        self-similar sheet fitted on the stations, written as a sheet\n"
-        "                    profile file (use with sheet.kind = selfsim, sheet.profile = FILE)\n"
-        "  --out DIR         output folder (output.dir)\n"
-        "  --png             also write PNG plots (raytrace_*.png; the sheet map\n"
-        "                    raytrace_map.png traces 200 more stations)\n"
-        "See docs/optics.md for the geometry and every modelling choice.\n");
-}
 
 /* "A:B:STEP" (with an optional "NAME:" prefix checked against `name`). */
 static rpiv_status parse_range(const char *opt, const char *arg, const char *name, double **out,
@@ -106,6 +73,128 @@ typedef struct job {
     const char *fit, *dir;
     rpiv_optics_opts o;
 } job;
+
+static rpiv_status set_stations(void *obj, const char *arg)
+{
+    job *j = obj;
+    free(j->stations);
+    j->stations = NULL;
+    return parse_range("--stations", arg, NULL, &j->stations, &j->nst);
+}
+
+static rpiv_status set_sweep(void *obj, const char *arg)
+{
+    job *j = obj;
+    free(j->sweep);
+    j->sweep = NULL;
+    return parse_range("--sweep", arg, "beta1", &j->sweep, &j->nsweep);
+}
+
+static rpiv_status set_sensitivity(void *obj, const char *arg)
+{
+    job *j = obj;
+    j->sensitivity = 1;
+    return arg ? cli_parse_double("--sensitivity", arg, -45, 45, &j->sens_beta1) : RPIV_OK;
+}
+
+static const cli_opt options[] = {
+    {.name = "x",
+     .kind = CLI_DOUBLE,
+     .arg = "X*",
+     .off = offsetof(job, x),
+     .min = -1e6,
+     .max = 1e6,
+     .help = "station of the profile (4.455)"},
+    {.name = "stations",
+     .kind = CLI_FN,
+     .arg = "A:B:STEP",
+     .fn = set_stations,
+     .help = "stations of the metrics and the fit (1:9:0.5)"},
+    {.name = "rays",
+     .kind = CLI_LONG,
+     .arg = "N",
+     .off = offsetof(job, c.exp.laser.nrays),
+     .min = 1,
+     .max = 100000000L,
+     .help = "rays traced (laser.rays; up to 1e8)"},
+    {.name = "beta1",
+     .kind = CLI_DOUBLE,
+     .arg = "DEG",
+     .off = offsetof(job, c.exp.laser.beta1_deg),
+     .min = -45,
+     .max = 45,
+     .help = "incidence on the inclined face (laser.beta1_deg; the side it is\n"
+             "measured on is laser.beta1_side = air|pmma)"},
+    {.name = "polar",
+     .kind = CLI_KEY,
+     .arg = "P",
+     .section = "laser",
+     .key = "polarisation",
+     .help = "Fresnel transmission: p (paper, default), s or unpolarised"},
+    {.name = "dz",
+     .kind = CLI_DOUBLE,
+     .arg = "DZ*",
+     .off = offsetof(job, o.dz_star),
+     .min = 1e-5,
+     .max = 0.5,
+     .help = "profile bin width in z* (0.005)"},
+    {.name = "smooth",
+     .kind = CLI_DOUBLE,
+     .arg = "SIGMA*",
+     .off = offsetof(job, o.smooth_star),
+     .min = 0,
+     .max = 1,
+     .help = "Gaussian smoothing of the profiles, sigma in z* (0)"},
+    {.name = "sweep",
+     .kind = CLI_FN,
+     .arg = "beta1:A:B:STEP",
+     .fn = set_sweep,
+     .help = "profiles, e*, It/Ig, I*_peak at x* = X for each beta1\n"
+             "(raytrace_sweep.txt, raytrace_sweep_profiles.txt; figs 11-12)"},
+    {.name = "sensitivity",
+     .kind = CLI_FN,
+     .arg = "[=DEG]",
+     .fn = set_sensitivity,
+     .help = "the axis ray at beta1 = DEG (1.5, paper fig. 10):\n"
+             "dtheta_t/theta_t0 and dT/T0 for deta in [-0.016, 0.016] with\n"
+             "eta = n_pmma / n_water (raytrace_sensitivity.txt)"},
+    {.name = "fit",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = offsetof(job, fit),
+     .help = "self-similar sheet fitted on the stations, written as a sheet\n"
+             "profile file (use with sheet.kind = selfsim, sheet.profile = FILE)"},
+    {.name = "out",
+     .kind = CLI_STR,
+     .arg = "DIR",
+     .off = offsetof(job, dir),
+     .help = "output folder (output.dir)"},
+    {.name = "png",
+     .kind = CLI_FLAG,
+     .off = offsetof(job, png),
+     .help = "also write PNG plots (raytrace_*.png; the sheet map\n"
+             "raytrace_map.png traces 200 more stations)"},
+};
+
+const cli_spec cmd_raytrace_spec = {
+    .name = "raytrace",
+    .usage =
+        "usage: rpiv raytrace [--config FILE] [--set SEC.KEY=VALUE]... [--rays N] [--x X*]\n"
+        "                     [--beta1 DEG] [--polar p|s|unpolarised] [--stations A:B:STEP]\n"
+        "                     [--dz DZ*] [--smooth SIGMA*] [--sweep beta1:A:B:STEP]\n"
+        "                     [--sensitivity[=DEG]] [--fit PROFILE_OUT] [--out DIR] [--png]\n"
+        "                     [--threads N] [--quiet]\n\n"
+        "Trace the laser sheet through the lens, the prism's inclined face (air/PMMA) and the\n"
+        "channel floor (PMMA/water) with Snell-Descartes and Fresnel at each interface, from\n"
+        "the [laser] and [prism] sections of the configuration, and write into DIR:\n"
+        "  raytrace_profile.txt    I0(z*) at x* = X (default 4.455, paper fig. 11)\n"
+        "  raytrace_metrics.txt    z*_inf, z*_max, z*_sup, e* at the stations (default 1:9:0.5)\n"
+        "and print the power bookkeeping, the sheet's inclination and thickness growth.\n\n"
+        "options:\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .epilog = "\nSee docs/optics.md for the geometry and every modelling choice.\n",
+    .common = 1};
 
 static void print_summary(const rpiv_optics_result *r)
 {
@@ -250,84 +339,9 @@ static rpiv_status run_sensitivity(job *j)
 
 static rpiv_status parse(job *j, int argc, char **argv, int *done)
 {
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
-                                         {"rays", required_argument, 0, 'n'},
-                                         {"x", required_argument, 0, 'x'},
-                                         {"beta1", required_argument, 0, 'b'},
-                                         {"polar", required_argument, 0, 'P'},
-                                         {"stations", required_argument, 0, 't'},
-                                         {"dz", required_argument, 0, 'z'},
-                                         {"smooth", required_argument, 0, 'm'},
-                                         {"sweep", required_argument, 0, 'w'},
-                                         {"sensitivity", optional_argument, 0, 'e'},
-                                         {"fit", required_argument, 0, 'f'},
-                                         {"out", required_argument, 0, 'o'},
-                                         {"png", no_argument, 0, 'g'},
-                                         {0, 0, 0, 0}};
-    rpiv_status st = RPIV_OK;
-    long v;
-    int o;
-    optind = 1;
-    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
-        if (cli_common_opt(&j->c, o, optarg, &st)) {
-            if (st)
-                return st;
-            continue;
-        }
-        switch (o) {
-        case 'h':
-            help();
-            *done = 1;
-            return RPIV_OK;
-        case 'n':
-            st = cli_parse_int("--rays", optarg, 1, 100000000L, &v);
-            j->c.exp.laser.nrays = v;
-            break;
-        case 'x':
-            st = cli_parse_double("--x", optarg, -1e6, 1e6, &j->x);
-            break;
-        case 'b':
-            st = cli_parse_double("--beta1", optarg, -45, 45, &j->c.exp.laser.beta1_deg);
-            break;
-        case 'P':
-            st = rpiv_config_set(&j->c.exp, "laser", "polarisation", optarg, "--polar");
-            break;
-        case 't':
-            free(j->stations);
-            j->stations = NULL;
-            st = parse_range("--stations", optarg, NULL, &j->stations, &j->nst);
-            break;
-        case 'z':
-            st = cli_parse_double("--dz", optarg, 1e-5, 0.5, &j->o.dz_star);
-            break;
-        case 'm':
-            st = cli_parse_double("--smooth", optarg, 0, 1, &j->o.smooth_star);
-            break;
-        case 'w':
-            free(j->sweep);
-            j->sweep = NULL;
-            st = parse_range("--sweep", optarg, "beta1", &j->sweep, &j->nsweep);
-            break;
-        case 'e':
-            j->sensitivity = 1;
-            if (optarg)
-                st = cli_parse_double("--sensitivity", optarg, -45, 45, &j->sens_beta1);
-            break;
-        case 'f':
-            j->fit = optarg;
-            break;
-        case 'o':
-            j->dir = optarg;
-            break;
-        case 'g':
-            j->png = 1;
-            break;
-        default:
-            return cli_bad_option("raytrace", o, argv);
-        }
-        if (st)
-            return st;
-    }
+    rpiv_status st = cli_parse(&cmd_raytrace_spec, &j->c, j, argc, argv, done);
+    if (st || *done)
+        return st;
     if (optind < argc)
         return cli_usage_error("raytrace", "unexpected argument '%s'", argv[optind]);
     if (!j->dir)
