@@ -3,6 +3,7 @@
 
 #include <getopt.h>
 
+#include <assert.h>
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -212,4 +213,203 @@ rpiv_status cli_mkdirs(const char *path)
     if (stat(path, &stt) != 0 || !S_ISDIR(stt.st_mode))
         return rpiv_fail(RPIV_EIO, "%s: not a directory", path);
     return RPIV_OK;
+}
+
+/* ---- option tables ------------------------------------------------------------------------ */
+
+static const cli_opt common_opt[] = {
+    {.name = "config",
+     .letter = 'c',
+     .arg = "FILE",
+     .help = "read the experiment from an INI file"},
+    {.name = "set",
+     .letter = 'S',
+     .arg = "SEC.KEY=VALUE",
+     .help = "override one configuration key (repeatable)"},
+    {.name = "threads", .letter = 'j', .arg = "N", .help = "OpenMP threads (0 = all cores)"},
+    {.name = "quiet", .letter = 'q', .help = "no progress on stderr"},
+    {.name = "help", .letter = 'h', .help = "this text"},
+};
+enum { NCOMMON = sizeof common_opt / sizeof common_opt[0] };
+
+/* The getopt code of row k: its letter, or 256 + the index of the row it is an alias of. */
+static int opt_code(const cli_spec *spec, size_t k)
+{
+    while (k > 0 && !spec->opt[k].help)
+        k--;
+    return spec->opt[k].letter ? spec->opt[k].letter : 256 + (int)k;
+}
+
+static int has_value(const cli_opt *o)
+{
+    return o->arg ? (o->arg[0] == '[' ? optional_argument : required_argument) : no_argument;
+}
+
+/* Apply row o (the option given as `typed`) with argument arg. */
+static rpiv_status apply(const cli_opt *o, cli_ctx *c, void *obj, const char *arg)
+{
+    char name[64];
+    char *at = (char *)obj + o->off;
+    long v;
+    rpiv_status st;
+    snprintf(name, sizeof name, "--%s", o->name);
+    switch (o->kind) {
+    case CLI_FLAG:
+        *(int *)at = 1;
+        return RPIV_OK;
+    case CLI_STR:
+        *(const char **)at = arg;
+        return RPIV_OK;
+    case CLI_DOUBLE:
+        return cli_parse_double(name, arg, o->min, o->max, (double *)at);
+    case CLI_LONG:
+        if ((st = cli_parse_int(name, arg, (long)o->min, (long)o->max, &v)))
+            return st;
+        *(long *)at = v;
+        return RPIV_OK;
+    case CLI_KEY:
+        return rpiv_config_set(&c->exp, o->section, o->key, arg, name);
+    case CLI_FN:
+        return o->fn(obj, arg);
+    case CLI_HEAD:
+        break;
+    }
+    return RPIV_OK;
+}
+
+rpiv_status cli_parse(const cli_spec *spec, cli_ctx *c, void *obj, int argc, char **argv, int *done)
+{
+    struct option lo[NCOMMON + 64 + 1];
+    char so[2 * (NCOMMON + 64) + 2] = ":";
+    size_t nl = 0, ns = 1;
+    assert(spec->nopt <= 64);
+    for (size_t k = 0; k < NCOMMON; k++) {
+        const cli_opt *o = &common_opt[k];
+        if (!spec->common && o->letter != 'h')
+            continue;
+        lo[nl++] = (struct option){o->name, has_value(o), NULL, o->letter};
+        so[ns++] = (char)o->letter;
+        if (o->arg)
+            so[ns++] = ':';
+    }
+    for (size_t k = 0; k < spec->nopt; k++) {
+        const cli_opt *o = &spec->opt[k];
+        if (o->kind == CLI_HEAD)
+            continue;
+        lo[nl++] = (struct option){o->name, has_value(o), NULL, opt_code(spec, k)};
+        if (o->letter) {
+            so[ns++] = (char)o->letter;
+            if (o->arg)
+                so[ns++] = ':';
+        }
+    }
+    lo[nl] = (struct option){NULL, 0, NULL, 0};
+    so[ns] = '\0';
+    *done = 0;
+    optind = 1;
+    opterr = 0;
+    int code;
+    rpiv_status st = RPIV_OK;
+    while ((code = getopt_long(argc, argv, so, lo, NULL)) != -1) {
+        if (spec->common && cli_common_opt(c, code, optarg, &st)) {
+            if (st)
+                return st;
+            continue;
+        }
+        if (code == 'h') {
+            cli_help(spec);
+            *done = 1;
+            return RPIV_OK;
+        }
+        if (code == '?' || code == ':')
+            return cli_bad_option(spec->name, code, argv);
+        size_t k = 0;
+        while (k < spec->nopt &&
+               (spec->opt[k].kind == CLI_HEAD || !spec->opt[k].help || opt_code(spec, k) != code))
+            k++;
+        if (k == spec->nopt) /* not reached: every code comes from the table */
+            return cli_usage_error(spec->name, "unknown option '%s'", argv[optind - 1]);
+        if (spec->check && (st = spec->check(obj, &spec->opt[k], argv[optind - 1])))
+            return st;
+        if ((st = apply(&spec->opt[k], c, obj, optarg)))
+            return st;
+    }
+    return RPIV_OK;
+}
+
+/* "  -o, --out, --dir DIR" for row k and the aliases after it; returns the next row. */
+static size_t left_column(const cli_opt *opt, size_t n, size_t k, char *buf, size_t size)
+{
+    const cli_opt *o = &opt[k];
+    int at = snprintf(buf, size, "  %c%c%s--%s", o->letter ? '-' : ' ', o->letter ? o->letter : ' ',
+                      o->letter ? ", " : "  ", o->name);
+    size_t next = k + 1;
+    for (; next < n && !opt[next].help && opt[next].kind != CLI_HEAD; next++)
+        at += snprintf(buf + at, size - (size_t)at, ", --%s", opt[next].name);
+    if (o->arg)
+        snprintf(buf + at, size - (size_t)at, "%s%s", o->arg[0] == '[' ? "" : " ", o->arg);
+    return next;
+}
+
+enum { HELP_COL = 26 };
+
+static void print_rows(FILE *fp, const cli_opt *opt, size_t n)
+{
+    for (size_t k = 0; k < n;) {
+        if (opt[k].kind == CLI_HEAD) {
+            fprintf(fp, "%s\n", opt[k].help);
+            k++;
+            continue;
+        }
+        char left[160];
+        size_t next = left_column(opt, n, k, left, sizeof left);
+        const char *h = opt[k].help;
+        int len = (int)strlen(left);
+        if (len > HELP_COL - 2)
+            fprintf(fp, "%s\n%*s", left, HELP_COL, "");
+        else
+            fprintf(fp, "%-*s", HELP_COL, left);
+        for (const char *nl; (nl = strchr(h, '\n')); h = nl + 1)
+            fprintf(fp, "%.*s\n%*s", (int)(nl - h), h, HELP_COL, "");
+        fprintf(fp, "%s\n", h);
+        k = next;
+    }
+}
+
+void cli_help_common(FILE *fp)
+{
+    print_rows(fp, common_opt, NCOMMON);
+}
+
+void cli_help(const cli_spec *spec)
+{
+    fputs(spec->usage, stdout);
+    print_rows(stdout, spec->opt, spec->nopt);
+    if (spec->common) {
+        printf("\noptions every command takes:\n");
+        cli_help_common(stdout);
+    } else {
+        print_rows(stdout, &common_opt[NCOMMON - 1], 1);
+    }
+    if (spec->epilog)
+        fputs(spec->epilog, stdout);
+    if (spec->more)
+        spec->more();
+}
+
+void cli_list_options(const cli_spec *spec)
+{
+    const char *cmd = spec->name;
+    for (size_t k = 0; k < spec->nopt; k++)
+        if (spec->opt[k].kind != CLI_HEAD)
+            printf("%s --%s\n", cmd, spec->opt[k].name);
+    for (size_t k = 0; k < NCOMMON; k++)
+        if (spec->common || common_opt[k].letter == 'h')
+            printf("%s --%s\n", cmd, common_opt[k].name);
+}
+
+void cli_list_common(void)
+{
+    for (size_t k = 0; k < NCOMMON; k++)
+        printf("common --%s\n", common_opt[k].name);
 }

@@ -5,65 +5,15 @@
 
 #include "rpiv/calib.h"
 #include "rpiv/image.h"
-#include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 rpiv_status cmd_calib(int argc, char **argv);
-
-static void help(void)
-{
-    printf(
-        "usage: rpiv calib sheet [options] IMAGE...\n"
-        "       rpiv calib dof --dot-diameter MM --pitch MM [options] IMAGE...\n"
-        "       rpiv calib render-sheet [options] -o FILE.tif\n"
-        "       rpiv calib render-dots [options] -o FILE.tif\n\n"
-        "Calibration from images of a target on a plate inclined in the channel (fluid at\n"
-        "rest), seen from below: image x runs along the flow, y along the span. A plate point\n"
-        "at column X is at height z* = (X - X_foot) tan(angle) / (s h), s = M / pixel pitch.\n\n"
-        "sheet   fluorescent plate in the laser sheet, one image per plate position: profile\n"
-        "        I0*(z*) and z*_inf, z*_max, z*_sup, e* (at 0.25 max) for each plate, the lines\n"
-        "        z*_max(x*), e*(x*) through all plates and the mean shape I0*(z+), written as a\n"
-        "        sheet profile file (sheet.kind = selfsim, sheet.profile = FILE).\n"
-        "dof     dotted target (black dots on white): each dot's grey level I* relative to the\n"
-        "        local mean, averaged along the span; DOF* = full width at half maximum of\n"
-        "        (1/I* - 1) against z*, z*_OP = its maximum; compared with the imaging model.\n"
-        "render-sheet, render-dots   the target image the model predicts for the configured\n"
-        "        camera, channel and sheet (to check a set-up, or to test the analysis).\n\n"
-        "options (analysis):\n"
-        "  --plate-angle DEG   plate inclination from the floor (45); negative: the plate\n"
-        "                      rises toward decreasing x; 0: detect from the plate's extent\n"
-        "  --plate-height MM   height of the plate's top edge (channel height), for 0 above\n"
-        "  --foot-px PX        column of the plate foot (z* = 0); once for all images or once\n"
-        "                      per image; default: detected from the plate's edge\n"
-        "  --x X*              sheet: x* of the plate foot, once per image (default: from\n"
-        "                      channel.fov_x0 and the foot column)\n"
-        "  --scale PX_PER_MM   object-space image scale (default camera M / pixel pitch)\n"
-        "  --rows Y0,Y1        rows averaged along the span (all)\n"
-        "  --dark LEVEL | --dark-image FILE | --dark-region X,Y,W,H   dark level (0)\n"
-        "  --smooth PX         sheet: Gaussian smoothing of the profile (0); dof: of the image\n"
-        "                      for detecting the dots (0.7)\n"
-        "  --no-floor          sheet: do not subtract the profile's minimum (plate glow)\n"
-        "  --dot-diameter MM, --pitch MM   dof: the target's dots (0.0625, 0.125)\n"
-        "  --reflectance R     dof: dot reflectance for the model (default: the one that\n"
-        "                      matches the measured peak)\n"
-        "  --out DIR           output folder (output.dir)\n"
-        "  --profile FILE      sheet: the profile file (DIR/calib_sheet_profile.txt)\n"
-        "  --png               also write PNG plots\n"
-        "options (render): --plate-angle, --plate-height, --foot-px, --x, --scale, --dark (100),\n"
-        "  --dot-diameter, --pitch, --reflectance (0.1) as above, and\n"
-        "  -o, --output FILE   the image (.tif 16-bit, .png)\n"
-        "  --size WxH          image size (camera sensor)\n"
-        "  --level L           fluorescence at I0 = 1 / white level above dark (3000)\n"
-        "  --background B      floor outside the plate above dark (150)\n"
-        "  --glow G            sheet: plate emission outside the sheet (0)\n"
-        "  --noise N           Gaussian noise sigma, grey (0); --seed S (1)\n"
-        "The camera, channel (h, fov_x0) and, for render-sheet, the sheet come from the\n"
-        "configuration. See docs/calib.md.\n");
-}
 
 enum mode { SHEET, DOF, RENDER_SHEET, RENDER_DOTS };
 
@@ -80,6 +30,8 @@ typedef struct job {
     const char *dark_image, *dir, *profile, *output, *size;
     rpiv_calib_render_params rp;
     int dark_set;
+    const char *sub; /* the sub-command as given */
+    char name[48];   /* "calib <sub>", in messages */
 } job;
 
 static rpiv_status push(double **arr, size_t *n, double v)
@@ -107,196 +59,262 @@ static rpiv_status parse_ints(const char *opt, const char *arg, int n, int *out)
     return RPIV_OK;
 }
 
-/* Options: which modes accept each (bit 1 << mode). */
+/* Options: which modes accept each (bit 1 << mode), the rows' scope. */
 #define M_AN  ((1 << SHEET) | (1 << DOF))
 #define M_RE  ((1 << RENDER_SHEET) | (1 << RENDER_DOTS))
 #define M_ALL (M_AN | M_RE)
 
-static const struct {
-    int code, modes;
-} accepts[] = {{'a', M_ALL},
-               {'H', M_ALL},
-               {'F', M_ALL},
-               {'x', (1 << SHEET) | (1 << RENDER_SHEET)},
-               {'s', M_ALL},
-               {'r', M_AN},
-               {'d', M_ALL},
-               {'D', M_AN},
-               {'R', M_AN},
-               {'m', M_AN},
-               {'n', 1 << SHEET},
-               {'t', (1 << DOF) | (1 << RENDER_DOTS)},
-               {'p', (1 << DOF) | (1 << RENDER_DOTS)},
-               {'e', (1 << DOF) | (1 << RENDER_DOTS)},
-               {'O', M_AN},
-               {'P', 1 << SHEET},
-               {'g', M_AN},
-               {'o', M_RE},
-               {'z', M_RE},
-               {'L', M_RE},
-               {'B', M_RE},
-               {'G', 1 << RENDER_SHEET},
-               {'N', M_RE},
-               {'E', M_RE}};
-
-static int accepted(int code, enum mode m)
+static rpiv_status check(void *obj, const cli_opt *o, const char *typed)
 {
-    for (size_t i = 0; i < sizeof accepts / sizeof accepts[0]; i++)
-        if (accepts[i].code == code)
-            return (accepts[i].modes >> m) & 1;
-    return 0;
+    const job *j = obj;
+    if (!((o->scope >> j->mode) & 1))
+        return cli_usage_error(j->name, "option '%s' does not apply to %s", typed, j->sub);
+    return RPIV_OK;
 }
 
-static rpiv_status parse(job *j, int argc, char **argv, int *done, const char *sub)
+static rpiv_status set_angle(void *obj, const char *arg)
 {
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
-                                         {"plate-angle", required_argument, 0, 'a'},
-                                         {"plate-height", required_argument, 0, 'H'},
-                                         {"foot-px", required_argument, 0, 'F'},
-                                         {"x", required_argument, 0, 'x'},
-                                         {"scale", required_argument, 0, 's'},
-                                         {"rows", required_argument, 0, 'r'},
-                                         {"dark", required_argument, 0, 'd'},
-                                         {"dark-image", required_argument, 0, 'D'},
-                                         {"dark-region", required_argument, 0, 'R'},
-                                         {"smooth", required_argument, 0, 'm'},
-                                         {"no-floor", no_argument, 0, 'n'},
-                                         {"dot-diameter", required_argument, 0, 't'},
-                                         {"pitch", required_argument, 0, 'p'},
-                                         {"reflectance", required_argument, 0, 'e'},
-                                         {"out", required_argument, 0, 'O'},
-                                         {"profile", required_argument, 0, 'P'},
-                                         {"png", no_argument, 0, 'g'},
-                                         {"output", required_argument, 0, 'o'},
-                                         {"size", required_argument, 0, 'z'},
-                                         {"level", required_argument, 0, 'L'},
-                                         {"background", required_argument, 0, 'B'},
-                                         {"glow", required_argument, 0, 'G'},
-                                         {"noise", required_argument, 0, 'N'},
-                                         {"seed", required_argument, 0, 'E'},
-                                         {0, 0, 0, 0}};
-    rpiv_status st = RPIV_OK;
+    job *j = obj;
     double v;
-    long lv;
-    int o, rows[2] = {0, 0}, reg[4] = {0, 0, 0, 0};
-    char name[48];
-    snprintf(name, sizeof name, "calib %s", sub);
-    optind = 1;
-    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS "o:", opts, NULL)) != -1) {
-        if (cli_common_opt(&j->c, o, optarg, &st)) {
-            if (st)
-                return st;
-            continue;
-        }
-        if (o == 'h') {
-            help();
-            *done = 1;
-            return RPIV_OK;
-        }
-        if (o == '?' || o == ':')
-            return cli_bad_option(name, o, argv);
-        if (!accepted(o, j->mode))
-            return cli_usage_error(name, "option '%s' does not apply to %s", argv[optind - 1], sub);
-        switch (o) {
-        case 'a':
-            st = cli_parse_double("--plate-angle", optarg, -90, 90, &v);
-            j->geom.angle_deg = j->rp.angle_deg = v;
-            break;
-        case 'H':
-            st = cli_parse_double("--plate-height", optarg, 0, 1e4, &v);
-            j->geom.plate_height_m = j->rp.plate_height_m = v * 1e-3;
-            break;
-        case 'F':
-            if (!(st = cli_parse_double("--foot-px", optarg, -1e6, 1e6, &v)))
-                st = push(&j->feet, &j->nfeet, v);
-            break;
-        case 'x':
-            if (!(st = cli_parse_double("--x", optarg, -1e6, 1e6, &v)))
-                st = push(&j->xs, &j->nx, v);
-            break;
-        case 's':
-            st = cli_parse_double("--scale", optarg, 1e-3, 1e6, &v);
-            j->geom.scale_px_m = j->rp.scale_px_m = v * 1e3;
-            break;
-        case 'r':
-            if (!(st = parse_ints("--rows", optarg, 2, rows))) {
-                j->geom.row0 = rows[0];
-                j->geom.row1 = rows[1];
-            }
-            break;
-        case 'd':
-            st = cli_parse_double("--dark", optarg, -1e9, 1e9, &v);
-            j->geom.dark = j->rp.dark = v;
-            j->dark_set = 1;
-            break;
-        case 'D':
-            j->dark_image = optarg;
-            break;
-        case 'R':
-            if (!(st = parse_ints("--dark-region", optarg, 4, reg))) {
-                j->geom.dark_x = reg[0];
-                j->geom.dark_y = reg[1];
-                j->geom.dark_w = reg[2];
-                j->geom.dark_h = reg[3];
-            }
-            break;
-        case 'm':
-            st = cli_parse_double("--smooth", optarg, 0, 100, &j->smooth);
-            j->smooth_set = 1;
-            break;
-        case 'n':
-            j->no_floor = 1;
-            break;
-        case 't':
-            st = cli_parse_double("--dot-diameter", optarg, 1e-4, 100, &v);
-            j->dot_d = j->rp.dot_d_m = v * 1e-3;
-            break;
-        case 'p':
-            st = cli_parse_double("--pitch", optarg, 1e-4, 100, &v);
-            j->pitch = j->rp.pitch_m = v * 1e-3;
-            break;
-        case 'e':
-            st = cli_parse_double("--reflectance", optarg, 0, 0.999, &j->refl);
-            j->rp.reflectance = j->refl;
-            j->refl_set = 1;
-            break;
-        case 'O':
-            j->dir = optarg;
-            break;
-        case 'P':
-            j->profile = optarg;
-            break;
-        case 'g':
-            j->png = 1;
-            break;
-        case 'o':
-            j->output = optarg;
-            break;
-        case 'z':
-            j->size = optarg;
-            break;
-        case 'L':
-            st = cli_parse_double("--level", optarg, 1e-6, 1e9, &j->rp.level);
-            break;
-        case 'B':
-            st = cli_parse_double("--background", optarg, 0, 1e9, &j->rp.background);
-            break;
-        case 'G':
-            st = cli_parse_double("--glow", optarg, 0, 1e9, &j->rp.glow);
-            break;
-        case 'N':
-            st = cli_parse_double("--noise", optarg, 0, 1e9, &j->rp.noise);
-            break;
-        case 'E':
-            st = cli_parse_int("--seed", optarg, 0, 2147483647L, &lv);
-            j->rp.seed = (unsigned long)lv;
-            break;
-        default:
-            return cli_usage_error(name, "unknown option '%s'", argv[optind - 1]);
-        }
-        if (st)
-            return st;
+    rpiv_status st = cli_parse_double("--plate-angle", arg, -90, 90, &v);
+    j->geom.angle_deg = j->rp.angle_deg = v;
+    return st;
+}
+
+static rpiv_status set_height(void *obj, const char *arg)
+{
+    job *j = obj;
+    double v;
+    rpiv_status st = cli_parse_double("--plate-height", arg, 0, 1e4, &v);
+    j->geom.plate_height_m = j->rp.plate_height_m = v * 1e-3;
+    return st;
+}
+
+static rpiv_status set_foot(void *obj, const char *arg)
+{
+    job *j = obj;
+    double v;
+    rpiv_status st = cli_parse_double("--foot-px", arg, -1e6, 1e6, &v);
+    return st ? st : push(&j->feet, &j->nfeet, v);
+}
+
+static rpiv_status set_x(void *obj, const char *arg)
+{
+    job *j = obj;
+    double v;
+    rpiv_status st = cli_parse_double("--x", arg, -1e6, 1e6, &v);
+    return st ? st : push(&j->xs, &j->nx, v);
+}
+
+static rpiv_status set_scale(void *obj, const char *arg)
+{
+    job *j = obj;
+    double v;
+    rpiv_status st = cli_parse_double("--scale", arg, 1e-3, 1e6, &v);
+    j->geom.scale_px_m = j->rp.scale_px_m = v * 1e3;
+    return st;
+}
+
+static rpiv_status set_rows(void *obj, const char *arg)
+{
+    job *j = obj;
+    int rows[2] = {0, 0};
+    rpiv_status st = parse_ints("--rows", arg, 2, rows);
+    if (!st) {
+        j->geom.row0 = rows[0];
+        j->geom.row1 = rows[1];
     }
+    return st;
+}
+
+static rpiv_status set_dark(void *obj, const char *arg)
+{
+    job *j = obj;
+    double v;
+    rpiv_status st = cli_parse_double("--dark", arg, -1e9, 1e9, &v);
+    j->geom.dark = j->rp.dark = v;
+    j->dark_set = 1;
+    return st;
+}
+
+static rpiv_status set_region(void *obj, const char *arg)
+{
+    job *j = obj;
+    int reg[4] = {0, 0, 0, 0};
+    rpiv_status st = parse_ints("--dark-region", arg, 4, reg);
+    if (!st) {
+        j->geom.dark_x = reg[0];
+        j->geom.dark_y = reg[1];
+        j->geom.dark_w = reg[2];
+        j->geom.dark_h = reg[3];
+    }
+    return st;
+}
+
+static rpiv_status set_smooth(void *obj, const char *arg)
+{
+    job *j = obj;
+    j->smooth_set = 1;
+    return cli_parse_double("--smooth", arg, 0, 100, &j->smooth);
+}
+
+static rpiv_status set_dot(void *obj, const char *arg)
+{
+    job *j = obj;
+    double v;
+    rpiv_status st = cli_parse_double("--dot-diameter", arg, 1e-4, 100, &v);
+    j->dot_d = j->rp.dot_d_m = v * 1e-3;
+    return st;
+}
+
+static rpiv_status set_pitch(void *obj, const char *arg)
+{
+    job *j = obj;
+    double v;
+    rpiv_status st = cli_parse_double("--pitch", arg, 1e-4, 100, &v);
+    j->pitch = j->rp.pitch_m = v * 1e-3;
+    return st;
+}
+
+static rpiv_status set_refl(void *obj, const char *arg)
+{
+    job *j = obj;
+    rpiv_status st = cli_parse_double("--reflectance", arg, 0, 0.999, &j->refl);
+    j->rp.reflectance = j->refl;
+    j->refl_set = 1;
+    return st;
+}
+
+static rpiv_status set_seed(void *obj, const char *arg)
+{
+    job *j = obj;
+    long v;
+    rpiv_status st = cli_parse_int("--seed", arg, 0, 2147483647L, &v);
+    j->rp.seed = (unsigned long)v;
+    return st;
+}
+
+#define FN(nm, a, f, modes, text)                                                                  \
+    {                                                                                              \
+        .name = nm, .kind = CLI_FN, .arg = a, .fn = f, .scope = modes, .help = text                \
+    }
+#define RENDER(nm, a, field, lo, modes, text)                                                      \
+    {                                                                                              \
+        .name = nm, .kind = CLI_DOUBLE, .arg = a, .off = offsetof(job, rp.field), .min = lo,       \
+        .max = 1e9, .scope = modes, .help = text                                                   \
+    }
+
+static const cli_opt options[] = {
+    {.kind = CLI_HEAD, .help = "options (analysis; those marked * apply to the renderings too):"},
+    FN("plate-angle", "DEG", set_angle, M_ALL,
+       "* plate inclination from the floor (45); negative: the plate\n"
+       "rises toward decreasing x; 0: detect from the plate's extent"),
+    FN("plate-height", "MM", set_height, M_ALL,
+       "* height of the plate's top edge (channel height), for 0 above"),
+    FN("foot-px", "PX", set_foot, M_ALL,
+       "* column of the plate foot (z* = 0); once for all images or once\n"
+       "per image; default: detected from the plate's edge"),
+    FN("x", "X*", set_x, (1 << SHEET) | (1 << RENDER_SHEET),
+       "* sheet: x* of the plate foot, once per image (default: from\n"
+       "channel.fov_x0 and the foot column)"),
+    FN("scale", "PX_PER_MM", set_scale, M_ALL,
+       "* object-space image scale (default camera M / pixel pitch)"),
+    FN("rows", "Y0,Y1", set_rows, M_AN, "rows averaged along the span (all)"),
+    FN("dark", "LEVEL", set_dark, M_ALL, "* dark level (0; render: 100)"),
+    {.name = "dark-image",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = offsetof(job, dark_image),
+     .scope = M_AN,
+     .help = "dark level from an image"},
+    FN("dark-region", "X,Y,W,H", set_region, M_AN, "dark level from a region of each image"),
+    FN("smooth", "PX", set_smooth, M_AN,
+       "sheet: Gaussian smoothing of the profile (0); dof: of the image\n"
+       "for detecting the dots (0.7)"),
+    {.name = "no-floor",
+     .kind = CLI_FLAG,
+     .off = offsetof(job, no_floor),
+     .scope = 1 << SHEET,
+     .help = "sheet: do not subtract the profile's minimum (plate glow)"},
+    FN("dot-diameter", "MM", set_dot, (1 << DOF) | (1 << RENDER_DOTS),
+       "* dof: the target's dot diameter (0.0625)"),
+    FN("pitch", "MM", set_pitch, (1 << DOF) | (1 << RENDER_DOTS),
+       "* dof: the target's dot pitch (0.125)"),
+    FN("reflectance", "R", set_refl, (1 << DOF) | (1 << RENDER_DOTS),
+       "* dof: dot reflectance for the model (default: the one that\n"
+       "matches the measured peak; render: 0.1)"),
+    {.name = "out",
+     .kind = CLI_STR,
+     .arg = "DIR",
+     .off = offsetof(job, dir),
+     .scope = M_AN,
+     .help = "output folder (output.dir)"},
+    {.name = "profile",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = offsetof(job, profile),
+     .scope = 1 << SHEET,
+     .help = "sheet: the profile file (DIR/calib_sheet_profile.txt)"},
+    {.name = "png",
+     .kind = CLI_FLAG,
+     .off = offsetof(job, png),
+     .scope = M_AN,
+     .help = "also write PNG plots"},
+    {.kind = CLI_HEAD, .help = "\noptions (render):"},
+    {.name = "output",
+     .letter = 'o',
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = offsetof(job, output),
+     .scope = M_RE,
+     .help = "the image (.tif 16-bit, .png)"},
+    {.name = "size",
+     .kind = CLI_STR,
+     .arg = "WxH",
+     .off = offsetof(job, size),
+     .scope = M_RE,
+     .help = "image size (camera sensor)"},
+    RENDER("level", "L", level, 1e-6, M_RE,
+           "fluorescence at I0 = 1 / white level above dark (3000)"),
+    RENDER("background", "B", background, 0, M_RE, "floor outside the plate above dark (150)"),
+    RENDER("glow", "G", glow, 0, 1 << RENDER_SHEET, "sheet: plate emission outside the sheet (0)"),
+    RENDER("noise", "N", noise, 0, M_RE, "Gaussian noise sigma, grey (0)"),
+    FN("seed", "S", set_seed, M_RE, "noise seed (1)"),
+};
+
+const cli_spec cmd_calib_spec = {
+    .name = "calib",
+    .usage =
+        "usage: rpiv calib sheet [options] IMAGE...\n"
+        "       rpiv calib dof --dot-diameter MM --pitch MM [options] IMAGE...\n"
+        "       rpiv calib render-sheet [options] -o FILE.tif\n"
+        "       rpiv calib render-dots [options] -o FILE.tif\n\n"
+        "Calibration from images of a target on a plate inclined in the channel (fluid at\n"
+        "rest), seen from below: image x runs along the flow, y along the span. A plate point\n"
+        "at column X is at height z* = (X - X_foot) tan(angle) / (s h), s = M / pixel pitch.\n\n"
+        "sheet   fluorescent plate in the laser sheet, one image per plate position: profile\n"
+        "        I0*(z*) and z*_inf, z*_max, z*_sup, e* (at 0.25 max) for each plate, the lines\n"
+        "        z*_max(x*), e*(x*) through all plates and the mean shape I0*(z+), written as a\n"
+        "        sheet profile file (sheet.kind = selfsim, sheet.profile = FILE).\n"
+        "dof     dotted target (black dots on white): each dot's grey level I* relative to the\n"
+        "        local mean, averaged along the span; DOF* = full width at half maximum of\n"
+        "        (1/I* - 1) against z*, z*_OP = its maximum; compared with the imaging model.\n"
+        "render-sheet, render-dots   the target image the model predicts for the configured\n"
+        "        camera, channel and sheet (to check a set-up, or to test the analysis).\n\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .epilog = "\nThe camera, channel (h, fov_x0) and, for render-sheet, the sheet come from the\n"
+              "configuration. See docs/calib.md.\n",
+    .common = 1,
+    .check = check};
+
+static rpiv_status parse(job *j, int argc, char **argv, int *done)
+{
+    cli_spec spec = cmd_calib_spec;
+    spec.name = j->name;
+    rpiv_status st = cli_parse(&spec, &j->c, j, argc, argv, done);
+    if (st || *done)
+        return st;
     if (!j->dir)
         j->dir = j->c.exp.output.dir;
     return RPIV_OK;
@@ -307,35 +325,6 @@ static rpiv_status out_path(char *buf, const char *dir, const char *name)
     if ((size_t)snprintf(buf, RPIV_PATH_MAX, "%s/%s", dir, name) >= RPIV_PATH_MAX)
         return rpiv_fail(RPIV_EINVAL, "%s/%s: path too long", dir, name);
     return RPIV_OK;
-}
-
-static rpiv_status write_table(const char *path, const void *obj,
-                               rpiv_status (*fn)(const void *, FILE *))
-{
-    FILE *fp = fopen(path, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot create", path);
-    rpiv_status st = fn(obj, fp);
-    if (fclose(fp) != 0 && st == RPIV_OK)
-        st = rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    return st;
-}
-
-static rpiv_status w_plates(const void *r, FILE *fp)
-{
-    return rpiv_calib_sheet_write_plates(r, fp);
-}
-static rpiv_status w_profiles(const void *r, FILE *fp)
-{
-    return rpiv_calib_sheet_write_profiles(r, fp);
-}
-static rpiv_status w_focus(const void *c, FILE *fp)
-{
-    return rpiv_calib_focus_write(c, fp);
-}
-static rpiv_status w_dots(const void *r, FILE *fp)
-{
-    return rpiv_calib_dof_write_dots(r, fp);
 }
 
 /* ---- images ------------------------------------------------------------------------------ */
@@ -389,107 +378,10 @@ static rpiv_status load_images(job *j, int nargs, char **args, const char *name,
 
 /* ---- sheet ------------------------------------------------------------------------------- */
 
-static rpiv_status plot_sheet(const rpiv_calib_sheet_result *r, const char *dir)
-{
-    char path[RPIV_PATH_MAX];
-    size_t n = r->nplates, ns = n < 12 ? n : 12;
-    rpiv_plot_series *ser = calloc(ns + 1, sizeof *ser);
-    char(*lab)[40] = calloc(ns + 1, sizeof *lab);
-    double *zp = NULL, *lines = NULL;
-    rpiv_status st = RPIV_OK;
-    if (!ser || !lab) {
-        st = rpiv_fail(RPIV_ENOMEM, "calib sheet: out of memory (plot)");
-        goto out;
-    }
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.xmin = 0;
-    o.xmax = 1.05;
-    /* the profiles as the paper draws them: I0* across, z* up */
-    for (size_t s = 0; s < ns; s++) {
-        const rpiv_calib_sheet_plate *pl = &r->plate[ns > 1 ? s * (n - 1) / (ns - 1) : 0];
-        snprintf(lab[s], sizeof lab[s], "x* = %.2f", pl->x_max);
-        ser[s] = (rpiv_plot_series){pl->inten, pl->z, pl->n, lab[s], RPIV_PLOT_LINE};
-    }
-    o.ymin = 0;
-    o.ymax = 1;
-    if ((st = out_path(path, dir, "calib_sheet_profiles.png")) ||
-        (st = rpiv_plot_lines(path, "sheet profiles along the plates", "I#d0#u*", "z*", ser, ns,
-                              &o)))
-        goto out;
-    /* the mean shape and the plates in z+ */
-    size_t nmax = 0;
-    for (size_t i = 0; i < n; i++)
-        nmax = r->plate[i].n > nmax ? r->plate[i].n : nmax;
-    zp = malloc(ns * nmax * sizeof *zp);
-    if (!zp) {
-        st = rpiv_fail(RPIV_ENOMEM, "calib sheet: out of memory (plot)");
-        goto out;
-    }
-    for (size_t s = 0; s < ns; s++) {
-        const rpiv_calib_sheet_plate *pl = &r->plate[ns > 1 ? s * (n - 1) / (ns - 1) : 0];
-        for (size_t k = 0; k < pl->n; k++) {
-            double x = pl->x[k];
-            zp[s * nmax + k] = (pl->z[k] - (r->zm0 + r->zm1 * x)) / (r->e0 + r->e1 * x);
-        }
-        ser[s].y = zp + s * nmax;
-        ser[s].style = RPIV_PLOT_POINTS;
-    }
-    ser[ns] = (rpiv_plot_series){r->shape, r->zplus, r->nshape, "mean", RPIV_PLOT_LINE};
-    o.ymin = o.ymax = 0;
-    if ((st = out_path(path, dir, "calib_sheet_shape.png")) ||
-        (st = rpiv_plot_lines(path, "self-similar shape", "I#d0#u*", "z#u+#d = (z* - z*#dmax#u)/e*",
-                              ser, ns + 1, &o)))
-        goto out;
-    /* edges and peak along x*, with the fitted lines */
-    lines = malloc((6 * n + 8) * sizeof *lines);
-    if (!lines) {
-        st = rpiv_fail(RPIV_ENOMEM, "calib sheet: out of memory (plot)");
-        goto out;
-    }
-    double *xi = lines, *zi = lines + n, *xm = lines + 2 * n, *zm = lines + 3 * n,
-           *xs = lines + 4 * n, *zs = lines + 5 * n, *lx = lines + 6 * n, *fi = lx + 2,
-           *fm = lx + 4, *fs = lx + 6;
-    lx[0] = HUGE_VAL;
-    lx[1] = -HUGE_VAL;
-    for (size_t i = 0; i < n; i++) {
-        const rpiv_calib_sheet_plate *pl = &r->plate[i];
-        xi[i] = pl->x_inf;
-        zi[i] = pl->raw.zinf;
-        xm[i] = pl->x_max;
-        zm[i] = pl->raw.zmax;
-        xs[i] = pl->x_sup;
-        zs[i] = pl->raw.zsup;
-        lx[0] = fmin(lx[0], fmin(pl->x_inf, pl->x_sup));
-        lx[1] = fmax(lx[1], fmax(pl->x_inf, pl->x_sup));
-    }
-    for (int k = 0; k < 2; k++) {
-        fi[k] = r->inf0 + r->inf1 * lx[k];
-        fm[k] = r->zm0 + r->zm1 * lx[k];
-        fs[k] = r->sup0 + r->sup1 * lx[k];
-    }
-    rpiv_plot_series e[6] = {
-        {xs, zs, n, "z*#dsup#u", RPIV_PLOT_POINTS}, {xm, zm, n, "z*#dmax#u", RPIV_PLOT_POINTS},
-        {xi, zi, n, "z*#dinf#u", RPIV_PLOT_POINTS}, {lx, fs, 2, "fitted lines", RPIV_PLOT_LINE},
-        {lx, fm, 2, NULL, RPIV_PLOT_LINE},          {lx, fi, 2, NULL, RPIV_PLOT_LINE}};
-    rpiv_plot_opts oe = rpiv_plot_opts_default();
-    oe.ymin = 0;
-    oe.ymax = 1.25; /* room for the legend */
-    if (!(st = out_path(path, dir, "calib_sheet_edges.png")))
-        st = rpiv_plot_lines(path, "sheet edges where each plate meets them", "x*", "z*", e,
-                             n > 1 ? 6 : 3, &oe);
-out:
-    free(ser);
-    free(lab);
-    free(zp);
-    free(lines);
-    return st;
-}
-
 static rpiv_status run_sheet(job *j, int nargs, char **args)
 {
     images s = {0, NULL, NULL, NULL};
     rpiv_calib_sheet_result *r = NULL;
-    char path[RPIV_PATH_MAX];
     rpiv_calib_sheet_params p = rpiv_calib_sheet_params_default();
     p.geom = j->geom;
     if (j->smooth_set)
@@ -513,7 +405,7 @@ static rpiv_status run_sheet(job *j, int nargs, char **args)
     }
     printf("self-similar sheet: z*_max = %.4f + %.5f x* (inclination %.3f deg), e* = %.4f + "
            "%.5f x*%s\n",
-           r->zm0, r->zm1, atan(r->zm1) * 180 / M_PI, r->e0, r->e1,
+           r->zm0, r->zm1, rpiv_report_incl_deg(r->zm1), r->e0, r->e1,
            r->nplates > 1 ? "" : " (one plate: no slopes)");
     const char *prof = j->profile;
     char ppath[RPIV_PATH_MAX];
@@ -523,12 +415,9 @@ static rpiv_status run_sheet(job *j, int nargs, char **args)
         prof = ppath;
     }
     if ((st = rpiv_calib_sheet_save_profile(r, prof)) ||
-        (st = out_path(path, j->dir, "calib_sheet_plates.txt")) ||
-        (st = write_table(path, r, w_plates)) ||
-        (st = out_path(path, j->dir, "calib_sheet_profiles.txt")) ||
-        (st = write_table(path, r, w_profiles)))
+        (st = rpiv_report_calib_sheet_tables(r, j->dir)))
         goto out;
-    if (j->png && (st = plot_sheet(r, j->dir)))
+    if (j->png && (st = rpiv_report_calib_sheet(r, j->dir)))
         goto out;
     if (!j->c.quiet)
         printf("wrote %s (sheet.kind = selfsim, sheet.profile = %s); tables%s in %s/ "
@@ -542,43 +431,11 @@ out:
 
 /* ---- dof --------------------------------------------------------------------------------- */
 
-static rpiv_status plot_dof(const rpiv_calib_focus *c, const rpiv_calib_focus *m, double shift,
-                            const char *dir)
-{
-    char path[RPIV_PATH_MAX], title[128];
-    double *zm = NULL;
-    rpiv_plot_series ser[3] = {{c->z, c->g, c->n, "measured", RPIV_PLOT_POINTS},
-                               {c->z, c->gfit, c->n, "local fit", RPIV_PLOT_LINE},
-                               {NULL, NULL, 0, "model", RPIV_PLOT_LINE}};
-    size_t ns = 2;
-    if (m && m->n) {
-        zm = malloc(m->n * sizeof *zm);
-        if (!zm)
-            return rpiv_fail(RPIV_ENOMEM, "calib dof: out of memory (plot)");
-        for (size_t i = 0; i < m->n; i++)
-            zm[i] = m->z[i] + shift;
-        ser[2].x = zm;
-        ser[2].y = m->g;
-        ser[2].n = m->n;
-        ns = 3;
-    }
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    o.xmin = 0;
-    o.xmax = 1;
-    snprintf(title, sizeof title, "focus: DOF* = %.3f, z*#dOP#u = %.3f", c->dof, c->zop);
-    rpiv_status st = out_path(path, dir, "calib_dof.png");
-    if (!st)
-        st = rpiv_plot_lines(path, title, "z*", "(1/I* - 1) normalised", ser, ns, &o);
-    free(zm);
-    return st;
-}
-
 static rpiv_status run_dof(job *j, int nargs, char **args)
 {
     images s = {0, NULL, NULL, NULL};
     rpiv_calib_dof_result *r = NULL;
     rpiv_calib_focus model;
-    char path[RPIV_PATH_MAX];
     memset(&model, 0, sizeof model);
     rpiv_calib_dof_params p = rpiv_calib_dof_params_default();
     p.geom = j->geom;
@@ -620,14 +477,9 @@ static rpiv_status run_dof(job *j, int nargs, char **args)
                j->refl_set ? "" : " matching the measured peak", model.dof, model.inv_max);
     else
         printf("model: not available (%s)\n", rpiv_errmsg());
-    if ((st = out_path(path, j->dir, "calib_dof_curve.txt")) ||
-        (st = write_table(path, c, w_focus)) ||
-        (st = out_path(path, j->dir, "calib_dof_dots.txt")) || (st = write_table(path, r, w_dots)))
+    if ((st = rpiv_report_calib_dof_tables(r, model.n ? &model : NULL, j->dir)))
         goto out;
-    if (model.n && ((st = out_path(path, j->dir, "calib_dof_model.txt")) ||
-                    (st = write_table(path, &model, w_focus))))
-        goto out;
-    if (j->png && (st = plot_dof(c, model.n ? &model : NULL, 0, j->dir)))
+    if (j->png && (st = rpiv_report_calib_dof(c, model.n ? &model : NULL, 0, j->dir)))
         goto out;
     if (!j->c.quiet)
         printf("tables%s in %s/ (calib_dof_*)\n", j->png ? " and plot" : "", j->dir);
@@ -685,7 +537,7 @@ rpiv_status cmd_calib(int argc, char **argv)
     static const char *const names[] = {"sheet", "dof", "render-sheet", "render-dots"};
     if (argc < 2 || argv[1][0] == '-') {
         if (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
-            help();
+            cli_help(&cmd_calib_spec);
             return RPIV_OK;
         }
         if (argc >= 2)
@@ -709,10 +561,11 @@ rpiv_status cmd_calib(int argc, char **argv)
         }
     if (!found)
         return cli_usage_error("calib", "unknown subcommand '%s'", argv[1]);
-    char name[48];
-    snprintf(name, sizeof name, "calib %s", argv[1]);
+    j.sub = argv[1];
+    snprintf(j.name, sizeof j.name, "calib %s", argv[1]);
+    const char *name = j.name;
     int done = 0;
-    rpiv_status st = parse(&j, argc - 1, argv + 1, &done, argv[1]);
+    rpiv_status st = parse(&j, argc - 1, argv + 1, &done);
     if (st || done)
         goto out;
     if ((st = rpiv_experiment_check(&j.c.exp)))

@@ -3,87 +3,15 @@
  * and the correction of the R-PIV bias (docs/ccm.md). */
 #include "cli.h"
 #include "rpiv/ccm.h"
-#include "rpiv/plot.h"
-#include "rpiv/synth.h"
+#include "rpiv/report.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 rpiv_status cmd_ccm(int argc, char **argv);
-
-static void help(void)
-{
-    printf(
-        "usage: rpiv ccm SCENARIO [options]\n\n"
-        "The cross-correlation model of the paper (Eq. CCM_simp, Eq. statform): the measured\n"
-        "velocity is the peak of the correlation averaged over the particles' heights.\n\n"
-        "Scenarios:\n"
-        "  ppiv-scan     P-PIV, object plane on the Gaussian sheet (z*_OP = z*_B), z*_B scanned\n"
-        "  ppiv-fixed    P-PIV, object plane fixed (--zop), Gaussian sheet scanned\n"
-        "  rpiv          R-PIV: the [sheet] of the configuration at the x* where its maximum\n"
-        "                is at z*, object plane fixed (--zop), mirrored to z* > 0.5\n"
-        "  convergence   Monte-Carlo sum of correlation: N particles, N_im pairs, R repeats\n"
-        "  invert        reconstruct U*(z*) from R-PIV velocities along x* (--input)\n\n"
-        "Options:\n"
-        "  -o, --out DIR         output folder (default: [output] dir)\n"
-        "      --dt S            pulse separation, s (default: [synth] dt_s); sets the\n"
-        "                        displacement scale U_b dt M / pixel\n"
-        "      --thickness LIST  P-PIV sheet thicknesses e* (default 0.05,0.19)\n"
-        "      --zop Z           fixed object plane (default 0.5; convergence: [camera] zop)\n"
-        "      --range Z0,Z1,N   positions z*_B or z*_max (ppiv: 0.0625,0.9375,15;\n"
-        "                        rpiv: 0.03125,0.5,16)\n"
-        "      --no-mirror       rpiv: do not extend by symmetry\n"
-        "      --ystar Y         reference profile: the duct at y* = Y (default 0.5)\n"
-        "      --profile FILE    reference profile U*(z*) as two columns instead of the duct\n"
-        "      --presence FILE   particle-presence law P(z*), two columns (default: [synth]\n"
-        "                        pz_profile if set, else uniform)\n"
-        "  convergence:\n"
-        "      --xstar X         section of the [sheet] (default 6.5)\n"
-        "      --particles N     particles per window (15)\n"
-        "      --repeats R       repetitions (20)\n"
-        "      --nim LIST        N_im values "
-        "(1,2,3,5,7,10,15,20,30,50,70,100,150,200,300,400,500)\n"
-        "      --seed S          random seed (1)\n"
-        "  invert:\n"
-        "      --input FILE      measured R-PIV velocities: rows 'x* U* [sigma]', or a vector\n"
-        "                        file of rpiv piv (.txt), read along the row at --ystar with\n"
-        "                        the image placed as rpiv synth places it ([channel] fov_*)\n"
-        "      --coef N          B-spline coefficients (16)\n"
-        "      --lambda L        smoothness weight (1e-4)\n"
-        "      --symmetric       assume U*(z*) = U*(1 - z*)\n"
-        "      --sigma S         measurement sigma, U* (default: from the data)\n"
-        "      --compare         print E1 of the association and of the correction against\n"
-        "                        the reference profile (--ystar / --profile)\n"
-        "  -c, --config FILE  -S, --set SEC.KEY=V  -j, --threads N  -q, --quiet  -h, --help\n\n"
-        "Outputs: DIR/ccm_<scenario>[_e<e*>].txt tables (x* z* U*_ref U*_model U*_subpixel\n"
-        "err err_subpixel mirrored), DIR/ccm_convergence.txt, DIR/ccm_invert.txt, and PNG\n"
-        "figures like the paper's 18-22 unless [output] plots = 0; a summary with E1 (Eq. E1)\n"
-        "and the largest pointwise relative error on stdout.\n");
-}
-
-enum {
-    O_DT = 256,
-    O_THICK,
-    O_ZOP,
-    O_RANGE,
-    O_NOMIRROR,
-    O_YSTAR,
-    O_PROFILE,
-    O_PRESENCE,
-    O_XSTAR,
-    O_PARTICLES,
-    O_REPEATS,
-    O_NIM,
-    O_SEED,
-    O_INPUT,
-    O_COEF,
-    O_LAMBDA,
-    O_SYM,
-    O_SIGMA,
-    O_COMPARE
-};
 
 typedef struct opts {
     const char *out, *profile, *presence, *input;
@@ -118,91 +46,6 @@ static rpiv_status parse_list(const char *opt, const char *s, double lo, double 
     return RPIV_OK;
 }
 
-static rpiv_status parse_opt(opts *o, int c, const char *arg)
-{
-    rpiv_status st = RPIV_OK;
-    double v[64];
-    size_t n;
-    switch (c) {
-    case 'o':
-        o->out = arg;
-        break;
-    case O_DT:
-        st = cli_parse_double("--dt", arg, 1e-9, 100, &o->dt);
-        break;
-    case O_THICK:
-        st = parse_list("--thickness", arg, 1e-4, 100, o->thick, 8, &o->nthick);
-        break;
-    case O_ZOP:
-        st = cli_parse_double("--zop", arg, -10, 10, &o->zop);
-        o->have_zop = 1;
-        break;
-    case O_RANGE:
-        if ((st = parse_list("--range", arg, -1e6, 1e6, v, 3, &n)))
-            break;
-        if (n != 3 || v[2] != floor(v[2]))
-            return rpiv_fail(RPIV_EINVAL, "--range: expected Z0,Z1,N, got '%s'", arg);
-        memcpy(o->range, v, sizeof o->range);
-        o->have_range = 1;
-        break;
-    case O_NOMIRROR:
-        o->nomirror = 1;
-        break;
-    case O_YSTAR:
-        st = cli_parse_double("--ystar", arg, 0, 1, &o->ystar);
-        break;
-    case O_PROFILE:
-        o->profile = arg;
-        break;
-    case O_PRESENCE:
-        o->presence = arg;
-        break;
-    case O_XSTAR:
-        st = cli_parse_double("--xstar", arg, -1e6, 1e6, &o->xstar);
-        break;
-    case O_PARTICLES:
-        st = cli_parse_int("--particles", arg, 1, 100000, &o->particles);
-        break;
-    case O_REPEATS:
-        st = cli_parse_int("--repeats", arg, 2, 100000, &o->repeats);
-        break;
-    case O_NIM:
-        if ((st = parse_list("--nim", arg, 1, 1e7, v, 64, &n)))
-            break;
-        for (size_t k = 0; k < n; k++) {
-            if (v[k] != floor(v[k]) || (k && v[k] <= v[k - 1]))
-                return rpiv_fail(RPIV_EINVAL, "--nim: expected increasing integers, got '%s'", arg);
-            o->nim[k] = (size_t)v[k];
-        }
-        o->nnim = n;
-        break;
-    case O_SEED:
-        st = cli_parse_int("--seed", arg, 0, 2147483647L, &o->seed);
-        break;
-    case O_INPUT:
-        o->input = arg;
-        break;
-    case O_COEF:
-        st = cli_parse_int("--coef", arg, 5, 200, &o->coef);
-        break;
-    case O_LAMBDA:
-        st = cli_parse_double("--lambda", arg, 0, 1e12, &o->lambda);
-        break;
-    case O_SYM:
-        o->symmetric = 1;
-        break;
-    case O_SIGMA:
-        st = cli_parse_double("--sigma", arg, 0, 1e6, &o->sigma);
-        break;
-    case O_COMPARE:
-        o->compare = 1;
-        break;
-    default:
-        return cli_usage_error("ccm", "unknown option");
-    }
-    return st;
-}
-
 /* Everything a run needs, loaded from the options. */
 typedef struct run {
     cli_ctx c;
@@ -213,6 +56,204 @@ typedef struct run {
     rpiv_sheet *sheet;
     char out[RPIV_PATH_MAX];
 } run;
+
+static rpiv_status set_thickness(void *obj, const char *arg)
+{
+    opts *o = &((run *)obj)->o;
+    return parse_list("--thickness", arg, 1e-4, 100, o->thick, 8, &o->nthick);
+}
+
+static rpiv_status set_zop(void *obj, const char *arg)
+{
+    opts *o = &((run *)obj)->o;
+    rpiv_status st = cli_parse_double("--zop", arg, -10, 10, &o->zop);
+    o->have_zop = 1;
+    return st;
+}
+
+static rpiv_status set_range(void *obj, const char *arg)
+{
+    opts *o = &((run *)obj)->o;
+    double v[3];
+    size_t n;
+    rpiv_status st = parse_list("--range", arg, -1e6, 1e6, v, 3, &n);
+    if (st)
+        return st;
+    if (n != 3 || v[2] != floor(v[2]))
+        return rpiv_fail(RPIV_EINVAL, "--range: expected Z0,Z1,N, got '%s'", arg);
+    memcpy(o->range, v, sizeof o->range);
+    o->have_range = 1;
+    return RPIV_OK;
+}
+
+static rpiv_status set_nim(void *obj, const char *arg)
+{
+    opts *o = &((run *)obj)->o;
+    double v[64];
+    size_t n;
+    rpiv_status st = parse_list("--nim", arg, 1, 1e7, v, 64, &n);
+    if (st)
+        return st;
+    for (size_t k = 0; k < n; k++) {
+        if (v[k] != floor(v[k]) || (k && v[k] <= v[k - 1]))
+            return rpiv_fail(RPIV_EINVAL, "--nim: expected increasing integers, got '%s'", arg);
+        o->nim[k] = (size_t)v[k];
+    }
+    o->nnim = n;
+    return RPIV_OK;
+}
+
+#define OFF(field) offsetof(run, o.field)
+
+static const cli_opt options[] = {
+    {.name = "out",
+     .letter = 'o',
+     .kind = CLI_STR,
+     .arg = "DIR",
+     .off = OFF(out),
+     .help = "output folder (default: [output] dir)"},
+    {.name = "dt",
+     .kind = CLI_DOUBLE,
+     .arg = "S",
+     .off = OFF(dt),
+     .min = 1e-9,
+     .max = 100,
+     .help = "pulse separation, s (default: [synth] dt_s); sets the\n"
+             "displacement scale U_b dt M / pixel"},
+    {.name = "thickness",
+     .kind = CLI_FN,
+     .arg = "LIST",
+     .fn = set_thickness,
+     .help = "P-PIV sheet thicknesses e* (default 0.05,0.19)"},
+    {.name = "zop",
+     .kind = CLI_FN,
+     .arg = "Z",
+     .fn = set_zop,
+     .help = "fixed object plane (default 0.5; convergence: [camera] zop)"},
+    {.name = "range",
+     .kind = CLI_FN,
+     .arg = "Z0,Z1,N",
+     .fn = set_range,
+     .help = "positions z*_B or z*_max (ppiv: 0.0625,0.9375,15;\n"
+             "rpiv: 0.03125,0.5,16)"},
+    {.name = "no-mirror",
+     .kind = CLI_FLAG,
+     .off = OFF(nomirror),
+     .help = "rpiv: do not extend by symmetry"},
+    {.name = "ystar",
+     .kind = CLI_DOUBLE,
+     .arg = "Y",
+     .off = OFF(ystar),
+     .min = 0,
+     .max = 1,
+     .help = "reference profile: the duct at y* = Y (default 0.5)"},
+    {.name = "profile",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = OFF(profile),
+     .help = "reference profile U*(z*) as two columns instead of the duct"},
+    {.name = "presence",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = OFF(presence),
+     .help = "particle-presence law P(z*), two columns (default: [synth]\n"
+             "pz_profile if set, else uniform)"},
+    {.kind = CLI_HEAD, .help = "convergence:"},
+    {.name = "xstar",
+     .kind = CLI_DOUBLE,
+     .arg = "X",
+     .off = OFF(xstar),
+     .min = -1e6,
+     .max = 1e6,
+     .help = "section of the [sheet] (default 6.5)"},
+    {.name = "particles",
+     .kind = CLI_LONG,
+     .arg = "N",
+     .off = OFF(particles),
+     .min = 1,
+     .max = 100000,
+     .help = "particles per window (15)"},
+    {.name = "repeats",
+     .kind = CLI_LONG,
+     .arg = "R",
+     .off = OFF(repeats),
+     .min = 2,
+     .max = 100000,
+     .help = "repetitions (20)"},
+    {.name = "nim",
+     .kind = CLI_FN,
+     .arg = "LIST",
+     .fn = set_nim,
+     .help = "N_im values (1,2,3,5,7,10,15,20,30,50,70,100,150,200,300,400,500)"},
+    {.name = "seed",
+     .kind = CLI_LONG,
+     .arg = "S",
+     .off = OFF(seed),
+     .min = 0,
+     .max = 2147483647L,
+     .help = "random seed (1)"},
+    {.kind = CLI_HEAD, .help = "invert:"},
+    {.name = "input",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = OFF(input),
+     .help = "measured R-PIV velocities: rows 'x* U* [sigma]', or a vector\n"
+             "file of rpiv piv (.txt), read along the row at --ystar with\n"
+             "the image placed as rpiv synth places it ([channel] fov_*)"},
+    {.name = "coef",
+     .kind = CLI_LONG,
+     .arg = "N",
+     .off = OFF(coef),
+     .min = 5,
+     .max = 200,
+     .help = "B-spline coefficients (16)"},
+    {.name = "lambda",
+     .kind = CLI_DOUBLE,
+     .arg = "L",
+     .off = OFF(lambda),
+     .min = 0,
+     .max = 1e12,
+     .help = "smoothness weight (1e-4)"},
+    {.name = "symmetric",
+     .kind = CLI_FLAG,
+     .off = OFF(symmetric),
+     .help = "assume U*(z*) = U*(1 - z*)"},
+    {.name = "sigma",
+     .kind = CLI_DOUBLE,
+     .arg = "S",
+     .off = OFF(sigma),
+     .min = 0,
+     .max = 1e6,
+     .help = "measurement sigma, U* (default: from the data)"},
+    {.name = "compare",
+     .kind = CLI_FLAG,
+     .off = OFF(compare),
+     .help = "print E1 of the association and of the correction against\n"
+             "the reference profile (--ystar / --profile)"},
+};
+
+const cli_spec cmd_ccm_spec = {
+    .name = "ccm",
+    .usage =
+        "usage: rpiv ccm SCENARIO [options]\n\n"
+        "The cross-correlation model of the paper (Eq. CCM_simp, Eq. statform): the measured\n"
+        "velocity is the peak of the correlation averaged over the particles' heights.\n\n"
+        "Scenarios:\n"
+        "  ppiv-scan     P-PIV, object plane on the Gaussian sheet (z*_OP = z*_B), z*_B scanned\n"
+        "  ppiv-fixed    P-PIV, object plane fixed (--zop), Gaussian sheet scanned\n"
+        "  rpiv          R-PIV: the [sheet] of the configuration at the x* where its maximum\n"
+        "                is at z*, object plane fixed (--zop), mirrored to z* > 0.5\n"
+        "  convergence   Monte-Carlo sum of correlation: N particles, N_im pairs, R repeats\n"
+        "  invert        reconstruct U*(z*) from R-PIV velocities along x* (--input)\n\n"
+        "options:\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .epilog =
+        "\nOutputs: DIR/ccm_<scenario>[_e<e*>].txt tables (x* z* U*_ref U*_model U*_subpixel\n"
+        "err err_subpixel mirrored), DIR/ccm_convergence.txt, DIR/ccm_invert.txt, and PNG\n"
+        "figures like the paper's 18-22 unless [output] plots = 0; a summary with E1 (Eq. E1)\n"
+        "and the largest pointwise relative error on stdout.\n",
+    .common = 1};
 
 static rpiv_status run_setup(run *r)
 {
@@ -272,55 +313,6 @@ static void header(const run *r, const char *scenario, char *buf, size_t n)
              r->m.dp_m * 1e6, prof, r->presence ? "tabulated" : "uniform");
 }
 
-/* The paper's figures 19-22: the profiles (left panel) and the pointwise relative error
- * (right panel), one series per table. */
-static rpiv_status plot_tables(const run *r, const char *name, rpiv_ccm_table *const *t,
-                               const double *e, size_t nt)
-{
-    rpiv_status st = RPIV_OK;
-    size_t nmax = 0;
-    for (size_t k = 0; k < nt; k++)
-        nmax = t[k]->n > nmax ? t[k]->n : nmax;
-    double *buf = malloc(4 * nt * nmax * sizeof *buf);
-    char(*lab)[64] = calloc(nt + 1, sizeof *lab);
-    rpiv_plot_series *ser = calloc(2 * nt + 1, sizeof *ser);
-    if (!buf || !lab || !ser) {
-        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
-        goto out_free;
-    }
-    for (size_t k = 0; k < nt; k++) {
-        double *z = buf + 4 * k * nmax, *um = z + nmax, *ur = um + nmax, *er = ur + nmax;
-        for (size_t i = 0; i < t[k]->n; i++) {
-            z[i] = t[k]->row[i].zstar;
-            um[i] = t[k]->row[i].umodel;
-            ur[i] = t[k]->row[i].uref;
-            er[i] = 100 * t[k]->row[i].err;
-        }
-        if (e)
-            snprintf(lab[k], sizeof lab[k], "model, e* = %g", e[k]);
-        else
-            snprintf(lab[k], sizeof lab[k], "model, velocity at z*_max");
-        ser[k + 1] = (rpiv_plot_series){z, um, t[k]->n, lab[k], RPIV_PLOT_BOTH};
-        if (!k)
-            ser[0] = (rpiv_plot_series){z, ur, t[k]->n, "reference (White)", RPIV_PLOT_LINE};
-        ser[nt + 1 + k] = (rpiv_plot_series){z, er, t[k]->n, lab[k], RPIV_PLOT_BOTH};
-    }
-    char path[RPIV_PATH_MAX + 64], title[128];
-    snprintf(path, sizeof path, "%s/ccm_%s_profile.png", r->out, name);
-    snprintf(title, sizeof title, "%s: U*(z*)", name);
-    if ((st = rpiv_plot_lines(path, title, "z*", "U*", ser, nt + 1, NULL)))
-        goto out_free;
-    snprintf(path, sizeof path, "%s/ccm_%s_error.png", r->out, name);
-    snprintf(title, sizeof title, "%s: pointwise relative error", name);
-    st = rpiv_plot_lines(path, title, "z*", "(U*#dmodel#u - U*#dref#u) / U*#dref#u (%)",
-                         ser + nt + 1, nt, NULL);
-out_free:
-    free(buf);
-    free(lab);
-    free(ser);
-    return st;
-}
-
 static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
 {
     rpiv_status st = RPIV_OK;
@@ -357,10 +349,7 @@ static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
         }
         if ((st = rpiv_ccm_table_save(t, hdr, path)))
             break;
-        size_t worst = 0;
-        for (size_t i = 0; i < t->n; i++)
-            if (fabs(t->row[i].err) > fabs(t->row[worst].err) + 1e-12)
-                worst = i;
+        size_t worst = rpiv_report_ccm_worst(t);
         printf("%s", name);
         if (kind != RPIV_CCM_RPIV)
             printf(" e*=%g", sc.e_star);
@@ -370,7 +359,8 @@ static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
                100 * t->maxerr_sub, path);
     }
     if (!st && r->c.exp.output.plots)
-        st = plot_tables(r, name, tabs, kind == RPIV_CCM_RPIV ? NULL : r->o.thick, done);
+        st = rpiv_report_ccm_tables(r->out, name, tabs, kind == RPIV_CCM_RPIV ? NULL : r->o.thick,
+                                    done);
     for (size_t k = 0; k < done; k++)
         rpiv_ccm_table_free(tabs[k]);
     return st;
@@ -411,33 +401,9 @@ static rpiv_status do_convergence(run *r)
     snprintf(path, sizeof path, "%s/ccm_convergence.txt", r->out);
     if ((st = rpiv_ccm_mc_save(res, r->m.scale_px, pk.dx, pk.dx_sub, hdr, path)))
         goto out_free;
-    if (r->c.exp.output.plots) {
-        size_t K = res->nnim;
-        double *v = malloc(5 * K * sizeof *v);
-        if (!v) {
-            st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
-            goto out_free;
-        }
-        double *lx = v, *mn = v + K, *lo = v + 2 * K, *hi = v + 3 * K, *in = v + 4 * K;
-        for (size_t i = 0; i < K; i++) {
-            lx[i] = log10((double)res->nim[i]);
-            mn[i] = res->mean[i] / r->m.scale_px;
-            lo[i] = mn[i] - res->std[i] / r->m.scale_px;
-            hi[i] = mn[i] + res->std[i] / r->m.scale_px;
-            in[i] = pk.dx / r->m.scale_px;
-        }
-        rpiv_plot_series ser[4] = {{lx, mn, K, "mean of the repetitions", RPIV_PLOT_BOTH},
-                                   {lx, lo, K, "mean - std", RPIV_PLOT_LINE},
-                                   {lx, hi, K, "mean + std", RPIV_PLOT_LINE},
-                                   {lx, in, K, "integral (Eq. statform)", RPIV_PLOT_LINE}};
-        char png[RPIV_PATH_MAX + 64];
-        snprintf(png, sizeof png, "%s/ccm_convergence.png", r->out);
-        st = rpiv_plot_lines(png, "Monte-Carlo sum of correlation", "log#d10#u N#dim#u", "U*", ser,
-                             4, NULL);
-        free(v);
-        if (st)
-            goto out_free;
-    }
+    if (r->c.exp.output.plots &&
+        (st = rpiv_report_ccm_convergence(r->out, res, r->m.scale_px, pk.dx)))
+        goto out_free;
     size_t k = res->nnim - 1;
     printf("convergence: integral U* = %.6f; N_im = %zu: mean %.6f std %.6f (sub-pixel %.6f "
            "std %.6f); N_im = %zu: std %.6f -> %s\n",
@@ -450,73 +416,14 @@ out_free:
     return st;
 }
 
-/* A vector file of rpiv piv, or rows "x* U* [sigma]". */
-static rpiv_status load_measurements(run *r, rpiv_ccm_curve **out)
-{
-    *out = NULL;
-    FILE *fp = fopen(r->o.input, "r");
-    char line[64] = "";
-    if (fp) {
-        if (!fgets(line, sizeof line, fp))
-            line[0] = 0;
-        fclose(fp);
-    }
-    if (strncmp(line, "# rpiv vector field", 19))
-        return rpiv_ccm_curve_load(r->o.input, out);
-    rpiv_field *f = NULL;
-    rpiv_synth *s = NULL;
-    rpiv_status st = rpiv_field_load_txt(r->o.input, &f);
-    if (!st)
-        st = rpiv_config_synth_new(&r->c.exp, NULL, &s);
-    if (!st) {
-        rpiv_synth_info in;
-        rpiv_synth_get_info(s, &in);
-        rpiv_ccm_geometry g = {in.x0_star, in.y0_star, in.star_per_px};
-        st = rpiv_ccm_profile_of_field(f, &g, r->m.scale_px, r->o.ystar, out);
-    }
-    rpiv_synth_free(s);
-    rpiv_field_free(f);
-    return st;
-}
-
-static rpiv_status plot_invert(const run *r, const rpiv_ccm_invert_result *res)
-{
-    size_t n = res->nout, m = res->nmeas;
-    double *v = malloc((4 * n + 2 * m) * sizeof *v);
-    if (!v)
-        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
-    double *lo = v, *hi = v + n, *ref = v + 2 * n, *zr = v + 3 * n, *zm = v + 4 * n, *um = zm + m;
-    for (size_t i = 0; i < n; i++) {
-        lo[i] = res->u[i] - 2 * res->u_std[i];
-        hi[i] = res->u[i] + 2 * res->u_std[i];
-        zr[i] = res->z[i];
-        ref[i] = r->m.u.fn(r->m.u.user, res->z[i]);
-    }
-    for (size_t j = 0; j < m; j++) {
-        zm[j] = res->zmax[j];
-        um[j] = res->umeas[j];
-    }
-    rpiv_plot_series ser[5] = {
-        {zm, um, m, "measured, at z*#dmax#u (association)", RPIV_PLOT_POINTS},
-        {zr, res->u, n, "corrected (inverse CCM)", RPIV_PLOT_LINE},
-        {zr, lo, n, "corrected - 2 sigma", RPIV_PLOT_LINE},
-        {zr, hi, n, "corrected + 2 sigma", RPIV_PLOT_LINE},
-        {zr, ref, n, "reference", RPIV_PLOT_LINE}};
-    char path[RPIV_PATH_MAX + 64];
-    snprintf(path, sizeof path, "%s/ccm_invert.png", r->out);
-    rpiv_status st =
-        rpiv_plot_lines(path, "R-PIV bias correction", "z*", "U*", ser, r->o.compare ? 5 : 4, NULL);
-    free(v);
-    return st;
-}
-
 static rpiv_status do_invert(run *r)
 {
     if (!r->o.input)
         return cli_usage_error("ccm", "invert needs --input FILE");
     rpiv_ccm_curve *in = NULL;
     rpiv_ccm_invert_result *res = NULL;
-    rpiv_status st = load_measurements(r, &in);
+    rpiv_status st =
+        rpiv_report_ccm_measurements(&r->c.exp, r->o.input, r->m.scale_px, r->o.ystar, &in);
     if (st)
         return st;
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
@@ -543,7 +450,8 @@ static rpiv_status do_invert(run *r)
     snprintf(path, sizeof path, "%s/ccm_invert.txt", r->out);
     if ((st = rpiv_ccm_invert_save(res, hdr, path)))
         goto out_free;
-    if (r->c.exp.output.plots && (st = plot_invert(r, res)))
+    if (r->c.exp.output.plots &&
+        (st = rpiv_report_ccm_invert(r->out, res, r->o.compare ? &r->m.u : NULL)))
         goto out_free;
     printf("invert: %zu measurements, %zu iterations, sigma %.5g, chi2 %.5g -> %s\n", res->nmeas,
            res->iterations, res->sigma, res->chi2, path);
@@ -563,28 +471,6 @@ out_free:
 
 rpiv_status cmd_ccm(int argc, char **argv)
 {
-    static const struct option lo[] = {CLI_COMMON_LONGOPTS,
-                                       {"out", required_argument, 0, 'o'},
-                                       {"dt", required_argument, 0, O_DT},
-                                       {"thickness", required_argument, 0, O_THICK},
-                                       {"zop", required_argument, 0, O_ZOP},
-                                       {"range", required_argument, 0, O_RANGE},
-                                       {"no-mirror", no_argument, 0, O_NOMIRROR},
-                                       {"ystar", required_argument, 0, O_YSTAR},
-                                       {"profile", required_argument, 0, O_PROFILE},
-                                       {"presence", required_argument, 0, O_PRESENCE},
-                                       {"xstar", required_argument, 0, O_XSTAR},
-                                       {"particles", required_argument, 0, O_PARTICLES},
-                                       {"repeats", required_argument, 0, O_REPEATS},
-                                       {"nim", required_argument, 0, O_NIM},
-                                       {"seed", required_argument, 0, O_SEED},
-                                       {"input", required_argument, 0, O_INPUT},
-                                       {"coef", required_argument, 0, O_COEF},
-                                       {"lambda", required_argument, 0, O_LAMBDA},
-                                       {"symmetric", no_argument, 0, O_SYM},
-                                       {"sigma", required_argument, 0, O_SIGMA},
-                                       {"compare", no_argument, 0, O_COMPARE},
-                                       {0, 0, 0, 0}};
     run *r = calloc(1, sizeof *r);
     if (!r)
         return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
@@ -597,25 +483,10 @@ rpiv_status cmd_ccm(int argc, char **argv)
     o->thick[0] = 0.05;
     o->thick[1] = 0.19;
     o->nthick = 2;
-    rpiv_status st = RPIV_OK;
-    int c;
-    while ((c = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS "o:", lo, NULL)) != -1) {
-        if (cli_common_opt(&r->c, c, optarg, &st)) {
-            if (st)
-                goto out_free;
-            continue;
-        }
-        if (c == 'h') {
-            help();
-            goto out_free;
-        }
-        if (c == '?' || c == ':') {
-            st = cli_bad_option("ccm", c, argv);
-            goto out_free;
-        }
-        if ((st = parse_opt(o, c, optarg)))
-            goto out_free;
-    }
+    int done;
+    rpiv_status st = cli_parse(&cmd_ccm_spec, &r->c, r, argc, argv, &done);
+    if (st || done)
+        goto out_free;
     if (optind != argc - 1) {
         st = optind >= argc ? cli_usage_error("ccm", "missing SCENARIO")
                             : cli_usage_error("ccm", "unexpected argument '%s'", argv[optind + 1]);

@@ -4,28 +4,62 @@
 #include "cli.h"
 
 #include "rpiv/field.h"
-#include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 rpiv_status cmd_compare(int argc, char **argv);
 
-static void help(void)
+typedef struct opts {
+    cli_ctx c;
+    const char *png, *cname;
+    rpiv_component comp;
+} opts;
+
+static rpiv_status set_component(void *obj, const char *arg)
 {
-    printf("usage: rpiv compare REF CMP [--component u|v|mag] [--png FILE]\n\n"
-           "Compare CMP with the reference REF and print E1 (Eq. \"E1\" of the paper: RMS of\n"
-           "REF - CMP over the mean of REF), the RMS and the largest absolute difference.\n"
-           "Both are profiles (two columns: alpha value; CMP is interpolated linearly onto\n"
-           "REF's alpha within the range they share, which is rescaled to 0..1) or both\n"
-           "vector text files on the same grid (columns x y u v [flag ...]; points masked\n"
-           "in either file are left out).\n\n"
-           "  --component C  vector files: compare u, v or mag (|(u,v)|, default)\n"
-           "  --png FILE     plot both profiles, or the map of REF - CMP, into FILE (PNG)\n"
-           "  --help         this text\n");
+    opts *o = obj;
+    o->cname = arg;
+    if (!strcmp(arg, "u"))
+        o->comp = RPIV_COMPONENT_U;
+    else if (!strcmp(arg, "v"))
+        o->comp = RPIV_COMPONENT_V;
+    else if (!strcmp(arg, "mag"))
+        o->comp = RPIV_COMPONENT_MAG;
+    else
+        return cli_usage_error("compare", "--component: '%s' is not u, v or mag", arg);
+    return RPIV_OK;
 }
+
+static const cli_opt options[] = {
+    {.name = "component",
+     .kind = CLI_FN,
+     .arg = "C",
+     .fn = set_component,
+     .help = "vector files: compare u, v or mag (|(u,v)|, default)"},
+    {.name = "png",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = offsetof(opts, png),
+     .help = "plot both profiles, or the map of REF - CMP, into FILE (PNG)"},
+};
+
+const cli_spec cmd_compare_spec = {
+    .name = "compare",
+    .usage = "usage: rpiv compare REF CMP [--component u|v|mag] [--png FILE]\n\n"
+             "Compare CMP with the reference REF and print E1 (Eq. \"E1\" of the paper: RMS of\n"
+             "REF - CMP over the mean of REF), the RMS and the largest absolute difference.\n"
+             "Both are profiles (two columns: alpha value; CMP is interpolated linearly onto\n"
+             "REF's alpha within the range they share, which is rescaled to 0..1) or both\n"
+             "vector text files on the same grid (columns x y u v [flag ...]; points masked\n"
+             "in either file are left out).\n\noptions:\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .common = 1};
 
 /* Prefix the library's message with the two file names. */
 static rpiv_status name_files(rpiv_status st, const char *ref, const char *cmp)
@@ -55,13 +89,8 @@ static rpiv_status compare_profiles(const char *ref_path, const char *cmp_path, 
     }
     print_result(&r);
     printf("range %.10g %.10g\n", r.alpha0, r.alpha1);
-    if (png) {
-        char title[64];
-        snprintf(title, sizeof title, "E#d1#u = %.4g", r.e1);
-        rpiv_plot_series s[2] = {{ref->alpha, ref->value, ref->n, ref_path, RPIV_PLOT_LINE},
-                                 {cmp->alpha, cmp->value, cmp->n, cmp_path, RPIV_PLOT_POINTS}};
-        st = rpiv_plot_lines(png, title, "#ga", "value", s, 2, NULL);
-    }
+    if (png)
+        st = rpiv_report_compare_profiles(png, ref, cmp, ref_path, cmp_path, &r);
 out:
     rpiv_profile_free(ref);
     rpiv_profile_free(cmp);
@@ -73,7 +102,6 @@ static rpiv_status compare_fields(const char *ref_path, const char *cmp_path, rp
 {
     rpiv_field *ref = NULL, *cmp = NULL;
     rpiv_compare r;
-    double *d = NULL;
     rpiv_status st = rpiv_field_load_txt(ref_path, &ref);
     if (!st)
         st = rpiv_field_load_txt(cmp_path, &cmp);
@@ -85,38 +113,9 @@ static rpiv_status compare_fields(const char *ref_path, const char *cmp_path, rp
     }
     printf("component %s\n", cname);
     print_result(&r);
-    if (png) {
-        size_t np = (size_t)ref->nx * (size_t)ref->ny;
-        d = malloc(np * sizeof *d);
-        if (!d) {
-            st = rpiv_fail(RPIV_ENOMEM, "compare: out of memory");
-            goto out;
-        }
-        for (size_t k = 0; k < np; k++) {
-            double a = c == RPIV_COMPONENT_U   ? (double)ref->u[k]
-                       : c == RPIV_COMPONENT_V ? (double)ref->v[k]
-                                               : hypot((double)ref->u[k], (double)ref->v[k]);
-            double b = c == RPIV_COMPONENT_U   ? (double)cmp->u[k]
-                       : c == RPIV_COMPONENT_V ? (double)cmp->v[k]
-                                               : hypot((double)cmp->u[k], (double)cmp->v[k]);
-            int masked = ref->flag[k] == RPIV_FLAG_MASKED || cmp->flag[k] == RPIV_FLAG_MASKED;
-            d[k] = masked ? (double)NAN : a - b;
-        }
-        double ext[4] = {ref->x0 - 0.5 * ref->dx, ref->x0 + (ref->nx - 0.5) * ref->dx,
-                         ref->y0 - 0.5 * ref->dy, ref->y0 + (ref->ny - 0.5) * ref->dy};
-        char title[96], zl[32];
-        snprintf(title, sizeof title, "REF - CMP (%s), E#d1#u = %.4g", cname, r.e1);
-        snprintf(zl, sizeof zl, "#gD%s (px)", cname);
-        rpiv_plot_opts o = rpiv_plot_opts_default();
-        o.cmap = RPIV_PLOT_CMAP_DIVERGING;
-        double m = r.max_abs > 0 ? r.max_abs : 1;
-        o.zmin = -m;
-        o.zmax = m;
-        o.zlabel = zl;
-        st = rpiv_plot_map(png, title, d, ref->nx, ref->ny, ext, &o);
-    }
+    if (png)
+        st = rpiv_report_compare_fields(png, ref, cmp, c, cname, &r);
 out:
-    free(d);
     rpiv_field_free(ref);
     rpiv_field_free(cmp);
     return st;
@@ -124,43 +123,14 @@ out:
 
 rpiv_status cmd_compare(int argc, char **argv)
 {
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
-                                         {"component", required_argument, 0, 'C'},
-                                         {"png", required_argument, 0, 'p'},
-                                         {0, 0, 0, 0}};
-    cli_ctx c;
-    const char *png = NULL, *cname = NULL;
-    rpiv_component comp = RPIV_COMPONENT_MAG;
-    int o;
+    opts o = {.comp = RPIV_COMPONENT_MAG};
+    int done;
     rpiv_status st;
-    cli_ctx_init(&c);
-    optind = 1;
-    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
-        if (o == 'h') {
-            help();
-            return RPIV_OK;
-        }
-        if (cli_common_opt(&c, o, optarg, &st)) {
-            if (st)
-                return st;
-            continue;
-        }
-        if (o == 'p') {
-            png = optarg;
-        } else if (o == 'C') {
-            cname = optarg;
-            if (!strcmp(optarg, "u"))
-                comp = RPIV_COMPONENT_U;
-            else if (!strcmp(optarg, "v"))
-                comp = RPIV_COMPONENT_V;
-            else if (!strcmp(optarg, "mag"))
-                comp = RPIV_COMPONENT_MAG;
-            else
-                return cli_usage_error("compare", "--component: '%s' is not u, v or mag", optarg);
-        } else {
-            return cli_bad_option("compare", o, argv);
-        }
-    }
+    cli_ctx_init(&o.c);
+    if ((st = cli_parse(&cmd_compare_spec, &o.c, &o, argc, argv, &done)) || done)
+        return st;
+    const char *png = o.png, *cname = o.cname;
+    rpiv_component comp = o.comp;
     if (argc - optind != 2)
         return cli_usage_error("compare", "need two files, REF and CMP (got %d)", argc - optind);
     const char *ref = argv[optind], *cmp = argv[optind + 1];

@@ -6,32 +6,69 @@
 #include "rpiv/demo.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
 
 rpiv_status cmd_demo(int argc, char **argv);
 
-static void help(void)
-{
-    printf("usage: rpiv demo [--config FILE] [--set SEC.KEY=VALUE]... [--out DIR] [--pairs N]\n"
-           "                 [--ppiv-pairs N] [--width PX] [--quick] [--threads N] [--quiet]\n\n"
-           "Run the study of the paper (Cabut et al.) end to end on images rpiv makes from the\n"
-           "experiment (the embedded default, or --config): 1. trace the refracted sheet and fit\n"
-           "it; 2. the square-duct flow; 3. a P-PIV z-scan of thin sheets, the reference volume;\n"
-           "4. R-PIV pairs through the refracted sheet, sum of correlation; 5. R-PIV against\n"
-           "P-PIV (figs 24-25), against the CCM (figs 26-27), and the bias-corrected profile;\n"
-           "6. DIR/report.md and DIR/report.html with PNG plots, DIR/data (tables, vector\n"
-           "files), DIR/images (sample pairs). Progress on stderr, key figures on stdout.\n"
-           "docs/demo.md gives the equivalent commands for your own images.\n\n"
-           "  --out DIR         output folder (output.dir)\n"
-           "  --pairs N         R-PIV pairs (100; --quick: 16)\n"
-           "  --ppiv-pairs N    pairs per P-PIV plane (12; --quick: 3)\n"
-           "  --width PX        width of the image band (the sensor's; --quick: 512)\n"
-           "  --quick           a small run for a first look and the tests (seconds)\n"
-           "  --threads N       OpenMP threads (0 = all cores)\n"
-           "  --quiet           no progress\n");
-}
+typedef struct opts {
+    cli_ctx c;
+    const char *dir;
+    long pairs, ppairs, width;
+    int quick;
+} opts;
+
+static const cli_opt options[] = {
+    {.name = "out",
+     .kind = CLI_STR,
+     .arg = "DIR",
+     .off = offsetof(opts, dir),
+     .help = "output folder (output.dir)"},
+    {.name = "pairs",
+     .kind = CLI_LONG,
+     .arg = "N",
+     .off = offsetof(opts, pairs),
+     .min = 1,
+     .max = 1000000,
+     .help = "R-PIV pairs (100; --quick: 16)"},
+    {.name = "ppiv-pairs",
+     .kind = CLI_LONG,
+     .arg = "N",
+     .off = offsetof(opts, ppairs),
+     .min = 1,
+     .max = 1000000,
+     .help = "pairs per P-PIV plane (12; --quick: 3)"},
+    {.name = "width",
+     .kind = CLI_LONG,
+     .arg = "PX",
+     .off = offsetof(opts, width),
+     .min = 64,
+     .max = 65536,
+     .help = "width of the image band (the sensor's; --quick: 512)"},
+    {.name = "quick",
+     .kind = CLI_FLAG,
+     .off = offsetof(opts, quick),
+     .help = "a small run for a first look and the tests (seconds)"},
+};
+
+const cli_spec cmd_demo_spec = {
+    .name = "demo",
+    .usage =
+        "usage: rpiv demo [--config FILE] [--set SEC.KEY=VALUE]... [--out DIR] [--pairs N]\n"
+        "                 [--ppiv-pairs N] [--width PX] [--quick] [--threads N] [--quiet]\n\n"
+        "Run the study of the paper (Cabut et al.) end to end on images rpiv makes from the\n"
+        "experiment (the embedded default, or --config): 1. trace the refracted sheet and fit\n"
+        "it; 2. the square-duct flow; 3. a P-PIV z-scan of thin sheets, the reference volume;\n"
+        "4. R-PIV pairs through the refracted sheet, sum of correlation; 5. R-PIV against\n"
+        "P-PIV (figs 24-25), against the CCM (figs 26-27), and the bias-corrected profile;\n"
+        "6. DIR/report.md and DIR/report.html with PNG plots, DIR/data (tables, vector\n"
+        "files), DIR/images (sample pairs). Progress on stderr, key figures on stdout.\n"
+        "docs/demo.md gives the equivalent commands for your own images.\n\noptions:\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .common = 1};
 
 static void log_line(void *user, const char *line)
 {
@@ -74,51 +111,16 @@ static void summary(const rpiv_demo_result *r, const char *dir)
 
 rpiv_status cmd_demo(int argc, char **argv)
 {
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
-                                         {"out", required_argument, 0, 'o'},
-                                         {"pairs", required_argument, 0, 'n'},
-                                         {"ppiv-pairs", required_argument, 0, 'p'},
-                                         {"width", required_argument, 0, 'w'},
-                                         {"quick", no_argument, 0, 'Q'},
-                                         {0, 0, 0, 0}};
-    cli_ctx c;
-    cli_ctx_init(&c);
-    const char *dir = NULL;
-    long pairs = -1, ppairs = -1, width = -1;
-    int quick = 0, o;
-    rpiv_status st = RPIV_OK;
-    optind = 1;
-    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
-        if (cli_common_opt(&c, o, optarg, &st)) {
-            if (st)
-                return st;
-            continue;
-        }
-        switch (o) {
-        case 'h':
-            help();
-            return RPIV_OK;
-        case 'o':
-            dir = optarg;
-            break;
-        case 'n':
-            st = cli_parse_int("--pairs", optarg, 1, 1000000, &pairs);
-            break;
-        case 'p':
-            st = cli_parse_int("--ppiv-pairs", optarg, 1, 1000000, &ppairs);
-            break;
-        case 'w':
-            st = cli_parse_int("--width", optarg, 64, 65536, &width);
-            break;
-        case 'Q':
-            quick = 1;
-            break;
-        default:
-            return cli_bad_option("demo", o, argv);
-        }
-        if (st)
-            return st;
-    }
+    opts op = {.pairs = -1, .ppairs = -1, .width = -1};
+    int done;
+    rpiv_status st;
+    cli_ctx_init(&op.c);
+    if ((st = cli_parse(&cmd_demo_spec, &op.c, &op, argc, argv, &done)) || done)
+        return st;
+    cli_ctx c = op.c;
+    const char *dir = op.dir;
+    long pairs = op.pairs, ppairs = op.ppairs, width = op.width;
+    int quick = op.quick;
     if (optind < argc)
         return cli_usage_error("demo", "unexpected argument '%s'", argv[optind]);
     rpiv_demo_params p = quick ? rpiv_demo_params_quick() : rpiv_demo_params_default();

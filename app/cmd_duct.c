@@ -2,11 +2,11 @@
 /* rpiv duct - print (and plot) the analytic square-duct profile U*(y*, z*) along y* or z*. */
 #include "cli.h"
 
-#include "rpiv/flow.h"
-#include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,19 +15,40 @@ rpiv_status cmd_duct(int argc, char **argv);
 
 #define MAX_POINTS 1000000
 
-static void help(void)
-{
-    printf("usage: rpiv duct [--y Y|START:STOP:STEP] [--z Z|START:STOP:STEP] [--png FILE]\n\n"
-           "Print the fully developed laminar velocity in the square duct (Eq. \"White\" of the\n"
-           "paper), U* = U / U_bulk, as a two-column table: the coordinate given as a range,\n"
-           "then U*. One of --y, --z is a single value in 0..1, the other a range (inclusive\n"
-           "of STOP). Default: --y 0.5 --z 0:1:0.01. The table is a profile file that\n"
-           "'rpiv compare' reads.\n\n"
-           "  --y V|A:B:S   spanwise coordinate y* (0..1)\n"
-           "  --z V|A:B:S   height z* above the floor (0..1)\n"
-           "  --png FILE    also plot the profile into FILE (PNG)\n"
-           "  --help        this text\n");
-}
+typedef struct opts {
+    cli_ctx c;
+    const char *y, *z, *png;
+} opts;
+
+static const cli_opt options[] = {
+    {.name = "y",
+     .kind = CLI_STR,
+     .arg = "V|A:B:S",
+     .off = offsetof(opts, y),
+     .help = "spanwise coordinate y* (0..1)"},
+    {.name = "z",
+     .kind = CLI_STR,
+     .arg = "V|A:B:S",
+     .off = offsetof(opts, z),
+     .help = "height z* above the floor (0..1)"},
+    {.name = "png",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = offsetof(opts, png),
+     .help = "also plot the profile into FILE (PNG)"},
+};
+
+const cli_spec cmd_duct_spec = {
+    .name = "duct",
+    .usage = "usage: rpiv duct [--y Y|START:STOP:STEP] [--z Z|START:STOP:STEP] [--png FILE]\n\n"
+             "Print the fully developed laminar velocity in the square duct (Eq. \"White\" of the\n"
+             "paper), U* = U / U_bulk, as a two-column table: the coordinate given as a range,\n"
+             "then U*. One of --y, --z is a single value in 0..1, the other a range (inclusive\n"
+             "of STOP). Default: --y 0.5 --z 0:1:0.01. The table is a profile file that\n"
+             "'rpiv compare' reads.\n\noptions:\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .common = 1};
 
 /* A number of option opt, or a usage error naming the option and the text. */
 static rpiv_status number(const char *opt, const char *what, const char *s, double *out)
@@ -91,36 +112,13 @@ static rpiv_status parse_range(const char *opt, const char *arg, double **vals, 
 
 rpiv_status cmd_duct(int argc, char **argv)
 {
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
-                                         {"y", required_argument, 0, 'y'},
-                                         {"z", required_argument, 0, 'z'},
-                                         {"png", required_argument, 0, 'p'},
-                                         {0, 0, 0, 0}};
-    cli_ctx c;
-    const char *yarg = NULL, *zarg = NULL, *png = NULL;
-    int o;
+    opts op = {0};
+    int done;
     rpiv_status st;
-    cli_ctx_init(&c);
-    optind = 1;
-    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
-        if (o == 'h') {
-            help();
-            return RPIV_OK;
-        }
-        if (cli_common_opt(&c, o, optarg, &st)) {
-            if (st)
-                return st;
-            continue;
-        }
-        if (o == 'y')
-            yarg = optarg;
-        else if (o == 'z')
-            zarg = optarg;
-        else if (o == 'p')
-            png = optarg;
-        else
-            return cli_bad_option("duct", o, argv);
-    }
+    cli_ctx_init(&op.c);
+    if ((st = cli_parse(&cmd_duct_spec, &op.c, &op, argc, argv, &done)) || done)
+        return st;
+    const char *yarg = op.y, *zarg = op.z, *png = op.png;
     if (optind < argc)
         return cli_usage_error("duct", "unexpected argument '%s'", argv[optind]);
     if (!yarg && !zarg)
@@ -129,7 +127,7 @@ rpiv_status cmd_duct(int argc, char **argv)
         zarg = "0:1:0.01";
     if (!yarg)
         yarg = strchr(zarg, ':') ? "0.5" : "0:1:0.01";
-    double *ys = NULL, *zs = NULL, *u = NULL;
+    double *ys = NULL, *zs = NULL;
     size_t ny = 0, nz = 0;
     int yr = 0, zr = 0;
     if ((st = parse_range("--y", yarg, &ys, &ny, &yr)) ||
@@ -145,32 +143,9 @@ rpiv_status cmd_duct(int argc, char **argv)
     const double *al = along_y ? ys : zs;
     size_t n = along_y ? ny : nz;
     double fixed = along_y ? zs[0] : ys[0];
-    u = malloc(n * sizeof *u);
-    if (!u) {
-        st = rpiv_fail(RPIV_ENOMEM, "duct: out of memory");
-        goto out;
-    }
-    for (size_t k = 0; k < n; k++)
-        u[k] = along_y ? rpiv_duct_u(al[k], fixed) : rpiv_duct_u(fixed, al[k]);
-    printf("# rpiv duct: square-duct laminar profile U* = U/U_bulk (Eq. \"White\"), %s* = %.10g\n",
-           along_y ? "z" : "y", fixed);
-    printf("# %s* U*\n", along_y ? "y" : "z");
-    for (size_t k = 0; k < n; k++)
-        printf("%.10g %.10g\n", al[k], u[k]);
-    if (fflush(stdout) != 0) {
-        st = rpiv_fail(RPIV_EIO, "duct: cannot write the table: %s", strerror(errno));
-        goto out;
-    }
-    if (png) {
-        char title[96], label[96];
-        snprintf(title, sizeof title, "Square duct, %s* = %.4g", along_y ? "z" : "y", fixed);
-        snprintf(label, sizeof label, "U*(%s* = %.4g)", along_y ? "z" : "y", fixed);
-        rpiv_plot_series s = {al, u, n, label, n > 1 ? RPIV_PLOT_LINE : RPIV_PLOT_POINTS};
-        st = rpiv_plot_lines(png, title, along_y ? "y*" : "z*", "U* = U / U#dbulk#u", &s, 1, NULL);
-    }
+    st = rpiv_report_duct(stdout, al, n, along_y, fixed, png);
 out:
     free(ys);
     free(zs);
-    free(u);
     return st;
 }

@@ -9,15 +9,14 @@
 
 rpiv_status cmd_info(int argc, char **argv);
 
-static void help(void)
-{
-    printf("usage: rpiv info FILE...\n\n"
-           "Print one line per image file: path, format (detected from the file's content),\n"
-           "width and height in pixels, bit depth, number of pages, and the minimum, maximum\n"
-           "and mean grey level of page 0 (colour images as Rec. 601 luminance).\n"
-           "A file that cannot be read gives one error line on stderr; the exit status is\n"
-           "then 1, after the other files have been described.\n");
-}
+const cli_spec cmd_info_spec = {
+    .name = "info",
+    .usage = "usage: rpiv info FILE...\n\n"
+             "Print one line per image file: path, format (detected from the file's content),\n"
+             "width and height in pixels, bit depth, number of pages, and the minimum, maximum\n"
+             "and mean grey level of page 0 (colour images as Rec. 601 luminance).\n"
+             "A file that cannot be read gives one error line on stderr; the exit status is\n"
+             "then 1, after the other files have been described.\n\noptions:\n"};
 
 static rpiv_status describe(const char *path)
 {
@@ -41,17 +40,10 @@ static rpiv_status describe(const char *path)
 
 rpiv_status cmd_info(int argc, char **argv)
 {
-    static const struct option opts[] = {{"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
-    int o;
-    optind = 1;
-    opterr = 0;
-    while ((o = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
-        if (o == 'h') {
-            help();
-            return RPIV_OK;
-        }
-        return cli_bad_option("info", o, argv);
-    }
+    int done;
+    rpiv_status pst = cli_parse(&cmd_info_spec, NULL, NULL, argc, argv, &done);
+    if (pst || done)
+        return pst;
     if (optind >= argc)
         return cli_usage_error("info", "no image file given");
     /* Every file is described; the errors of all but the last failing file are printed

@@ -10,6 +10,7 @@
 #include "rpiv/mpi.h"
 #include "rpiv/piv.h"
 #include "rpiv/plot.h"
+#include "rpiv/report.h"
 #include "rpiv/version.h"
 
 #include <stdio.h>
@@ -19,62 +20,15 @@
 
 rpiv_status cmd_piv(int argc, char **argv);
 
-static void help(void)
+static void help_mpi(void)
 {
-    printf(
-        "usage: rpiv piv [--config FILE] [options] PAIRS... -o OUT\n\n"
-        "Measure displacement fields from image pairs: multi-pass FFT cross-correlation with\n"
-        "symmetric image deformation (cubic B-splines), normalised median validation, and a\n"
-        "3-point Gaussian peak fit. With --ensemble, the correlation planes of all pairs are\n"
-        "summed before the peak is located (sum of correlation), pass by pass.\n\n"
-        "PAIRS: two image files (one pair), one double-frame file, a .txt/.lst list of pairs,\n"
-        "or a quoted glob matched and paired by --pairing.\n\n"
-        "OUT: the format follows the extension: .txt (columns x y u v flag peak_ratio\n"
-        "correlation, + x_mm y_mm u_ms v_ms with --scale and --dt), .nc (NetCDF-4; a series of\n"
-        "pairs goes into one file along t), .dat (Tecplot), .vtk (legacy VTK). Several pairs\n"
-        "and a non-.nc OUT give one file per pair, OUT with _0001, _0002, ... before the\n"
-        "extension. x, y are pixel coordinates of frame A (pixel centres at integers), u along\n"
-        "+x, v along +y (down), in px; flag 0 valid, 1 replaced, 2 masked.\n\n"
-        "options (each also a key of the [piv] section of --config):\n"
-        "  --window W[,W...]     window size per pass, W or WxH (64,32,32)      [windows]\n"
-        "  --overlap F           window overlap fraction 0..0.95 (0.5)          [overlap]\n"
-        "  --step N              grid step in px, instead of --overlap          [step_px]\n"
-        "  --ensemble            sum of correlation over all pairs              [ensemble]\n"
-        "  --subpixel M          gauss, parabola or centroid (gauss)            [subpixel]\n"
-        "  --validate V          median:T (threshold T, default 2) or none      "
-        "[median_threshold]\n"
-        "  --mask FILE           mask image, 0 = masked pixel                   [mask]\n"
-        "  --roi X0,Y0,X1,Y1     region of interest, px (X1, Y1 excluded)       [roi]\n"
-        "  --background B        subtract the series' min or mean image, or none [background]\n"
-        "  --scale MM_PER_PX     physical scale, adds mm and m/s columns        [scale_mm_per_px]\n"
-        "  --dt S                pulse separation, s                            [dt_s]\n"
-        "  --threads N           OpenMP threads (0 = all cores)                 [threads]\n"
-        "other options:\n"
-        "  -o, --output OUT      output file (required)\n"
-        "  --mean-rms            per-pair mode: also write OUT_mean and OUT_rms (mean and\n"
-        "                        standard deviation of the valid vectors)\n"
-        "  --plot FILE.png       quiver plot of the ensemble field, the mean field\n"
-        "                        (--mean-rms) or the first pair's field\n"
-        "  --pairing P           glob pairing: ab, consecutive or time-resolved (ab)\n"
-        "  --skip-bad            skip a pair that cannot be read (warning on stderr,\n"
-        "                        listed in the output header) instead of stopping\n"
-        "  --set SEC.KEY=VALUE   override a configuration key; --quiet: no progress\n"
-        "long ensemble runs:\n"
-        "  --checkpoint FILE     save the summed correlation planes, the pass and the pairs\n"
-        "                        done to FILE (atomically) at every pass start, every\n"
-        "                        --checkpoint-every pairs and when stopped (SIGINT/SIGTERM,\n"
-        "                        an unreadable pair); removed when the run completes\n"
-        "  --checkpoint-every N  pairs between checkpoints (100)\n"
-        "  --resume              continue from --checkpoint FILE (same pairs and options;\n"
-        "                        the result is bit-identical to an uninterrupted run); no\n"
-        "                        FILE: start from the beginning\n\n"
-        "MPI: 'mpirun -np K rpiv piv ...' deals the pairs out to K ranks (pair i to rank\n"
-        "i mod K). Ensemble: the ranks' sums are added (in double) before every pass ends;\n"
-        "checkpoints are FILE.rank0 ... FILE.rank<K-1> and resume needs the same K. Per\n"
-        "pair: each rank writes the files of its pairs; a .nc series, --mean-rms and --plot\n"
-        "are written by rank 0. See docs/cluster.md. MPI support in this build: %s.\n\n"
-        "Algorithm, choices and measured accuracy: docs/piv.md.\n",
-        rpiv_mpi_built() ? "yes" : "no");
+    printf("\nMPI: 'mpirun -np K rpiv piv ...' deals the pairs out to K ranks (pair i to rank\n"
+           "i mod K). Ensemble: the ranks' sums are added (in double) before every pass ends;\n"
+           "checkpoints are FILE.rank0 ... FILE.rank<K-1> and resume needs the same K. Per\n"
+           "pair: each rank writes the files of its pairs; a .nc series, --mean-rms and --plot\n"
+           "are written by rank 0. See docs/cluster.md. MPI support in this build: %s.\n\n"
+           "Algorithm, choices and measured accuracy: docs/piv.md.\n",
+           rpiv_mpi_built() ? "yes" : "no");
 }
 
 /* ".txt" etc. if path ends in a known field extension, else NULL. */
@@ -132,10 +86,8 @@ static rpiv_status root_sink(void *user, size_t i, const rpiv_field *f)
 {
     run_ctx *r = user;
     rpiv_status st = RPIV_OK;
-    size_t n = (size_t)f->nx * (size_t)f->ny;
-    r->nvec += n;
-    for (size_t k = 0; k < n; k++)
-        r->nreplaced += f->flag[k] == RPIV_FLAG_REPLACED;
+    r->nvec += (size_t)f->nx * (size_t)f->ny;
+    r->nreplaced += rpiv_report_nreplaced(f);
     if (r->series)
         st = rpiv_field_series_append(r->series, f, (double)i);
     if (!st && r->stats)
@@ -237,139 +189,149 @@ typedef struct run_opts {
 /* The work after option parsing, on every rank of the team. */
 static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi);
 
+/* Everything the options set. */
+typedef struct piv_opts {
+    cli_ctx c;
+    run_opts ro;
+    const char *outdir;
+} piv_opts;
+
+static rpiv_status set_validate_opt(void *obj, const char *arg)
+{
+    return set_validate(&((piv_opts *)obj)->c, arg);
+}
+
+static rpiv_status set_pairing(void *obj, const char *arg)
+{
+    run_opts *ro = &((piv_opts *)obj)->ro;
+    if (!strcmp(arg, "ab"))
+        ro->pairing = RPIV_PAIR_AB;
+    else if (!strcmp(arg, "consecutive"))
+        ro->pairing = RPIV_PAIR_CONSECUTIVE;
+    else if (!strcmp(arg, "time-resolved"))
+        ro->pairing = RPIV_PAIR_TIME_RESOLVED;
+    else
+        return cli_usage_error("piv", "--pairing: '%s' is not ab, consecutive or time-resolved",
+                               arg);
+    return RPIV_OK;
+}
+
+#define PIV_KEY(nm, a, k, text)                                                                    \
+    {                                                                                              \
+        .name = nm, .kind = CLI_KEY, .arg = a, .section = "piv", .key = k, .help = text            \
+    }
+
+static const cli_opt options[] = {
+    {.kind = CLI_HEAD, .help = "options (each also a key of the [piv] section of --config):"},
+    PIV_KEY("window", "W[,W...]", "windows", "window size per pass, W or WxH (64,32,32) [windows]"),
+    {.name = "windows", .kind = CLI_KEY, .arg = "W[,W...]", .section = "piv", .key = "windows"},
+    PIV_KEY("overlap", "F", "overlap", "window overlap fraction 0..0.95 (0.5) [overlap]"),
+    PIV_KEY("step", "N", "step_px", "grid step in px, instead of --overlap [step_px]"),
+    {.name = "ensemble",
+     .kind = CLI_FLAG,
+     .off = offsetof(piv_opts, c.exp.piv.ensemble),
+     .help = "sum of correlation over all pairs [ensemble]"},
+    PIV_KEY("subpixel", "M", "subpixel", "gauss, parabola or centroid (gauss) [subpixel]"),
+    {.name = "validate",
+     .kind = CLI_FN,
+     .arg = "V",
+     .fn = set_validate_opt,
+     .help = "median:T (threshold T, default 2) or none [median_threshold]"},
+    PIV_KEY("mask", "FILE", "mask", "mask image, 0 = masked pixel [mask]"),
+    PIV_KEY("roi", "X0,Y0,X1,Y1", "roi", "region of interest, px (X1, Y1 excluded) [roi]"),
+    PIV_KEY("background", "B", "background",
+            "subtract the series' min or mean image, or none [background]"),
+    PIV_KEY("scale", "MM_PER_PX", "scale_mm_per_px",
+            "physical scale, adds mm and m/s columns [scale_mm_per_px]"),
+    PIV_KEY("dt", "S", "dt_s", "pulse separation, s [dt_s]"),
+    {.kind = CLI_HEAD, .help = "other options:"},
+    {.name = "output",
+     .letter = 'o',
+     .kind = CLI_STR,
+     .arg = "OUT",
+     .off = offsetof(piv_opts, ro.out),
+     .help = "output file (required, or --out)"},
+    {.name = "out",
+     .kind = CLI_STR,
+     .arg = "DIR",
+     .off = offsetof(piv_opts, outdir),
+     .help = "output folder: DIR/piv.txt, or DIR/ensemble.txt with --ensemble"},
+    {.name = "mean-rms",
+     .kind = CLI_FLAG,
+     .off = offsetof(piv_opts, ro.meanrms),
+     .help = "per-pair mode: also write OUT_mean and OUT_rms (mean and\n"
+             "standard deviation of the valid vectors)"},
+    {.name = "plot",
+     .kind = CLI_STR,
+     .arg = "FILE.png",
+     .off = offsetof(piv_opts, ro.plot),
+     .help = "quiver plot of the ensemble field, the mean field\n"
+             "(--mean-rms) or the first pair's field"},
+    {.name = "pairing",
+     .kind = CLI_FN,
+     .arg = "P",
+     .fn = set_pairing,
+     .help = "glob pairing: ab, consecutive or time-resolved (ab)"},
+    {.name = "skip-bad",
+     .kind = CLI_FLAG,
+     .off = offsetof(piv_opts, ro.skip_bad),
+     .help = "skip a pair that cannot be read (warning on stderr,\n"
+             "listed in the output header) instead of stopping"},
+    {.kind = CLI_HEAD, .help = "long ensemble runs:"},
+    {.name = "checkpoint",
+     .kind = CLI_STR,
+     .arg = "FILE",
+     .off = offsetof(piv_opts, ro.checkpoint),
+     .help = "save the summed correlation planes, the pass and the pairs\n"
+             "done to FILE (atomically) at every pass start, every\n"
+             "--checkpoint-every pairs and when stopped (SIGINT/SIGTERM,\n"
+             "an unreadable pair); removed when the run completes"},
+    {.name = "checkpoint-every",
+     .kind = CLI_STR,
+     .arg = "N",
+     .off = offsetof(piv_opts, ro.every),
+     .help = "pairs between checkpoints (100)"},
+    {.name = "resume",
+     .kind = CLI_FLAG,
+     .off = offsetof(piv_opts, ro.resume),
+     .help = "continue from --checkpoint FILE (same pairs and options;\n"
+             "the result is bit-identical to an uninterrupted run); no\n"
+             "FILE: start from the beginning"},
+};
+
+const cli_spec cmd_piv_spec = {
+    .name = "piv",
+    .usage =
+        "usage: rpiv piv [--config FILE] [options] PAIRS... -o OUT\n\n"
+        "Measure displacement fields from image pairs: multi-pass FFT cross-correlation with\n"
+        "symmetric image deformation (cubic B-splines), normalised median validation, and a\n"
+        "3-point Gaussian peak fit. With --ensemble, the correlation planes of all pairs are\n"
+        "summed before the peak is located (sum of correlation), pass by pass.\n\n"
+        "PAIRS: two image files (one pair), one double-frame file, a .txt/.lst list of pairs,\n"
+        "or a quoted glob matched and paired by --pairing.\n\n"
+        "OUT: the format follows the extension: .txt (columns x y u v flag peak_ratio\n"
+        "correlation, + x_mm y_mm u_ms v_ms with --scale and --dt), .nc (NetCDF-4; a series of\n"
+        "pairs goes into one file along t), .dat (Tecplot), .vtk (legacy VTK). Several pairs\n"
+        "and a non-.nc OUT give one file per pair, OUT with _0001, _0002, ... before the\n"
+        "extension. x, y are pixel coordinates of frame A (pixel centres at integers), u along\n"
+        "+x, v along +y (down), in px; flag 0 valid, 1 replaced, 2 masked.\n\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .more = help_mpi,
+    .common = 1};
+
 rpiv_status cmd_piv(int argc, char **argv)
 {
-    enum {
-        O_WINDOW = 256,
-        O_OVERLAP,
-        O_STEP,
-        O_ENSEMBLE,
-        O_SUBPIXEL,
-        O_VALIDATE,
-        O_MASK,
-        O_ROI,
-        O_BACKGROUND,
-        O_SCALE,
-        O_DT,
-        O_PLOT,
-        O_MEANRMS,
-        O_PAIRING,
-        O_CHECKPOINT,
-        O_EVERY,
-        O_RESUME,
-        O_SKIPBAD,
-        O_OUTDIR
-    };
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
-                                         {"window", required_argument, 0, O_WINDOW},
-                                         {"windows", required_argument, 0, O_WINDOW},
-                                         {"overlap", required_argument, 0, O_OVERLAP},
-                                         {"step", required_argument, 0, O_STEP},
-                                         {"ensemble", no_argument, 0, O_ENSEMBLE},
-                                         {"subpixel", required_argument, 0, O_SUBPIXEL},
-                                         {"validate", required_argument, 0, O_VALIDATE},
-                                         {"mask", required_argument, 0, O_MASK},
-                                         {"roi", required_argument, 0, O_ROI},
-                                         {"background", required_argument, 0, O_BACKGROUND},
-                                         {"scale", required_argument, 0, O_SCALE},
-                                         {"dt", required_argument, 0, O_DT},
-                                         {"plot", required_argument, 0, O_PLOT},
-                                         {"mean-rms", no_argument, 0, O_MEANRMS},
-                                         {"pairing", required_argument, 0, O_PAIRING},
-                                         {"checkpoint", required_argument, 0, O_CHECKPOINT},
-                                         {"checkpoint-every", required_argument, 0, O_EVERY},
-                                         {"resume", no_argument, 0, O_RESUME},
-                                         {"skip-bad", no_argument, 0, O_SKIPBAD},
-                                         {"output", required_argument, 0, 'o'},
-                                         {"out", required_argument, 0, O_OUTDIR},
-                                         {0, 0, 0, 0}};
-    /* option -> [piv] key, for the options that are keys */
-    static const struct {
-        int opt;
-        const char *key, *name;
-    } keyed[] = {{O_WINDOW, "windows", "--window"},
-                 {O_OVERLAP, "overlap", "--overlap"},
-                 {O_STEP, "step_px", "--step"},
-                 {O_SUBPIXEL, "subpixel", "--subpixel"},
-                 {O_MASK, "mask", "--mask"},
-                 {O_ROI, "roi", "--roi"},
-                 {O_BACKGROUND, "background", "--background"},
-                 {O_SCALE, "scale_mm_per_px", "--scale"},
-                 {O_DT, "dt_s", "--dt"}};
-    cli_ctx c;
-    run_opts ro = {.pairing = RPIV_PAIR_AB};
-    const char *outdir = NULL;
+    piv_opts po = {.ro = {.pairing = RPIV_PAIR_AB}};
     char outbuf[RPIV_PATH_MAX + 32];
-    int o;
-    rpiv_status st = RPIV_OK;
-    cli_ctx_init(&c);
-    while ((o = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS "o:", opts, NULL)) != -1) {
-        if (cli_common_opt(&c, o, optarg, &st)) {
-            if (st)
-                return st;
-            continue;
-        }
-        int done = 0;
-        for (size_t k = 0; k < sizeof keyed / sizeof *keyed; k++)
-            if (keyed[k].opt == o) {
-                if ((st = rpiv_config_set(&c.exp, "piv", keyed[k].key, optarg, keyed[k].name)))
-                    return st;
-                done = 1;
-            }
-        if (done)
-            continue;
-        switch (o) {
-        case 'h':
-            help();
-            return RPIV_OK;
-        case 'o':
-            ro.out = optarg;
-            break;
-        case O_OUTDIR:
-            outdir = optarg;
-            break;
-        case O_ENSEMBLE:
-            c.exp.piv.ensemble = 1;
-            break;
-        case O_VALIDATE:
-            if ((st = set_validate(&c, optarg)))
-                return st;
-            break;
-        case O_PLOT:
-            ro.plot = optarg;
-            break;
-        case O_MEANRMS:
-            ro.meanrms = 1;
-            break;
-        case O_CHECKPOINT:
-            ro.checkpoint = optarg;
-            break;
-        case O_EVERY:
-            ro.every = optarg;
-            break;
-        case O_RESUME:
-            ro.resume = 1;
-            break;
-        case O_SKIPBAD:
-            ro.skip_bad = 1;
-            break;
-        case O_PAIRING:
-            if (!strcmp(optarg, "ab"))
-                ro.pairing = RPIV_PAIR_AB;
-            else if (!strcmp(optarg, "consecutive"))
-                ro.pairing = RPIV_PAIR_CONSECUTIVE;
-            else if (!strcmp(optarg, "time-resolved"))
-                ro.pairing = RPIV_PAIR_TIME_RESOLVED;
-            else
-                return cli_usage_error("piv",
-                                       "--pairing: '%s' is not ab, consecutive or "
-                                       "time-resolved",
-                                       optarg);
-            break;
-        default:
-            return cli_bad_option("piv", o, argv);
-        }
-    }
+    int done;
+    rpiv_status st;
+    cli_ctx_init(&po.c);
+    if ((st = cli_parse(&cmd_piv_spec, &po.c, &po, argc, argv, &done)) || done)
+        return st;
+    cli_ctx c = po.c;
+    run_opts ro = po.ro;
+    const char *outdir = po.outdir;
     rpiv_piv_params *p = &c.exp.piv;
     if (!ro.out && outdir) { /* --out DIR: DIR/piv.txt or DIR/ensemble.txt */
         if (snprintf(outbuf, sizeof outbuf, "%s/%s", outdir,
@@ -492,10 +454,8 @@ out_agree:
         if (root &&
             ((st = add_skipped(&meta, batch, pairs)) || (st = rpiv_field_save(field, &meta, out))))
             goto out_free;
-        size_t n = (size_t)field->nx * (size_t)field->ny;
-        r.nvec = n;
-        for (size_t k = 0; k < n; k++)
-            r.nreplaced += field->flag[k] == RPIV_FLAG_REPLACED;
+        r.nvec = (size_t)field->nx * (size_t)field->ny;
+        r.nreplaced = rpiv_report_nreplaced(field);
     } else {
         st = rpiv_batch_series(batch, pv, local_sink, root_sink, &r, &pr);
         if (r.series) {

@@ -9,15 +9,48 @@
 #include "rpiv/piv.h"
 #include "rpiv/synth.h"
 
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
 rpiv_status cmd_synth(int argc, char **argv);
 static rpiv_status run(const rpiv_experiment *e, int quiet, const rpiv_mpi *mpi);
 
-static void help(void)
-{
-    printf(
+/* Command-line values that override the configuration, applied after it is read. */
+typedef struct synth_opts {
+    cli_ctx c;
+    const char *pairs, *out, *flow, *sheet, *seed, *size;
+    int double_frame;
+} synth_opts;
+
+#define SYNTH_STR(nm, a, field, text)                                                              \
+    {                                                                                              \
+        .name = nm, .kind = CLI_STR, .arg = a, .off = offsetof(synth_opts, field), .help = text    \
+    }
+
+static const cli_opt options[] = {
+    SYNTH_STR("pairs", "N", pairs, "number of pairs (synth.pairs)"),
+    SYNTH_STR("out", "DIR", out, "output folder (output.dir)"),
+    SYNTH_STR("flow", "SPEC", flow,
+              "uniform:U,V | duct[:A] | poiseuille[:A] | poiseuille-y:A |\n"
+              "oseen:A,RC[,CX,CY] | sine:A,L, in px over dt (synth.flow);\n"
+              "duct and poiseuille default to the bulk U_b dt M / pixel"),
+    SYNTH_STR("sheet", "KIND", sheet,
+              "ppiv (Gaussian sheet), rpiv (refracted self-similar sheet) or\n"
+              "volume (uniform illumination) (sheet.kind)"),
+    SYNTH_STR("seed", "S", seed, "random seed, 0..4294967295 (synth.seed)"),
+    SYNTH_STR("size", "WxH", size,
+              "image size, a window of the sensor centred on the field of\n"
+              "view (synth.width_px, synth.height_px)"),
+    {.name = "double-frame",
+     .kind = CLI_FLAG,
+     .off = offsetof(synth_opts, double_frame),
+     .help = "write A above B in one file (synth.double_frame)"},
+};
+
+const cli_spec cmd_synth_spec = {
+    .name = "synth",
+    .usage =
         "usage: rpiv synth [--config F] [--pairs N] [--out DIR] [--flow SPEC]\n"
         "                  [--sheet ppiv|rpiv|volume] [--seed S] [--size WxH] [--double-frame]\n\n"
         "Make N synthetic image pairs of the experiment (the paper's particle-image model,\n"
@@ -25,32 +58,15 @@ static void help(void)
         "pair_00001.tif, A above B, with --double-frame), DIR/truth.txt (the displacement of\n"
         "the flow on the grid of the [piv] section, in the format of 'rpiv piv') and\n"
         "DIR/synth.ini (every parameter and the seed: 'rpiv synth --config DIR/synth.ini'\n"
-        "makes the same files again). The options below override --config and --set.\n\n"
-        "  --pairs N          number of pairs (synth.pairs)\n"
-        "  --out DIR          output folder (output.dir)\n"
-        "  --flow SPEC        uniform:U,V | duct[:A] | poiseuille[:A] | poiseuille-y:A |\n"
-        "                     oseen:A,RC[,CX,CY] | sine:A,L, in px over dt (synth.flow);\n"
-        "                     duct and poiseuille default to the bulk U_b dt M / pixel\n"
-        "  --sheet KIND       ppiv (Gaussian sheet), rpiv (refracted self-similar sheet) or\n"
-        "                     volume (uniform illumination) (sheet.kind)\n"
-        "  --seed S           random seed, 0..4294967295 (synth.seed)\n"
-        "  --size WxH         image size, a window of the sensor centred on the field of\n"
-        "                     view (synth.width_px, synth.height_px)\n"
-        "  --double-frame     write A above B in one file (synth.double_frame)\n"
-        "  --config F         read the experiment from an INI file\n"
-        "  --set S.K=V        set one key, e.g. --set particles.density_ppp=0.02\n"
-        "  --threads N        OpenMP threads (0 = all cores); results do not depend on it\n"
-        "  --quiet            no progress and no summary\n"
-        "  --help             this text\n\n"
-        "Under MPI ('mpirun -np K rpiv synth ...') pair i is made by rank i mod K; rank 0\n"
-        "writes truth.txt and synth.ini. The files are the same for any K (docs/cluster.md).\n");
-}
-
-/* Command-line values that override the configuration, applied after it is read. */
-typedef struct synth_opts {
-    const char *pairs, *out, *flow, *sheet, *seed, *size;
-    int double_frame;
-} synth_opts;
+        "makes the same files again). The options below override --config and --set\n"
+        "(--set S.K=V sets one key, e.g. --set particles.density_ppp=0.02; the results do\n"
+        "not depend on --threads).\n\noptions:\n",
+    .opt = options,
+    .nopt = sizeof options / sizeof options[0],
+    .epilog =
+        "\nUnder MPI ('mpirun -np K rpiv synth ...') pair i is made by rank i mod K; rank 0\n"
+        "writes truth.txt and synth.ini. The files are the same for any K (docs/cluster.md).\n",
+    .common = 1};
 
 static rpiv_status apply(const synth_opts *o, rpiv_experiment *e)
 {
@@ -179,57 +195,13 @@ static rpiv_status write_pairs(const rpiv_synth *s, const rpiv_experiment *e, co
 
 rpiv_status cmd_synth(int argc, char **argv)
 {
-    static const struct option opts[] = {CLI_COMMON_LONGOPTS,
-                                         {"pairs", required_argument, 0, 'n'},
-                                         {"out", required_argument, 0, 'o'},
-                                         {"flow", required_argument, 0, 'f'},
-                                         {"sheet", required_argument, 0, 's'},
-                                         {"seed", required_argument, 0, 'r'},
-                                         {"size", required_argument, 0, 'z'},
-                                         {"double-frame", no_argument, 0, 'd'},
-                                         {0, 0, 0, 0}};
-    cli_ctx c;
     synth_opts o = {0};
+    int done;
     rpiv_status st;
-    int opt;
-    cli_ctx_init(&c);
-    optind = 1;
-    while ((opt = getopt_long(argc, argv, ":" CLI_COMMON_SHORTOPTS, opts, NULL)) != -1) {
-        if (opt == 'h') {
-            help();
-            return RPIV_OK;
-        }
-        if (cli_common_opt(&c, opt, optarg, &st)) {
-            if (st)
-                return st;
-            continue;
-        }
-        switch (opt) {
-        case 'n':
-            o.pairs = optarg;
-            break;
-        case 'o':
-            o.out = optarg;
-            break;
-        case 'f':
-            o.flow = optarg;
-            break;
-        case 's':
-            o.sheet = optarg;
-            break;
-        case 'r':
-            o.seed = optarg;
-            break;
-        case 'z':
-            o.size = optarg;
-            break;
-        case 'd':
-            o.double_frame = 1;
-            break;
-        default:
-            return cli_bad_option("synth", opt, argv);
-        }
-    }
+    cli_ctx_init(&o.c);
+    if ((st = cli_parse(&cmd_synth_spec, &o.c, &o, argc, argv, &done)) || done)
+        return st;
+    cli_ctx c = o.c;
     if (optind < argc)
         return cli_usage_error("synth", "unexpected argument '%s'", argv[optind]);
     rpiv_experiment *e = &c.exp;

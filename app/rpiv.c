@@ -21,33 +21,32 @@ rpiv_status cmd_config(int argc, char **argv);
 rpiv_status cmd_info(int argc, char **argv);
 
 const cli_cmd cli_commands[] = {
-    {"piv", cmd_piv, "image pairs -> displacement fields (multi-pass, ensemble)"},
-    {"synth", cmd_synth, "synthetic PIV image pairs with ground truth"},
-    {"raytrace", cmd_raytrace, "trace the refracted laser sheet; profiles and metrics"},
-    {"ccm", cmd_ccm, "cross-correlation model: bias predictions and correction"},
-    {"calib", cmd_calib, "light-sheet profile and depth of focus from target images"},
-    {"duct", cmd_duct, "analytic square-duct velocity profile"},
-    {"compare", cmd_compare, "E1 error between two profiles or vector files"},
-    {"demo", cmd_demo, "the paper's study end to end, with report and plots"},
-    {"config", cmd_config, "print the effective configuration as an INI file"},
-    {"info", cmd_info, "describe image files: size, bit depth, pages, grey levels"},
+    {"piv", cmd_piv, "image pairs -> displacement fields (multi-pass, ensemble)", &cmd_piv_spec},
+    {"synth", cmd_synth, "synthetic PIV image pairs with ground truth", &cmd_synth_spec},
+    {"raytrace", cmd_raytrace, "trace the refracted laser sheet; profiles and metrics",
+     &cmd_raytrace_spec},
+    {"ccm", cmd_ccm, "cross-correlation model: bias predictions and correction", &cmd_ccm_spec},
+    {"calib", cmd_calib, "light-sheet profile and depth of focus from target images",
+     &cmd_calib_spec},
+    {"duct", cmd_duct, "analytic square-duct velocity profile", &cmd_duct_spec},
+    {"compare", cmd_compare, "E1 error between two profiles or vector files", &cmd_compare_spec},
+    {"demo", cmd_demo, "the paper's study end to end, with report and plots", &cmd_demo_spec},
+    {"config", cmd_config, "print the effective configuration as an INI file", &cmd_config_spec},
+    {"info", cmd_info, "describe image files: size, bit depth, pages, grey levels", &cmd_info_spec},
 };
 const size_t cli_ncommands = sizeof cli_commands / sizeof cli_commands[0];
 
 static void usage(FILE *fp)
 {
     fprintf(fp, "usage: rpiv COMMAND [options]\n"
-                "       rpiv --help | --version | COMMAND --help\n\n"
+                "       rpiv --help | --version | --list-options | COMMAND --help\n\n"
                 "PIV through a refracted light sheet (R-PIV), after Cabut et al.\n\n"
                 "commands:\n");
     for (size_t i = 0; i < cli_ncommands; i++)
         fprintf(fp, "  %-10s %s\n", cli_commands[i].name, cli_commands[i].summary);
-    fprintf(fp, "\noptions every command takes:\n"
-                "  --config FILE        read the experiment from an INI file\n"
-                "  --set SEC.KEY=VALUE  override one configuration key (repeatable)\n"
-                "  --threads N          OpenMP threads (0 = all cores)\n"
-                "  --quiet              no progress on stderr\n\n"
-                "Documentation: docs/ and 'man rpiv'.\n");
+    fprintf(fp, "\noptions every command takes:\n");
+    cli_help_common(fp);
+    fprintf(fp, "\nDocumentation: docs/ and 'man rpiv'.\n");
 }
 
 /* Long series load one pair of frames after another (22 MB each for the paper's camera) and
@@ -72,6 +71,12 @@ int main(int argc, char **argv)
     }
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
         usage(stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "--list-options")) { /* for scripts and the CTest cli_help_docs */
+        cli_list_common();
+        for (size_t i = 0; i < cli_ncommands; i++)
+            cli_list_options(cli_commands[i].spec);
         return 0;
     }
     if (!strcmp(argv[1], "--version")) {

@@ -4,8 +4,10 @@
 #include "check.h"
 #include "rpiv/field.h"
 #include "rpiv/plot.h"
+#include "rpiv/report.h"
 
 #include <dirent.h>
+#include <math.h>
 #include <png.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -217,6 +219,50 @@ static void plot_into_missing_folder_fails_with_path(void)
     CHECK(strstr(rpiv_errmsg(), "no/such/lines.png") != NULL);
 }
 
+static rpiv_status write_two_lines(const void *obj, FILE *fp)
+{
+    fprintf(fp, "%s\nsecond\n", (const char *)obj);
+    return RPIV_OK;
+}
+
+static rpiv_status write_then_fail(const void *obj, FILE *fp)
+{
+    fprintf(fp, "%s\n", (const char *)obj);
+    return rpiv_fail(RPIV_ENUMERIC, "writer gave up");
+}
+
+/* report.h: the atomic text writer keeps the old file when the writer fails; the profile
+ * figure writes a PNG; the even pick takes the ends. The files are removed afterwards. */
+static void report_writes_tables_and_profiles(void)
+{
+    char path[512], line[64] = "";
+    snprintf(path, sizeof path, "%s", tpath("table.txt"));
+    CHECK_OK(rpiv_report_write_file(path, write_two_lines, "first"));
+    CHECK_FAILS(rpiv_report_write_file(path, write_then_fail, "other"), RPIV_ENUMERIC);
+    FILE *fp = fopen(path, "r");
+    CHECK(fp != NULL);
+    if (fp) {
+        CHECK(fgets(line, sizeof line, fp) && !strcmp(line, "first\n"));
+        fclose(fp);
+    }
+    CHECK_FAILS(rpiv_report_write_file(tpath("no/such/t.txt"), write_two_lines, "x"), RPIV_EIO);
+    CHECK(remove(path) == 0);
+    double z[50], a[50];
+    for (int k = 0; k < 50; k++) {
+        z[k] = (k + 0.5) / 50;
+        a[k] = exp(-(z[k] - 0.3) * (z[k] - 0.3) / 0.01);
+    }
+    rpiv_plot_series s = {a, z, 50, "x* = 4", RPIV_PLOT_LINE};
+    snprintf(path, sizeof path, "%s", tpath("profiles.png"));
+    CHECK_OK(rpiv_report_sheet_profiles(path, "profiles", "I0*", &s, 1, 1.5));
+    unsigned w, h;
+    size_t ink;
+    CHECK(png_size(path, &w, &h, &ink) && w == 800 && h == 600 && ink > 1000);
+    CHECK(remove(path) == 0);
+    CHECK(rpiv_report_pick(0, 12, 40) == 0 && rpiv_report_pick(11, 12, 40) == 39);
+    CHECK(rpiv_report_pick(0, 1, 5) == 0 && rpiv_report_pick(2, 3, 3) == 2);
+}
+
 int main(void)
 {
     const char *tmp = getenv("TMPDIR");
@@ -229,6 +275,7 @@ int main(void)
     RUN_TEST(lines_writes_png_with_legend);
     RUN_TEST(map_writes_png_for_image_and_scalar);
     RUN_TEST(plot_into_missing_folder_fails_with_path);
+    RUN_TEST(report_writes_tables_and_profiles);
     /* exactly the PNGs asked for, no temporary files left behind */
     CHECK(nfiles() == 7);
     int keep = getenv("RPIV_KEEP_PLOTS") != NULL;

@@ -8,6 +8,7 @@
 
 #include "rpiv/ccm.h"
 #include "rpiv/flow.h"
+#include "rpiv/report.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -352,16 +353,10 @@ out_free:
     return st;
 }
 
-/* The comparison tables in DIR/data. */
-static rpiv_status save_tables(demo_ctx *c)
+/* The comparison tables in DIR/data (rpiv_report_write_file: atomic). */
+static rpiv_status w_compare(const void *obj, FILE *fp)
 {
-    char path[RPIV_PATH_MAX];
-    rpiv_status st;
-    if ((st = demo_path(c, "data/compare_x.txt", path, sizeof path)))
-        return st;
-    FILE *fp = fopen(path, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
+    const demo_ctx *c = obj;
     fprintf(fp, "# rpiv demo: R-PIV against P-PIV and the CCM along x*\n"
                 "# E1_* along y*, R-PIV vs P-PIV at the sheet's z*_inf, z*_max, z*_sup; U* at "
                 "y* = 0.5\n"
@@ -371,18 +366,28 @@ static rpiv_status save_tables(demo_ctx *c)
         fprintf(fp, "%.6f %d %.6f %.6f %.6f %.6g %.6g %.6g %.6f %.6f %.6f\n", c->xs[i],
                 c->col_ok[i], c->czinf[i], c->czmax[i], c->czsup[i], c->e1inf[i], c->e1max[i],
                 c->e1sup[i], c->ur_mid[i], c->up_mid[i], c->umodel[i]);
-    if (fclose(fp))
-        return rpiv_fail(RPIV_EIO, "%s: write error", path);
-    if ((st = demo_path(c, "data/convergence.txt", path, sizeof path)))
-        return st;
-    if (!(fp = fopen(path, "w")))
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
+    return RPIV_OK;
+}
+
+static rpiv_status w_convergence(const void *obj, FILE *fp)
+{
+    const demo_ctx *c = obj;
     fprintf(fp, "# rpiv demo: E1 along x* at y* = 0.5, R-PIV after N pairs vs the CCM\n"
                 "# columns: N E1\n");
     for (size_t k = 0; k < c->nsnap; k++)
         fprintf(fp, "%d %.6g\n", c->res->conv_n[k], c->res->conv_e1[k]);
-    if (fclose(fp))
-        return rpiv_fail(RPIV_EIO, "%s: write error", path);
+    return RPIV_OK;
+}
+
+static rpiv_status save_tables(demo_ctx *c)
+{
+    char path[RPIV_PATH_MAX];
+    rpiv_status st;
+    if ((st = demo_path(c, "data/compare_x.txt", path, sizeof path)) ||
+        (st = rpiv_report_write_file(path, w_compare, c)) ||
+        (st = demo_path(c, "data/convergence.txt", path, sizeof path)) ||
+        (st = rpiv_report_write_file(path, w_convergence, c)))
+        return st;
     return RPIV_OK;
 }
 

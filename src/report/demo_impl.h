@@ -82,6 +82,8 @@ RPIV_NODISCARD rpiv_status demo_ppiv(demo_ctx *c);
 RPIV_NODISCARD rpiv_status demo_rpiv(demo_ctx *c);
 RPIV_NODISCARD rpiv_status demo_compare(demo_ctx *c);
 RPIV_NODISCARD rpiv_status demo_report(demo_ctx *c);
+/* The plots of step 6 (demo_plots.c), before the report. */
+RPIV_NODISCARD rpiv_status demo_plots(demo_ctx *c);
 
 /* Helpers (demo.c). */
 void demo_note(demo_ctx *c, const char *fmt, ...) RPIV_PRINTF(2, 3);
