@@ -31,23 +31,11 @@ static void help_mpi(void)
            rpiv_mpi_built() ? "yes" : "no");
 }
 
-/* ".txt" etc. if path ends in a known field extension, else NULL. */
-static const char *field_ext(const char *path)
-{
-    static const char *const ok[] = {".txt", ".nc", ".dat", ".vtk"};
-    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-    if (!dot || (slash && dot < slash))
-        return NULL;
-    for (size_t i = 0; i < sizeof ok / sizeof *ok; i++)
-        if (!strcasecmp(dot, ok[i]))
-            return dot;
-    return NULL;
-}
-
 /* OUT with `tag` inserted before the extension (tag "_0001", "_mean"). */
 static rpiv_status out_name(const char *out, const char *tag, char *buf, size_t n)
 {
-    const char *dot = field_ext(out);
+    const char *dot;
+    (void)rpiv_field_format_of(out, &dot); /* checked to be a known one before */
     int len = (int)(dot - out);
     if (snprintf(buf, n, "%.*s%s%s", len, out, tag, dot) >= (int)n)
         return rpiv_fail(RPIV_EINVAL, "%s: output path too long", out);
@@ -343,7 +331,7 @@ rpiv_status cmd_piv(int argc, char **argv)
     }
     if (!ro.out)
         return cli_usage_error("piv", "no output given (-o OUT or --out DIR)");
-    if (!field_ext(ro.out))
+    if (rpiv_field_format_of(ro.out, NULL) == RPIV_FIELD_UNKNOWN)
         return cli_usage_error("piv", "-o %s: the extension must be .txt, .nc, .dat or .vtk",
                                ro.out);
     if (optind >= argc)
@@ -434,7 +422,7 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
     r.digits = 4;
     for (size_t n = r.npairs; n >= 10000; n /= 10)
         r.digits++;
-    r.nc_series = r.npairs > 1 && !strcasecmp(field_ext(out), ".nc");
+    r.nc_series = r.npairs > 1 && rpiv_field_format_of(out, NULL) == RPIV_FIELD_NC;
     if (!st && !p->ensemble && root) {
         if ((st = rpiv_piv_grid(pv, rpiv_piv_npass(pv) - 1, &grid)))
             goto out_agree;
@@ -503,7 +491,7 @@ out_agree:
         printf("rpiv piv: %zu pair%s%s, %s, %zu vectors, %.2f %% replaced -> %s%s\n", pairs->n,
                pairs->n == 1 ? "" : "s", skipped, p->ensemble ? "ensemble" : "instantaneous",
                r.nvec, r.nvec ? 100.0 * (double)r.nreplaced / (double)r.nvec : 0.0, out,
-               !p->ensemble && pairs->n > 1 && strcasecmp(field_ext(out), ".nc")
+               !p->ensemble && pairs->n > 1 && rpiv_field_format_of(out, NULL) != RPIV_FIELD_NC
                    ? " (one file per pair)"
                    : "");
         if (nskip)

@@ -46,7 +46,7 @@ rpiv_status rpiv_report_calib_sheet(const rpiv_calib_sheet_result *r, const char
         const rpiv_calib_sheet_plate *pl = &r->plate[rpiv_report_pick(s, ns, n)];
         for (size_t k = 0; k < pl->n; k++) {
             double x = pl->x[k];
-            zp[s * nmax + k] = (pl->z[k] - (r->zm0 + r->zm1 * x)) / (r->e0 + r->e1 * x);
+            zp[s * nmax + k] = rpiv_sheet_zplus(pl->z[k], r->zm0 + r->zm1 * x, r->e0 + r->e1 * x);
         }
         ser[s].y = zp + s * nmax;
         ser[s].style = RPIV_PLOT_POINTS;
