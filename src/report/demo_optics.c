@@ -109,11 +109,10 @@ static rpiv_status choose_sheet(demo_ctx *c)
     c->sheet_p = c->e.sheet;
     if (why) {
         r->sheet_traced = 0;
-        static const char *const kind[] = {"gauss", "selfsim", "uniform"};
         int k = (int)c->e.sheet.kind;
         snprintf(r->sheet_note, sizeof r->sheet_note,
                  "the configuration's [sheet] (kind = %s), because %s",
-                 k >= 0 && k <= 2 ? kind[k] : "?", why);
+                 k >= 0 && k <= 2 ? rpiv_sheet_kind_names[k] : "?", why);
     } else {
         char path[RPIV_PATH_MAX];
         if ((st = demo_path(c, "data/sheet_fit.txt", path, sizeof path)) ||

@@ -8,6 +8,7 @@
 #include "rpiv/ensemble.h"
 #include "rpiv/flow.h"
 #include "rpiv/piv.h"
+#include "rpiv/report.h"
 #include "rpiv/series.h"
 
 #include <math.h>
@@ -365,26 +366,32 @@ static rpiv_status save_field(demo_ctx *c, const rpiv_field *f, const char *name
 
 /* ---- step 3: the P-PIV z-scan -------------------------------------------------------------- */
 
+/* The text of a slab's P(z*) file. */
+typedef struct slab {
+    double zb, slab, e_star, lo, hi;
+} slab;
+
+static rpiv_status print_slab(const void *obj, FILE *fp)
+{
+    const slab *sl = obj;
+    fprintf(fp,
+            "# P(z*) of the P-PIV plane z*_B = %.4f: uniform on z*_B +- %g e* "
+            "(e* = %g)\n%.9f 1\n%.9f 1\n",
+            sl->zb, sl->slab, sl->e_star, sl->lo, sl->hi);
+    return RPIV_OK;
+}
+
 /* P(z*) of a plane: uniform on the slab z*_B +- slab e*, clipped to the channel. */
 static rpiv_status write_slab(demo_ctx *c, double zb, char *path, size_t size)
 {
     char rel[128];
     double d = c->p.ppiv_slab * c->p.ppiv_e_star;
-    double lo = fmax(0.0, zb - d), hi = fmin(1.0, zb + d);
+    slab sl = {zb, c->p.ppiv_slab, c->p.ppiv_e_star, fmax(0.0, zb - d), fmin(1.0, zb + d)};
     snprintf(rel, sizeof rel, "data/ppiv_pz_%.4f.txt", zb);
     rpiv_status st = demo_path(c, rel, path, size);
     if (st)
         return st;
-    FILE *fp = fopen(path, "w");
-    if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
-    int bad = fprintf(fp,
-                      "# P(z*) of the P-PIV plane z*_B = %.4f: uniform on z*_B +- %g e* "
-                      "(e* = %g)\n%.9f 1\n%.9f 1\n",
-                      zb, c->p.ppiv_slab, c->p.ppiv_e_star, lo, hi) < 0;
-    if (fclose(fp) || bad)
-        return rpiv_fail(RPIV_EIO, "%s: write error", path);
-    return RPIV_OK;
+    return rpiv_report_write_file(path, print_slab, &sl);
 }
 
 rpiv_status demo_ppiv(demo_ctx *c)
