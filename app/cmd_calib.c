@@ -405,7 +405,7 @@ static rpiv_status run_sheet(job *j, int nargs, char **args)
     }
     printf("self-similar sheet: z*_max = %.4f + %.5f x* (inclination %.3f deg), e* = %.4f + "
            "%.5f x*%s\n",
-           r->zm0, r->zm1, rpiv_report_incl_deg(r->zm1), r->e0, r->e1,
+           r->zm0, r->zm1, rpiv_sheet_incl_deg(r->zm1), r->e0, r->e1,
            r->nplates > 1 ? "" : " (one plate: no slopes)");
     const char *prof = j->profile;
     char ppath[RPIV_PATH_MAX];

@@ -349,7 +349,7 @@ static rpiv_status do_scenario(run *r, rpiv_ccm_kind kind, const char *name)
         }
         if ((st = rpiv_ccm_table_save(t, hdr, path)))
             break;
-        size_t worst = rpiv_report_ccm_worst(t);
+        size_t worst = rpiv_ccm_table_worst(t);
         printf("%s", name);
         if (kind != RPIV_CCM_RPIV)
             printf(" e*=%g", sc.e_star);
@@ -423,7 +423,7 @@ static rpiv_status do_invert(run *r)
     rpiv_ccm_curve *in = NULL;
     rpiv_ccm_invert_result *res = NULL;
     rpiv_status st =
-        rpiv_report_ccm_measurements(&r->c.exp, r->o.input, r->m.scale_px, r->o.ystar, &in);
+        rpiv_config_ccm_measurements(&r->c.exp, r->o.input, r->m.scale_px, r->o.ystar, &in);
     if (st)
         return st;
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();

@@ -75,7 +75,7 @@ static rpiv_status root_sink(void *user, size_t i, const rpiv_field *f)
     run_ctx *r = user;
     rpiv_status st = RPIV_OK;
     r->nvec += (size_t)f->nx * (size_t)f->ny;
-    r->nreplaced += rpiv_report_nreplaced(f);
+    r->nreplaced += rpiv_field_count(f, RPIV_FLAG_REPLACED);
     if (r->series)
         st = rpiv_field_series_append(r->series, f, (double)i);
     if (!st && r->stats)
@@ -443,7 +443,7 @@ out_agree:
             ((st = add_skipped(&meta, batch, pairs)) || (st = rpiv_field_save(field, &meta, out))))
             goto out_free;
         r.nvec = (size_t)field->nx * (size_t)field->ny;
-        r.nreplaced = rpiv_report_nreplaced(field);
+        r.nreplaced = rpiv_field_count(field, RPIV_FLAG_REPLACED);
     } else {
         st = rpiv_batch_series(batch, pv, local_sink, root_sink, &r, &pr);
         if (r.series) {

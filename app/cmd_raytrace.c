@@ -255,7 +255,7 @@ static rpiv_status run_trace(job *j, const rpiv_progress *prog)
         printf("sheet along x* (%zu of %zu stations): z*_max = %.4f + %.5f x* (inclination %.3f "
                "deg, rms %.3g), e* = %.4f + %.5f x* (de*/dx* %.5f, rms %.3g); shape rms %.3g "
                "from self-similar\n",
-               f->nused, j->nst, f->zm0, f->zm1, rpiv_report_incl_deg(f->zm1), f->rms_zm, f->e0,
+               f->nused, j->nst, f->zm0, f->zm1, rpiv_sheet_incl_deg(f->zm1), f->rms_zm, f->e0,
                f->e1, f->e1, f->rms_e, f->rms_shape);
         if (j->fit && (st = rpiv_optics_selfsim_save(f, j->fit)))
             goto out;

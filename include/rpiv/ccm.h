@@ -318,6 +318,8 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_scenario_run(const rpiv_ccm_scenario *s,
                                                  int threads, const rpiv_progress *progress,
                                                  rpiv_ccm_table **out);
 void rpiv_ccm_table_free(rpiv_ccm_table *t);
+/* The row of t with the largest |err| (the first of equals, within 1e-12). */
+size_t rpiv_ccm_table_worst(const rpiv_ccm_table *t);
 
 /* Write a table as text ("# rpiv-ccm 1" header, header lines from hdr (may be NULL), E1 and
  * max errors, then columns x* z* U_ref U_model U_sub err err_sub mirrored). Atomic. */

@@ -78,4 +78,12 @@ RPIV_NODISCARD rpiv_status rpiv_config_save_synth(const rpiv_experiment *e, cons
  * bulk displacement U_b dt M / pixel of dt_s); I0, U*, P stay the defaults. */
 rpiv_ccm_model rpiv_config_ccm_model(const rpiv_experiment *e, double dt_s);
 
+/* Measured R-PIV velocities for the inversion (rpiv ccm invert) from path: a vector file of
+ * rpiv piv ("# rpiv vector field" first line), read along the row at y* = ystar with the image
+ * placed as rpiv synth places it for experiment e, U* = px / scale_px; otherwise rows
+ * "x* U* [sigma]" (rpiv_ccm_curve_load). The caller frees *out. Errors of the loaders. */
+RPIV_NODISCARD rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e, const char *path,
+                                                        double scale_px, double ystar,
+                                                        rpiv_ccm_curve **out);
+
 #endif /* RPIV_CONFIG_H */

@@ -43,6 +43,8 @@ RPIV_NODISCARD rpiv_status rpiv_field_new(int nx, int ny, double x0, double y0, 
 void rpiv_field_free(rpiv_field *f); /* NULL is a no-op */
 /* A deep copy of f (all arrays, scale and dt). */
 RPIV_NODISCARD rpiv_status rpiv_field_copy(const rpiv_field *f, rpiv_field **out);
+/* The number of vectors of f flagged `flag` (RPIV_FLAG_VALID, _REPLACED or _MASKED). */
+size_t rpiv_field_count(const rpiv_field *f, int flag);
 
 /* Free-form "key = value" lines recorded in file headers (processing parameters). Start
  * from a zeroed struct (rpiv_meta m = {0};) and release with rpiv_meta_clear(). */

@@ -175,6 +175,10 @@ double rpiv_optics_profile_norm(const rpiv_optics_result *r, size_t k, double *o
  * fall to a quarter of its maximum inside the channel on both sides. */
 RPIV_NODISCARD rpiv_status rpiv_optics_metrics(const rpiv_optics_result *r, size_t k,
                                                rpiv_sheet_metrics *m);
+/* z*_inf, z*_max, z*_sup and e* of every station of r (arrays of r->nx), NaN where the
+ * station has no metrics (dark, or not falling to a quarter: rpiv_optics_metrics fails). */
+void rpiv_optics_metrics_all(const rpiv_optics_result *r, double *zinf, double *zmax, double *zsup,
+                             double *e);
 
 /* ---- the self-similar sheet ------------------------------------------------------------ */
 

@@ -45,9 +45,6 @@ RPIV_NODISCARD rpiv_status rpiv_report_sheet_profiles(const char *path, const ch
 /* Index of the s-th of ns items picked evenly from n (the first and the last included). */
 size_t rpiv_report_pick(size_t s, size_t ns, size_t n);
 
-/* Inclination in degrees of a line of the given slope (z*_max against x*). */
-double rpiv_report_incl_deg(double slope);
-
 /* ---- calib (calib.h) ------------------------------------------------------------------------ */
 
 /* DIR/calib_sheet_profiles.png (at most 12 plates' I0*(z*)), DIR/calib_sheet_shape.png (the
@@ -87,22 +84,9 @@ RPIV_NODISCARD rpiv_status rpiv_report_ccm_convergence(const char *dir,
 RPIV_NODISCARD rpiv_status rpiv_report_ccm_invert(const char *dir,
                                                   const rpiv_ccm_invert_result *res,
                                                   const rpiv_ccm_func *ref);
-/* The row of t with the largest |err| (the first of equals). Belongs to ccm.h. */
-size_t rpiv_report_ccm_worst(const rpiv_ccm_table *t);
-/* Measured R-PIV velocities for the inversion from path: a vector file of rpiv piv ("# rpiv
- * vector field" first line), read along the row at y* = ystar with the image placed as rpiv
- * synth places it for experiment e, U* = px / scale_px; otherwise rows "x* U* [sigma]"
- * (rpiv_ccm_curve_load). The caller frees *out. Errors of the loaders. */
-RPIV_NODISCARD rpiv_status rpiv_report_ccm_measurements(const rpiv_experiment *e, const char *path,
-                                                        double scale_px, double ystar,
-                                                        rpiv_ccm_curve **out);
 
 /* ---- optics (optics.h) ---------------------------------------------------------------------- */
 
-/* z*_inf, z*_max, z*_sup and e* of every station of r (arrays of r->nx), NaN where the
- * station has no metrics (dark, or not falling to a quarter). Belongs to optics.h. */
-void rpiv_report_optics_metrics(const rpiv_optics_result *r, double *zinf, double *zmax,
-                                double *zsup, double *e);
 /* DIR/raytrace_profile.png: station 0 of r as I0*(z*). */
 RPIV_NODISCARD rpiv_status rpiv_report_optics_profile(const rpiv_optics_result *r, const char *dir);
 /* DIR/raytrace_metrics.png: z*_inf, z*_max, z*_sup and e* along x* (paper fig 8) and, fit not
@@ -141,7 +125,5 @@ RPIV_NODISCARD rpiv_status rpiv_report_compare_profiles(const char *png, const r
 RPIV_NODISCARD rpiv_status rpiv_report_compare_fields(const char *png, const rpiv_field *ref,
                                                       const rpiv_field *cmp, rpiv_component c,
                                                       const char *cname, const rpiv_compare *r);
-/* Number of vectors of f flagged RPIV_FLAG_REPLACED. Belongs to field.h. */
-size_t rpiv_report_nreplaced(const rpiv_field *f);
 
 #endif /* RPIV_REPORT_H */

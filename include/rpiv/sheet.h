@@ -53,6 +53,9 @@ void rpiv_sheet_free(rpiv_sheet *s);
  * The one place this coordinate is computed. */
 double rpiv_sheet_zplus(double zstar, double zmax, double e);
 
+/* The sheet's inclination in degrees, from the slope of its z*_max line against x*. */
+double rpiv_sheet_incl_deg(double slope);
+
 /* I0(x*, z*) normalised so that the maximum over z* at any x* is 1. */
 double rpiv_sheet_eval(const rpiv_sheet *s, double xstar, double zstar);
 

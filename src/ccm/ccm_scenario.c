@@ -249,3 +249,12 @@ rpiv_status rpiv_ccm_table_save(const rpiv_ccm_table *t, const char *hdr, const 
     }
     return atomic_commit(&af);
 }
+
+size_t rpiv_ccm_table_worst(const rpiv_ccm_table *t)
+{
+    size_t worst = 0;
+    for (size_t i = 0; i < t->n; i++)
+        if (fabs(t->row[i].err) > fabs(t->row[worst].err) + 1e-12)
+            worst = i;
+    return worst;
+}

@@ -4,8 +4,11 @@
 #include "rpiv/config.h"
 
 #include "base/atomic.h"
+#include "base/text.h"
 
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 rpiv_synth_setup rpiv_config_synth_setup(const rpiv_experiment *e)
 {
@@ -64,4 +67,38 @@ rpiv_status rpiv_config_save_synth(const rpiv_experiment *e, const rpiv_synth *s
         return rpiv_fail(RPIV_EIO, "%s: cannot write", path);
     }
     return atomic_commit(&af);
+}
+
+rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e, const char *path,
+                                         double scale_px, double ystar, rpiv_ccm_curve **out)
+{
+    *out = NULL;
+    /* the first line tells an rpiv vector file; anything else (or nothing) is a curve, and
+     * the curve reader reports what is wrong with it */
+    FILE *fp = fopen(path, "r");
+    char *line = NULL;
+    size_t cap = 0;
+    long lineno = 0;
+    rpiv_status lst = RPIV_OK;
+    int is_field = fp && text_getline(fp, &line, &cap, path, &lineno, &lst) >= 0 &&
+                   strncmp(line, "# rpiv vector field", 19) == 0;
+    free(line);
+    if (fp)
+        fclose(fp);
+    if (!is_field)
+        return rpiv_ccm_curve_load(path, out);
+    rpiv_field *f = NULL;
+    rpiv_synth *s = NULL;
+    rpiv_status st = rpiv_field_load_txt(path, &f);
+    if (!st)
+        st = rpiv_config_synth_new(e, NULL, &s);
+    if (!st) {
+        rpiv_synth_info in;
+        rpiv_synth_get_info(s, &in);
+        rpiv_ccm_geometry g = {in.x0_star, in.y0_star, in.star_per_px};
+        st = rpiv_ccm_profile_of_field(f, &g, scale_px, ystar, out);
+    }
+    rpiv_synth_free(s);
+    rpiv_field_free(f);
+    return st;
 }

@@ -165,3 +165,11 @@ void rpiv_meta_clear(rpiv_meta *m)
     m->key = m->val = NULL;
     m->n = 0;
 }
+
+size_t rpiv_field_count(const rpiv_field *f, int flag)
+{
+    size_t n = (size_t)f->nx * (size_t)f->ny, k = 0;
+    for (size_t i = 0; i < n; i++)
+        k += f->flag[i] == flag;
+    return k;
+}

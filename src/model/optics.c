@@ -486,3 +486,20 @@ rpiv_status rpiv_optics_metrics(const rpiv_optics_result *r, size_t k, rpiv_shee
     }
     return RPIV_OK;
 }
+
+void rpiv_optics_metrics_all(const rpiv_optics_result *r, double *zinf, double *zmax, double *zsup,
+                             double *e)
+{
+    for (size_t k = 0; k < r->nx; k++) {
+        rpiv_sheet_metrics m;
+        if (rpiv_optics_metrics(r, k, &m) == RPIV_OK) {
+            zinf[k] = m.zinf;
+            zmax[k] = m.zmax;
+            zsup[k] = m.zsup;
+            e[k] = m.e;
+        } else {
+            rpiv_errclear(); /* a dark station or one that does not fall to a quarter */
+            zinf[k] = zmax[k] = zsup[k] = e[k] = (double)NAN;
+        }
+    }
+}

@@ -277,3 +277,8 @@ rpiv_status rpiv_sheet_metrics_of(const double *z, const double *inten, size_t n
     m->e = m->zsup - m->zinf;
     return RPIV_OK;
 }
+
+double rpiv_sheet_incl_deg(double slope)
+{
+    return atan(slope) * 180 / M_PI;
+}

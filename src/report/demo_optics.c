@@ -137,7 +137,7 @@ static rpiv_status choose_sheet(demo_ctx *c)
     if (c->sheet_p.kind == RPIV_SHEET_SELFSIM) {
         double e1 = why ? c->sheet_p.e1 : f->e1, zm0 = why ? c->sheet_p.zm0 : f->zm0,
                zm1 = why ? c->sheet_p.zm1 : f->zm1;
-        r->sheet_incl_deg = rpiv_report_incl_deg(zm1);
+        r->sheet_incl_deg = rpiv_sheet_incl_deg(zm1);
         r->sheet_de_dx = e1;
         r->sheet_x_zop = zm1 != 0 ? (c->e.camera.zop_star - zm0) / zm1 : (double)NAN;
     } else {
@@ -173,7 +173,7 @@ rpiv_status demo_optics(demo_ctx *c)
     c->me = malloc(n * sizeof(double));
     if (!c->mzinf || !c->mzmax || !c->mzsup || !c->me)
         return rpiv_fail(RPIV_ENOMEM, "demo: out of memory");
-    rpiv_report_optics_metrics(t, c->mzinf, c->mzmax, c->mzsup, c->me);
+    rpiv_optics_metrics_all(t, c->mzinf, c->mzmax, c->mzsup, c->me);
     c->kfig11 = nearest(t->xstar, n, X_FIG11);
     r->trace_it_ig = t->stats.transmitted;
     r->trace_elev_deg = t->axis.transmitted ? t->axis.elevation * 180 / M_PI : (double)NAN;

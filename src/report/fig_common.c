@@ -35,11 +35,6 @@ size_t rpiv_report_pick(size_t s, size_t ns, size_t n)
     return ns > 1 ? s * (n - 1) / (ns - 1) : 0;
 }
 
-double rpiv_report_incl_deg(double slope)
-{
-    return atan(slope) * 180 / M_PI;
-}
-
 rpiv_status rpiv_report_sheet_profiles(const char *path, const char *title, const char *xlabel,
                                        const rpiv_plot_series *series, size_t n, double xmax)
 {

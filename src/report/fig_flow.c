@@ -85,11 +85,3 @@ rpiv_status rpiv_report_compare_fields(const char *png, const rpiv_field *ref,
     free(d);
     return st;
 }
-
-size_t rpiv_report_nreplaced(const rpiv_field *f)
-{
-    size_t n = (size_t)f->nx * (size_t)f->ny, k = 0;
-    for (size_t i = 0; i < n; i++)
-        k += f->flag[i] == RPIV_FLAG_REPLACED;
-    return k;
-}

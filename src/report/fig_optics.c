@@ -12,23 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-void rpiv_report_optics_metrics(const rpiv_optics_result *r, double *zinf, double *zmax,
-                                double *zsup, double *e)
-{
-    for (size_t k = 0; k < r->nx; k++) {
-        rpiv_sheet_metrics m;
-        if (rpiv_optics_metrics(r, k, &m) == RPIV_OK) {
-            zinf[k] = m.zinf;
-            zmax[k] = m.zmax;
-            zsup[k] = m.zsup;
-            e[k] = m.e;
-        } else {
-            rpiv_errclear(); /* a dark station or one that does not fall to a quarter */
-            zinf[k] = zmax[k] = zsup[k] = e[k] = (double)NAN;
-        }
-    }
-}
-
 rpiv_status rpiv_report_optics_profile(const rpiv_optics_result *r, const char *dir)
 {
     char path[RPIV_PATH_MAX], title[128];
@@ -57,7 +40,7 @@ rpiv_status rpiv_report_optics_metrics_plot(const rpiv_optics_result *v,
     if (!a)
         return rpiv_fail(RPIV_ENOMEM, "raytrace: out of memory (plot)");
     double *zi = a, *zm = a + n, *zs = a + 2 * n, *fit = a + 3 * n, *e = a + 4 * n;
-    rpiv_report_optics_metrics(v, zi, zm, zs, e);
+    rpiv_optics_metrics_all(v, zi, zm, zs, e);
     for (size_t k = 0; k < n; k++)
         fit[k] = f ? f->zm0 + f->zm1 * v->xstar[k] : (double)NAN;
     rpiv_plot_series ser[5] = {{v->xstar, zs, n, "z*#dsup#u", RPIV_PLOT_BOTH},
