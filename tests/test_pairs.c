@@ -178,6 +178,27 @@ static void list_file(void)
     CHECK_ERR(rpiv_pairs_from_args(1, args, RPIV_PAIR_AB, &p), RPIV_EFORMAT, "empty.txt");
     args[0] = (char *)tu_path("absent.txt");
     CHECK_ERR(rpiv_pairs_from_args(1, args, RPIV_PAIR_AB, &p), RPIV_EIO, "absent.txt");
+    /* a comment line of 6000 characters does not cut the list (no line-length limit), and a
+     * NUL byte (a binary file named .txt) is refused with its line */
+    size_t nlong = 6000;
+    char *longlist = malloc(nlong + 64);
+    CHECK(longlist != NULL);
+    if (longlist) {
+        longlist[0] = '#';
+        memset(longlist + 1, 'x', nlong - 1);
+        strcpy(longlist + nlong, "\nla.tif lb.tif\n");
+        CHECK(tu_write(tu_path("long.txt"), longlist, strlen(longlist)));
+        args[0] = (char *)tu_path("long.txt");
+        CHECK_OK(rpiv_pairs_from_args(1, args, RPIV_PAIR_AB, &p));
+        CHECK(p && p->n == 1 && ends_with(p->pair[0].path_b, "/lb.tif"));
+        rpiv_pairs_free(p);
+        free(longlist);
+    }
+    const char nul[] = "la.tif lb.tif\nla.tif\0lb.tif\n";
+    CHECK(tu_write(tu_path("nul.txt"), nul, sizeof nul - 1));
+    args[0] = (char *)tu_path("nul.txt");
+    CHECK_ERR(rpiv_pairs_from_args(1, args, RPIV_PAIR_AB, &p), RPIV_EFORMAT, "nul.txt:2");
+    CHECK(p == NULL);
 }
 
 static void glob_ab_rule(void)

@@ -4,6 +4,8 @@
  * the images themselves are opened by rpiv_pairs_load, which names the pair and file at fault. */
 #include "rpiv/pairs.h"
 
+#include "base/text.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <glob.h>
@@ -274,23 +276,22 @@ static rpiv_status join(const char *dir, const char *name, char *out, size_t cap
 
 static rpiv_status from_list(const char *list, rpiv_pairs *p, size_t *cap)
 {
-    char dir[1024] = "", line[4096], pa[2048], pb[2048], where[1200];
+    char pa[4096], pb[4096], where[1200];
     const char *slash = strrchr(list, '/');
-    if (slash)
-        snprintf(dir, sizeof dir, "%.*s", slash == list ? 1 : (int)(slash - list), list);
+    size_t dlen = slash ? (slash == list ? 1 : (size_t)(slash - list)) : 0;
+    char *dir = strndup(list, dlen), *line = NULL;
+    if (!dir)
+        return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", list);
     FILE *f = fopen(list, "r");
-    if (!f)
+    if (!f) {
+        free(dir);
         return rpiv_fail(RPIV_EIO, "%s: cannot open list: %s", list, strerror(errno));
+    }
     rpiv_status st = RPIV_OK;
+    size_t lcap = 0;
     long lineno = 0;
-    while (!st && fgets(line, sizeof line, f)) {
-        lineno++;
+    while (!st && text_getline(f, &line, &lcap, list, &lineno, &st) >= 0) {
         snprintf(where, sizeof where, "%s:%ld", list, lineno);
-        if (!strchr(line, '\n') && !feof(f)) {
-            st = rpiv_fail(RPIV_EFORMAT, "%s: line longer than %zu characters", where,
-                           sizeof line - 1);
-            break;
-        }
         char *s = line, *t[3];
         int nt = 0;
         while (nt < 3 && (t[nt] = token(&s)) != NULL)
@@ -313,6 +314,8 @@ static rpiv_status from_list(const char *list, rpiv_pairs *p, size_t *cap)
     if (!st && ferror(f))
         st = rpiv_fail(RPIV_EIO, "%s: cannot read list: %s", list, strerror(errno));
     fclose(f);
+    free(line);
+    free(dir);
     if (!st && p->n == 0)
         st = rpiv_fail(RPIV_EFORMAT, "%s: the list holds no image pair", list);
     return st;
