@@ -7,6 +7,7 @@
 #include "rpiv/image.h"
 #include "rpiv/mpi.h"
 #include "rpiv/piv.h"
+#include "rpiv/series.h"
 #include "rpiv/synth.h"
 
 #include <stddef.h>
@@ -155,41 +156,51 @@ out:
     return st;
 }
 
-/* Generate and write this rank's pairs (pair i is rank i mod K's), reporting progress. */
+/* Pair i of the generator written as TIFF files into dir. */
+typedef struct pair_job {
+    const rpiv_synth *s;
+    const char *dir;
+    int dbl;
+    rpiv_image *a, *b;
+} pair_job;
+
+static rpiv_status write_pair(void *user, size_t i)
+{
+    pair_job *j = user;
+    char path[RPIV_PATH_MAX + 64];
+    rpiv_status st;
+    if (j->dbl) {
+        if ((st = rpiv_synth_pair_double(j->s, (unsigned long)i, j->a)))
+            return st;
+        snprintf(path, sizeof path, "%s/pair_%05zu.tif", j->dir, i + 1);
+        return rpiv_image_save_tiff16(j->a, path);
+    }
+    if ((st = rpiv_synth_pair(j->s, (unsigned long)i, j->a, j->b)))
+        return st;
+    snprintf(path, sizeof path, "%s/pair_%05zu_a.tif", j->dir, i + 1);
+    if ((st = rpiv_image_save_tiff16(j->a, path)))
+        return st;
+    snprintf(path, sizeof path, "%s/pair_%05zu_b.tif", j->dir, i + 1);
+    return rpiv_image_save_tiff16(j->b, path);
+}
+
+/* Generate and write this rank's pairs (the series' loop deals them out), reporting progress. */
 static rpiv_status write_pairs(const rpiv_synth *s, const rpiv_experiment *e, const char *dir,
                                int quiet, const rpiv_mpi *mpi)
 {
     rpiv_synth_info in;
     rpiv_synth_get_info(s, &in);
-    int dbl = e->synth.double_frame;
-    rpiv_image *a = NULL, *b = NULL;
-    rpiv_status st = rpiv_image_new(in.width_px, dbl ? 2 * in.height_px : in.height_px, &a);
-    if (!st && !dbl)
-        st = rpiv_image_new(in.width_px, in.height_px, &b);
+    pair_job j = {s, dir, e->synth.double_frame, NULL, NULL};
+    rpiv_status st = rpiv_image_new(in.width_px, j.dbl ? 2 * in.height_px : in.height_px, &j.a);
+    if (!st && !j.dbl)
+        st = rpiv_image_new(in.width_px, in.height_px, &j.b);
     cli_progress pr;
     cli_progress_init(&pr, "synth", quiet);
     rpiv_progress prog = cli_progress_of(&pr);
-    char path[RPIV_PATH_MAX + 64];
-    size_t n = (size_t)e->synth.pairs, K = (size_t)rpiv_mpi_size(mpi);
-    size_t first = (size_t)rpiv_mpi_rank(mpi), mine = n / K + (first < n % K), done = 0;
-    for (size_t i = first; i < n && !st; i += K) {
-        if (dbl) {
-            if (!(st = rpiv_synth_pair_double(s, (unsigned long)i, a))) {
-                snprintf(path, sizeof path, "%s/pair_%05zu.tif", dir, i + 1);
-                st = rpiv_image_save_tiff16(a, path);
-            }
-        } else if (!(st = rpiv_synth_pair(s, (unsigned long)i, a, b))) {
-            snprintf(path, sizeof path, "%s/pair_%05zu_a.tif", dir, i + 1);
-            if (!(st = rpiv_image_save_tiff16(a, path))) {
-                snprintf(path, sizeof path, "%s/pair_%05zu_b.tif", dir, i + 1);
-                st = rpiv_image_save_tiff16(b, path);
-            }
-        }
-        if (!st && rpiv_progress_report(&prog, ++done, mine))
-            st = rpiv_fail(RPIV_EINTR, "synth: interrupted after %zu of %zu pairs", done, mine);
-    }
-    rpiv_image_free(a);
-    rpiv_image_free(b);
+    if (!st)
+        st = rpiv_series_each((size_t)e->synth.pairs, mpi, write_pair, &j, &prog, "synth");
+    rpiv_image_free(j.a);
+    rpiv_image_free(j.b);
     return st;
 }
 

@@ -250,11 +250,56 @@ out:
     remove_series(&sd);
 }
 
+/* rpiv_series_each: every pair in order, a job's failure stops the loop as it is, a stop
+ * request gives RPIV_EINTR naming the count. */
+typedef struct visits {
+    size_t seen[16], n, fail_at;
+} visits;
+
+static rpiv_status visit(void *user, size_t i)
+{
+    visits *v = user;
+    if (i == v->fail_at)
+        return rpiv_fail(RPIV_EIO, "pair %zu: cannot write", i + 1);
+    v->seen[v->n++] = i;
+    return RPIV_OK;
+}
+
+static int stop_after_3(void *user, size_t done, size_t total)
+{
+    size_t *last_total = user;
+    *last_total = total;
+    return done >= 3;
+}
+
+static void each_visits_every_pair_in_order_and_stops(void)
+{
+    visits v = {.n = 0, .fail_at = 99};
+    CHECK_OK(rpiv_series_each(7, NULL, visit, &v, NULL, "test"));
+    CHECK(v.n == 7);
+    for (size_t i = 0; i < v.n; i++)
+        CHECK(v.seen[i] == i);
+    v = (visits){.n = 0, .fail_at = 4};
+    CHECK_FAILS(rpiv_series_each(7, NULL, visit, &v, NULL, "test"), RPIV_EIO);
+    CHECK(strstr(rpiv_errmsg(), "pair 5: cannot write") != NULL);
+    CHECK(v.n == 4);
+    size_t total = 0;
+    rpiv_progress stop = {stop_after_3, &total};
+    v = (visits){.n = 0, .fail_at = 99};
+    CHECK_FAILS(rpiv_series_each(7, NULL, visit, &v, &stop, "test"), RPIV_EINTR);
+    CHECK(strstr(rpiv_errmsg(), "test: interrupted after 3 of 7 pairs") != NULL);
+    CHECK(v.n == 3 && total == 7);
+    v = (visits){.n = 0, .fail_at = 99};
+    CHECK_OK(rpiv_series_each(0, NULL, visit, &v, &stop, "test"));
+    CHECK(v.n == 0);
+}
+
 int main(void)
 {
     rpiv_init();
     RUN_TEST(stats_of_known_fields);
     RUN_TEST(background_min_and_mean);
     RUN_TEST(series_driver_runs_every_pair);
+    RUN_TEST(each_visits_every_pair_in_order_and_stops);
     return check_summary();
 }

@@ -10,6 +10,7 @@
 #include "rpiv/error.h"
 #include "rpiv/field.h"
 #include "rpiv/image.h"
+#include "rpiv/mpi.h"
 #include "rpiv/pairs.h"
 #include "rpiv/piv.h"
 #include "rpiv/progress.h"
@@ -75,5 +76,19 @@ typedef struct rpiv_series_source {
 RPIV_NODISCARD rpiv_status rpiv_series_ensemble_source(rpiv_piv *pv, const rpiv_series_source *src,
                                                        const rpiv_progress *progress,
                                                        rpiv_field **out);
+
+/* ---- a job per pair, dealt out to a team ----------------------------------------------- */
+
+/* The job of pair i (0-based) of rpiv_series_each; a non-OK return stops the loop. */
+typedef rpiv_status (*rpiv_series_pair_fn)(void *user, size_t i);
+
+/* Run fn on this rank's share of the pairs 0..n-1 (pair i is rank i mod K's; mpi NULL or a
+ * team of one: every pair), in increasing order, with progress over this rank's count. Stops
+ * at the first failure (its status and message as fn left them) or at a stop request
+ * (RPIV_EINTR, "<what>: interrupted after D of N pairs"). Not collective: the caller agrees
+ * on the outcome (rpiv_mpi_agree). */
+RPIV_NODISCARD rpiv_status rpiv_series_each(size_t n, const rpiv_mpi *mpi, rpiv_series_pair_fn fn,
+                                            void *user, const rpiv_progress *progress,
+                                            const char *what);
 
 #endif /* RPIV_SERIES_H */

@@ -167,3 +167,19 @@ rpiv_status rpiv_series_ensemble_source(rpiv_piv *pv, const rpiv_series_source *
     rpiv_batch_free(b);
     return st;
 }
+
+/* ---- a job per pair ------------------------------------------------------------------------- */
+
+rpiv_status rpiv_series_each(size_t n, const rpiv_mpi *mpi, rpiv_series_pair_fn fn, void *user,
+                             const rpiv_progress *progress, const char *what)
+{
+    size_t K = (size_t)rpiv_mpi_size(mpi), first = (size_t)rpiv_mpi_rank(mpi);
+    size_t mine = first < n ? n / K + (first < n % K) : 0, done = 0;
+    rpiv_status st = RPIV_OK;
+    for (size_t i = first; i < n && !st; i += K) {
+        st = fn(user, i);
+        if (!st && rpiv_progress_report(progress, ++done, mine))
+            st = rpiv_fail(RPIV_EINTR, "%s: interrupted after %zu of %zu pairs", what, done, mine);
+    }
+    return st;
+}
