@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* tests/test_peak_ref.h - the reference for rpiv_peak_find: a frozen copy of src/peak.c as it
+/* tests/test_peak_ref.h - the reference for rpiv_peak_find: a frozen copy of src/piv/peak.c as it
  * was before the search was made faster (commit 4afb3d7), its helpers renamed ref_* and
  * rpiv_peak_find renamed peak_find_ref (rpiv_peak_fit3 copied too, as ref_fit3). The tests
  * (test_peak) and bench_peak require the library's rpiv_peak_find to give the same bits as

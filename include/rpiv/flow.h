@@ -28,7 +28,7 @@ double rpiv_channel_bulk_ms(const rpiv_channel *c);
 
 /* Most terms of the series summed by rpiv_duct_u. The summation stops when a bound on the
  * tail is below 1e-14; the cap matters only within about 1e-4 h of the four corners, where the
- * truncation error is below 1e-9 of the bulk velocity (src/flow.c derives the bound). */
+ * truncation error is below 1e-9 of the bulk velocity (src/model/flow.c derives the bound). */
 #define RPIV_DUCT_TERMS 20001
 
 /* Fully developed laminar flow in the square duct, U*(y*, z*) = U/U_b, for 0 <= y*, z* <= 1

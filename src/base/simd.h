@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/simd.h - clones of hot loops for wider vector units, picked at load time. */
+/* src/base/simd.h - clones of hot loops for wider vector units, picked at load time. */
 #ifndef RPIV_SRC_SIMD_H
 #define RPIV_SRC_SIMD_H
 

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/field_compare.c - E1 (Eq. "E1"), RMS and largest difference between two profiles or two
+/* src/field/field_compare.c - E1 (Eq. "E1"), RMS and largest difference between two profiles or two
  * vector fields. */
 #include "rpiv/field.h"
 

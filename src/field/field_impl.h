@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/field_impl.h - helpers shared by the field writers (field.c, field_nc.c, field_ascii.c):
+/* src/field/field_impl.h - helpers shared by the field writers (field.c, field_nc.c, field_ascii.c):
  * atomic file replacement and meta lookup. Not installed. */
 #ifndef RPIV_FIELD_IMPL_H
 #define RPIV_FIELD_IMPL_H

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/field_load.c - reading whitespace column files (rpiv's own, OpenPIV's) back into a field
+/* src/field/field_load.c - reading whitespace column files (rpiv's own, OpenPIV's) back into a field
  * on a regular grid. */
 #include "rpiv/field.h"
 

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/field_nc.c - NetCDF-4 vector fields: one field, or a series along an unlimited t.
+/* src/field/field_nc.c - NetCDF-4 vector fields: one field, or a series along an unlimited t.
  * Layout (docs/formats.md): dimensions (t, y, x); coordinates x(x), y(y), t(t); variables
  * u, v, peak_ratio, correlation (float) and flag (byte) over (t, y, x); units as attributes;
  * the meta entries as global attributes. xarray (pivpy) and h5py read it as is. */

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image_stb.c - BMP through stb_image (Debian libstb, which provides the implementation;
+/* src/image/image_bmp.c - BMP through stb_image (Debian libstb, which provides the implementation;
  * JPEG goes through libjpeg-turbo, image_jpeg.c). stb_image reads past the end of a short file
  * as zeros, so the file's completeness is checked here first: uncompressed BMP pixel data must
  * fit in the file. */

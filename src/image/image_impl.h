@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image_impl.h - helpers shared by the image module's source files (not installed). */
+/* src/image/image_impl.h - helpers shared by the image module's source files (not installed). */
 #ifndef RPIV_IMAGE_IMPL_H
 #define RPIV_IMAGE_IMPL_H
 

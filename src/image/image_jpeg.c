@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image_jpeg.c - JPEG through libjpeg(-turbo). stb_image, used for BMP, is built with its
+/* src/image/image_jpeg.c - JPEG through libjpeg(-turbo). stb_image, used for BMP, is built with its
  * assertions on in Debian and aborts on some corrupt JPEG streams (found by fuzz_bmp_jpeg):
  * libjpeg reports every error through its error manager, turned into an rpiv status here. */
 #include "image_impl.h"

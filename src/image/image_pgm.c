@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image_pgm.c - portable grey maps (Netpbm PGM): P5 binary and P2 ASCII, maxval up to
+/* src/image/image_pgm.c - portable grey maps (Netpbm PGM): P5 binary and P2 ASCII, maxval up to
  * 65535 (> 255: two bytes per sample, most significant first). Only the first image of a
  * file is read. Grey levels are kept as stored (not rescaled by maxval). */
 #include "image_impl.h"

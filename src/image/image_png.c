@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image_png.c - PNG through libpng: reading 1..16-bit grey, palette, grey+alpha and RGB(A)
+/* src/image/image_png.c - PNG through libpng: reading 1..16-bit grey, palette, grey+alpha and RGB(A)
  * (colour converted to luminance); writing 16-bit grey. libpng errors come back through
  * png_set_error_fn + setjmp; a bad CRC in any chunk is an error. */
 #include "image_impl.h"

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image_tiff.c - TIFF through libtiff: reading grey, palette and RGB pages stored in
+/* src/image/image_tiff.c - TIFF through libtiff: reading grey, palette and RGB pages stored in
  * strips or tiles; writing 16-bit and 32-bit float grey. libtiff's messages go to a per-open
  * handler (TIFFOpenOptions, libtiff >= 4.5) and end up in rpiv's message; nothing is printed. */
 #include "image_impl.h"

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/deform_block.h - the vector blocks of deform_row, included by src/deform.c once per
+/* src/piv/deform_block.h - the vector blocks of deform_row, included by src/deform.c once per
  * vector width with DB_VL (lanes), DB_VF / DB_VI (float / int32 vector types of DB_VL lanes),
  * DB_(name) (the suffixed name), DB_TARGET (the function's target attribute),
  * DB_ALLZERO(e) (1 if every lane of the DB_VI e is 0) and DB_GATHER(c, idx) (the DB_VF of

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/peak.c - correlation peak search, sub-pixel fits, second peak and peak ratio. */
+/* src/piv/peak.c - correlation peak search, sub-pixel fits, second peak and peak ratio. */
 #include "rpiv/peak.h"
 
 #include "base/simd.h"

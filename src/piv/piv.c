@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/piv.c - the PIV plan: grids, buffers, loading, deformation, one pass, a whole run. */
+/* src/piv/piv.c - the PIV plan: grids, buffers, loading, deformation, one pass, a whole run. */
 #include "piv_impl.h"
 
 #include "rpiv/validate.h"

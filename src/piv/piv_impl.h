@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/piv_impl.h - the PIV plan's insides, shared by piv.c (per pair) and ensemble.c. */
+/* src/piv/piv_impl.h - the PIV plan's insides, shared by piv.c (per pair) and ensemble.c. */
 #ifndef RPIV_SRC_PIV_IMPL_H
 #define RPIV_SRC_PIV_IMPL_H
 

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/validate.c - normalised median test and median replacement. */
+/* src/piv/validate.c - normalised median test and median replacement. */
 #include "rpiv/validate.h"
 
 #include "validate_impl.h"

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/validate_impl.h - the median test with a thread count, for the PIV engine. Not
+/* src/piv/validate_impl.h - the median test with a thread count, for the PIV engine. Not
  * installed. */
 #ifndef RPIV_VALIDATE_IMPL_H
 #define RPIV_VALIDATE_IMPL_H

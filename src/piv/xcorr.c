@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/xcorr.c - FFT cross-correlation of windows: two window pairs per complex transform,
+/* src/piv/xcorr.c - FFT cross-correlation of windows: two window pairs per complex transform,
  * plans once, new-array execute per thread. */
 #include "rpiv/xcorr.h"
 

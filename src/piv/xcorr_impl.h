@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/xcorr_impl.h - the correlation's insides, for the tests. */
+/* src/piv/xcorr_impl.h - the correlation's insides, for the tests. */
 #ifndef RPIV_SRC_XCORR_IMPL_H
 #define RPIV_SRC_XCORR_IMPL_H
 

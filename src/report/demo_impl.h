@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/demo_impl.h - the demo's state, shared by its steps (demo*.c). */
+/* src/report/demo_impl.h - the demo's state, shared by its steps (demo*.c). */
 #ifndef RPIV_SRC_DEMO_IMPL_H
 #define RPIV_SRC_DEMO_IMPL_H
 

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/plot.c - PNG figures through PLplot's pngcairo device. PLplot is global state: one
+/* src/report/plot.c - PNG figures through PLplot's pngcairo device. PLplot is global state: one
  * plot at a time (see plot.h). Its fatal errors (plexit) would call exit(); the exit hook
  * jumps back into the running rpiv_plot_* call instead, and its non-fatal errors (plabort)
  * go into a buffer (plsError) rather than to stderr. */

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/mpi.c - the team of processes (rpiv/mpi.h) and its collectives (mpi_impl.h). Built
+/* src/series/mpi.c - the team of processes (rpiv/mpi.h) and its collectives (mpi_impl.h). Built
  * without MPI (RPIV_HAVE_MPI undefined) every team is a team of one and the collectives do
  * nothing. */
 #include "mpi_impl.h"

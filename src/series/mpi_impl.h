@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/mpi_impl.h - the collectives rpiv's series runs need, over a team (rpiv/mpi.h).
+/* src/series/mpi_impl.h - the collectives rpiv's series runs need, over a team (rpiv/mpi.h).
  *
  * Every function here is collective: all ranks of the team call it at the same point, in the
  * same order, whatever happened locally (a rank that failed still takes part, and the

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image_pairs.c - image pairs from two files, double-frame files, list files and glob
+/* src/series/pairs.c - image pairs from two files, double-frame files, list files and glob
  * patterns with a pairing rule. Building the list only looks at names (and reads list files);
  * the images themselves are opened by rpiv_pairs_load, which names the pair and file at fault. */
 #include "rpiv/pairs.h"
