@@ -1,0 +1,228 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/image/prep_local.c - the local filters of preprocessing: the background (sliding
+ * minimum, or a Gaussian-like blur) removed by the high-pass, and the local min/max
+ * normalisation. Every 2-D window is separable: a 1-D pass along each row, then along each
+ * column, ends padded with the end value.
+ *
+ * Why not GSL's moving-window statistics (gsl_movstat) and Gaussian filter: measured on a
+ * 2560 x 2160 pair they cost 12 to 24 times a whole default PIV run of the pair (general
+ * accumulators behind function pointers, one double vector per line, columns gathered one
+ * by one), where the target is 15 %. The filters here are the classic O(1)-per-sample forms:
+ * van Herk / Gil-Werman for the sliding min and max (two running extrema per block of K),
+ * running sums in double for the box mean; the column passes work on strips of whole rows so
+ * that they run along memory. Each output sample is computed by one thread from the same
+ * inputs in the same order: the result does not depend on the thread count. */
+#include "prep_impl.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef enum { OP_MIN, OP_MAX, OP_MEAN } line_op;
+
+enum { STRIP = 256 }; /* columns per strip in the column passes */
+
+static inline float pick(line_op op, float a, float b)
+{
+    return op == OP_MIN ? (a < b ? a : b) : (a > b ? a : b);
+}
+
+static inline size_t clampi(long i, size_t n)
+{
+    return i < 0 ? 0 : ((size_t)i >= n ? n - 1 : (size_t)i);
+}
+
+/* One row: y[0..n-1] = op over the window of K (odd) samples centred on each sample of x,
+ * ends padded with the end values. scratch: 3 (n + K) floats. */
+static void row_pass(const float *x, float *y, size_t n, size_t K, line_op op, float *scratch)
+{
+    const size_t r = K / 2, N = n + 2 * r;
+    if (op == OP_MEAN) {
+        double s = 0;
+        for (size_t i = 0; i < K; i++)
+            s += (double)x[clampi((long)i - (long)r, n)];
+        y[0] = (float)(s / (double)K);
+        for (size_t j = 1; j < n; j++) {
+            s += (double)x[clampi((long)(j + r), n)] - (double)x[clampi((long)j - (long)r - 1, n)];
+            y[j] = (float)(s / (double)K);
+        }
+        return;
+    }
+    float *p = scratch, *g = scratch + N, *h = scratch + 2 * N;
+    for (size_t i = 0; i < N; i++)
+        p[i] = x[clampi((long)i - (long)r, n)];
+    for (size_t i = 0; i < N; i++)
+        g[i] = i % K == 0 ? p[i] : pick(op, g[i - 1], p[i]);
+    for (size_t i = N; i-- > 0;)
+        h[i] = (i % K == K - 1 || i == N - 1) ? p[i] : pick(op, h[i + 1], p[i]);
+    for (size_t j = 0; j < n; j++)
+        y[j] = pick(op, h[j], g[j + K - 1]);
+}
+
+/* The columns c0..c1-1 of the w x h array a, in place: op over K rows centred on each row.
+ * scratch: 3 (h + K) * STRIP floats (or doubles' worth for the mean). */
+static void col_pass(float *a, size_t w, size_t h, size_t c0, size_t c1, size_t K, line_op op,
+                     float *scratch)
+{
+    const size_t r = K / 2, N = h + 2 * r, m = c1 - c0;
+    if (op == OP_MEAN) {
+        double *s = (double *)scratch;
+        float *out = (float *)(s + STRIP); /* h x m results, written back at the end */
+        memset(s, 0, m * sizeof *s);
+        for (size_t i = 0; i < K; i++) {
+            const float *row = a + clampi((long)i - (long)r, h) * w + c0;
+            for (size_t c = 0; c < m; c++)
+                s[c] += (double)row[c];
+        }
+        for (size_t c = 0; c < m; c++)
+            out[c] = (float)(s[c] / (double)K);
+        for (size_t j = 1; j < h; j++) {
+            const float *in = a + clampi((long)(j + r), h) * w + c0;
+            const float *outr = a + clampi((long)j - (long)r - 1, h) * w + c0;
+            for (size_t c = 0; c < m; c++) {
+                s[c] += (double)in[c] - (double)outr[c];
+                out[j * m + c] = (float)(s[c] / (double)K);
+            }
+        }
+        for (size_t j = 0; j < h; j++)
+            memcpy(a + j * w + c0, out + j * m, m * sizeof *out);
+        return;
+    }
+    float *g = scratch, *hh = scratch + N * m;
+    for (size_t i = 0; i < N; i++) {
+        const float *p = a + clampi((long)i - (long)r, h) * w + c0;
+        float *gi = g + i * m;
+        if (i % K == 0)
+            memcpy(gi, p, m * sizeof *gi);
+        else
+            for (size_t c = 0; c < m; c++)
+                gi[c] = pick(op, gi[c - m], p[c]);
+    }
+    for (size_t i = N; i-- > 0;) {
+        const float *p = a + clampi((long)i - (long)r, h) * w + c0;
+        float *hi = hh + i * m;
+        if (i % K == K - 1 || i == N - 1)
+            memcpy(hi, p, m * sizeof *hi);
+        else
+            for (size_t c = 0; c < m; c++)
+                hi[c] = pick(op, hi[c + m], p[c]);
+    }
+    for (size_t j = 0; j < h; j++) {
+        const float *hj = hh + j * m, *gj = g + (j + K - 1) * m;
+        float *o = a + j * w + c0;
+        for (size_t c = 0; c < m; c++)
+            o[c] = pick(op, hj[c], gj[c]);
+    }
+}
+
+/* The odd window of about `size` samples, at most the largest odd number <= 2n - 1. */
+static size_t window(int size, size_t n)
+{
+    size_t K = (size_t)size | 1u, kmax = (2 * n - 1) | 1u;
+    return K < kmax ? K : kmax;
+}
+
+/* The separable 2-D operation on the w x h array a, in place: rows, then columns. */
+static rpiv_status separable(float *a, int w, int h, int size, line_op op, int nt)
+{
+    const size_t W = (size_t)w, H = (size_t)h;
+    const size_t Kx = window(size, W), Ky = window(size, H);
+    const size_t per_row = 3 * (W + Kx) + W, per_col = 3 * (H + Ky) * STRIP + 2 * STRIP;
+    const size_t per = per_row > per_col ? per_row : per_col;
+    float *scr = malloc((size_t)nt * per * sizeof *scr);
+    if (!scr)
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the %dx%d filter", size, size);
+    const size_t nstrips = (W + STRIP - 1) / STRIP;
+#pragma omp parallel num_threads(nt)
+    {
+        float *mine = scr + (size_t)omp_get_thread_num() * per;
+#pragma omp for schedule(static)
+        for (size_t j = 0; j < H; j++) {
+            float *row = a + j * W, *tmp = mine + 3 * (W + Kx);
+            row_pass(row, tmp, W, Kx, op, mine);
+            memcpy(row, tmp, W * sizeof *row);
+        }
+#pragma omp for schedule(static)
+        for (size_t s = 0; s < nstrips; s++) {
+            size_t c0 = s * STRIP, c1 = c0 + STRIP < W ? c0 + STRIP : W;
+            col_pass(a, W, H, c0, c1, Ky, op, mine);
+        }
+    }
+    free(scr);
+    return RPIV_OK;
+}
+
+static float *copy_of(const rpiv_image *im)
+{
+    size_t n = (size_t)im->w * (size_t)im->h;
+    float *c = malloc(n * sizeof *c);
+    if (c)
+        memcpy(c, im->px, n * sizeof *c);
+    return c;
+}
+
+rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_background how, int nt)
+{
+    size_t n = (size_t)im->w * (size_t)im->h;
+    float *bg = copy_of(im);
+    if (!bg)
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background");
+    rpiv_status st;
+    if (how == RPIV_PREP_BG_MIN) {
+        /* the sliding minimum is blocky: its moving mean over the same window is the background */
+        if (!(st = separable(bg, im->w, im->h, size, OP_MIN, nt)))
+            st = separable(bg, im->w, im->h, size, OP_MEAN, nt);
+    } else {
+        /* a Gaussian of standard deviation size / 4 as three box means of width b: each adds
+         * (b^2 - 1) / 12 to the variance, so b = sqrt(1 + 4 sigma^2), made odd */
+        double sigma = (double)size / 4.0;
+        int b = (int)lround(sqrt(1.0 + 4.0 * sigma * sigma));
+        b |= 1;
+        st = RPIV_OK;
+        for (int k = 0; k < 3 && !st; k++)
+            st = separable(bg, im->w, im->h, b, OP_MEAN, nt);
+    }
+    if (!st) {
+        float *px = im->px;
+#pragma omp parallel for schedule(static) num_threads(nt)
+        for (size_t i = 0; i < n; i++) {
+            float d = px[i] - bg[i];
+            px[i] = d > 0 ? d : 0;
+        }
+    }
+    free(bg);
+    return st;
+}
+
+rpiv_status prep_normalize(rpiv_image *im, int size, int nt)
+{
+    float lo, hi;
+    prep_range(im, &lo, &hi);
+    if (!(hi > lo))
+        return RPIV_OK; /* one grey level: nothing to normalise */
+    size_t n = (size_t)im->w * (size_t)im->h;
+    float *mn = copy_of(im), *mx = copy_of(im);
+    rpiv_status st = RPIV_OK;
+    if (!mn || !mx)
+        st = rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the normalisation");
+    if (!st && !(st = separable(mn, im->w, im->h, size, OP_MIN, nt)) &&
+        !(st = separable(mx, im->w, im->h, size, OP_MAX, nt)) &&
+        !(st = separable(mn, im->w, im->h, size, OP_MEAN, nt)))
+        st = separable(mx, im->w, im->h, size, OP_MEAN, nt);
+    if (!st) {
+        /* a floor on the local range: flat regions (no particle in the window) stay dark
+         * instead of amplifying their noise to full scale */
+        const float floor_range = 1e-2f * (hi - lo);
+        float *px = im->px;
+#pragma omp parallel for schedule(static) num_threads(nt)
+        for (size_t i = 0; i < n; i++) {
+            float r = mx[i] - mn[i];
+            float v = (px[i] - mn[i]) / (r > floor_range ? r : floor_range);
+            px[i] = v < 0 ? 0 : (v > 1 ? 1 : v);
+        }
+    }
+    free(mn);
+    free(mx);
+    return st;
+}

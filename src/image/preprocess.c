@@ -1,0 +1,215 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/image/preprocess.c - the preprocessing list: parameters, parsing, the run in order, and
+ * the two point operations (capping, inversion). The local filters are prep_local.c, CLAHE is
+ * prep_clahe.c. */
+#include "prep_impl.h"
+
+#include <errno.h>
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *const rpiv_prep_kind_names[] = {"clahe",     "highpass", "cap",
+                                            "normalize", "invert",   NULL};
+
+rpiv_preprocess_params rpiv_preprocess_params_default(void)
+{
+    rpiv_preprocess_params p;
+    memset(&p, 0, sizeof p);
+    p.clahe_tile_px = 64;
+    p.clahe_clip = 0.01;
+    p.clahe_bins = 256;
+    p.highpass_px = 15;
+    p.highpass_method = RPIV_PREP_BG_MIN;
+    p.cap_k = 2.0;
+    p.normalize_px = 15;
+    return p;
+}
+
+static int size_ok(int s)
+{
+    return s >= 3 && s <= 1024;
+}
+
+rpiv_status rpiv_preprocess_params_check(const rpiv_preprocess_params *p)
+{
+    if (p->nops < 0 || p->nops > RPIV_PREPROCESS_MAX_OPS)
+        return rpiv_fail(RPIV_EINVAL, "preprocess: %d operations, at most %d", p->nops,
+                         RPIV_PREPROCESS_MAX_OPS);
+    for (int k = 0; k < p->nops; k++) {
+        const rpiv_prep_op *o = &p->op[k];
+        if (o->kind < RPIV_PREP_CLAHE || o->kind > RPIV_PREP_INVERT)
+            return rpiv_fail(RPIV_EINVAL, "preprocess: operation %d of unknown kind %d", k + 1,
+                             (int)o->kind);
+        if (o->size_px != 0 && !size_ok(o->size_px))
+            return rpiv_fail(RPIV_EINVAL, "preprocess: %s:%d: the size must be 3..1024 px",
+                             rpiv_prep_kind_names[o->kind], o->size_px);
+    }
+    if (!size_ok(p->clahe_tile_px))
+        return rpiv_fail(RPIV_EINVAL, "preprocess.clahe_tile_px = %d outside 3..1024",
+                         p->clahe_tile_px);
+    if (!(p->clahe_clip >= 0 && p->clahe_clip <= 1))
+        return rpiv_fail(RPIV_EINVAL, "preprocess.clahe_clip = %g outside 0..1", p->clahe_clip);
+    if (p->clahe_bins < 16 || p->clahe_bins > 65536)
+        return rpiv_fail(RPIV_EINVAL, "preprocess.clahe_bins = %d outside 16..65536",
+                         p->clahe_bins);
+    if (!size_ok(p->highpass_px))
+        return rpiv_fail(RPIV_EINVAL, "preprocess.highpass_px = %d outside 3..1024",
+                         p->highpass_px);
+    if (p->highpass_method != RPIV_PREP_BG_MIN && p->highpass_method != RPIV_PREP_BG_BLUR)
+        return rpiv_fail(RPIV_EINVAL, "preprocess.highpass_method: unknown method %d",
+                         (int)p->highpass_method);
+    if (!(p->cap_k >= 0.1 && p->cap_k <= 100))
+        return rpiv_fail(RPIV_EINVAL, "preprocess.cap_k = %g outside 0.1..100", p->cap_k);
+    if (!size_ok(p->normalize_px))
+        return rpiv_fail(RPIV_EINVAL, "preprocess.normalize_px = %d outside 3..1024",
+                         p->normalize_px);
+    return RPIV_OK;
+}
+
+static const char accepted[] = "clahe[:TILE], highpass[:SIZE], cap, normalize[:SIZE], invert";
+
+rpiv_status rpiv_preprocess_parse(const char *list, rpiv_preprocess_params *p)
+{
+    int n = 0;
+    rpiv_prep_op ops[RPIV_PREPROCESS_MAX_OPS];
+    if (!strcmp(list, "none")) {
+        p->nops = 0;
+        return RPIV_OK;
+    }
+    for (const char *w = list; *w;) {
+        size_t len = strcspn(w, ",");
+        if (len == 0)
+            return rpiv_fail(RPIV_EINVAL, "preprocess '%s': an empty operation (expected %s)", list,
+                             accepted);
+        const char *colon = memchr(w, ':', len);
+        size_t nlen = colon ? (size_t)(colon - w) : len;
+        int k = 0;
+        while (rpiv_prep_kind_names[k] && !(strlen(rpiv_prep_kind_names[k]) == nlen &&
+                                            !strncmp(rpiv_prep_kind_names[k], w, nlen)))
+            k++;
+        if (!rpiv_prep_kind_names[k])
+            return rpiv_fail(RPIV_EINVAL, "preprocess '%.*s': unknown operation (expected %s)",
+                             (int)len, w, accepted);
+        long size = 0;
+        if (colon) {
+            char *end;
+            errno = 0;
+            size = strtol(colon + 1, &end, 10);
+            if (end == colon + 1 || end != w + len || errno ||
+                !size_ok((int)(size > 2000 ? 2000 : size)))
+                return rpiv_fail(RPIV_EINVAL,
+                                 "preprocess '%.*s': the size must be a whole number 3..1024 (px)",
+                                 (int)len, w);
+            if (k == RPIV_PREP_CAP || k == RPIV_PREP_INVERT)
+                return rpiv_fail(RPIV_EINVAL, "preprocess '%.*s': %s takes no size", (int)len, w,
+                                 rpiv_prep_kind_names[k]);
+        }
+        if (n == RPIV_PREPROCESS_MAX_OPS)
+            return rpiv_fail(RPIV_EINVAL, "preprocess '%s': more than %d operations", list,
+                             RPIV_PREPROCESS_MAX_OPS);
+        ops[n].kind = (rpiv_prep_kind)k;
+        ops[n].size_px = (int)size;
+        n++;
+        w += len;
+        if (*w == ',' && !*++w)
+            return rpiv_fail(RPIV_EINVAL, "preprocess '%s': an empty operation at the end", list);
+    }
+    memcpy(p->op, ops, (size_t)n * sizeof *ops);
+    p->nops = n;
+    return RPIV_OK;
+}
+
+void rpiv_preprocess_format(const rpiv_preprocess_params *p, char *buf, size_t size)
+{
+    size_t used = 0;
+    if (size)
+        buf[0] = '\0';
+    if (!p->nops) {
+        snprintf(buf, size, "none");
+        return;
+    }
+    for (int k = 0; k < p->nops && used < size; k++) {
+        const rpiv_prep_op *o = &p->op[k];
+        int w = o->size_px ? snprintf(buf + used, size - used, "%s%s:%d", k ? "," : "",
+                                      rpiv_prep_kind_names[o->kind], o->size_px)
+                           : snprintf(buf + used, size - used, "%s%s", k ? "," : "",
+                                      rpiv_prep_kind_names[o->kind]);
+        if (w < 0)
+            return;
+        used += (size_t)w;
+    }
+}
+
+void prep_range(const rpiv_image *im, float *lo, float *hi)
+{
+    size_t n = (size_t)im->w * (size_t)im->h;
+    float a = im->px[0], b = im->px[0];
+    for (size_t i = 1; i < n; i++) {
+        a = im->px[i] < a ? im->px[i] : a;
+        b = im->px[i] > b ? im->px[i] : b;
+    }
+    *lo = a;
+    *hi = b;
+}
+
+/* Values above mean + k std (over the whole image, in double, in pixel order) set to it. */
+static void cap(rpiv_image *im, double k, int nt)
+{
+    size_t n = (size_t)im->w * (size_t)im->h;
+    double s = 0, s2 = 0;
+    for (size_t i = 0; i < n; i++)
+        s += (double)im->px[i];
+    double mean = s / (double)n;
+    for (size_t i = 0; i < n; i++) {
+        double d = (double)im->px[i] - mean;
+        s2 += d * d;
+    }
+    float top = (float)(mean + k * sqrt(s2 / (double)n));
+    float *px = im->px;
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (size_t i = 0; i < n; i++)
+        px[i] = px[i] > top ? top : px[i];
+}
+
+static void invert(rpiv_image *im, int nt)
+{
+    float lo, hi;
+    prep_range(im, &lo, &hi);
+    size_t n = (size_t)im->w * (size_t)im->h;
+    float *px = im->px;
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (size_t i = 0; i < n; i++)
+        px[i] = (hi - px[i]) + lo;
+}
+
+rpiv_status rpiv_preprocess_run(const rpiv_preprocess_params *p, rpiv_image *im, int nthreads)
+{
+    rpiv_status st = rpiv_preprocess_params_check(p);
+    int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
+    for (int k = 0; !st && k < p->nops; k++) {
+        const rpiv_prep_op *o = &p->op[k];
+        switch (o->kind) {
+        case RPIV_PREP_CLAHE:
+            st = prep_clahe(im, o->size_px ? o->size_px : p->clahe_tile_px, p->clahe_clip,
+                            p->clahe_bins, nt);
+            break;
+        case RPIV_PREP_HIGHPASS:
+            st =
+                prep_highpass(im, o->size_px ? o->size_px : p->highpass_px, p->highpass_method, nt);
+            break;
+        case RPIV_PREP_CAP:
+            cap(im, p->cap_k, nt);
+            break;
+        case RPIV_PREP_NORMALIZE:
+            st = prep_normalize(im, o->size_px ? o->size_px : p->normalize_px, nt);
+            break;
+        case RPIV_PREP_INVERT:
+            invert(im, nt);
+            break;
+        }
+    }
+    return st;
+}

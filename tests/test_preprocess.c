@@ -1,0 +1,268 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* tests/test_preprocess.c - the preprocessing operations against what each must do: exact
+ * point operations, backgrounds removed, local contrast equalised, the same bits for any
+ * thread count, and the errors of the list's parser. */
+#include "check.h"
+#include "rpiv/preprocess.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static rpiv_image *image(int w, int h)
+{
+    rpiv_image *im = NULL;
+    CHECK_OK(rpiv_image_new(w, h, &im));
+    return im;
+}
+
+/* A particle image: Gaussian spots of diameter ~3 px at pseudo-random places (fixed seed) on
+ * background bg(x, y), spot peak `amp`. */
+static void particles(rpiv_image *im, double amp, double (*bg)(int, int), unsigned seed, int n)
+{
+    for (int y = 0; y < im->h; y++)
+        for (int x = 0; x < im->w; x++)
+            im->px[(size_t)y * (size_t)im->w + (size_t)x] = (float)bg(x, y);
+    unsigned s = seed;
+    for (int k = 0; k < n; k++) {
+        s = s * 1103515245u + 12345u;
+        double cx = (double)((s >> 8) % (unsigned)(im->w * 16)) / 16.0;
+        s = s * 1103515245u + 12345u;
+        double cy = (double)((s >> 8) % (unsigned)(im->h * 16)) / 16.0;
+        for (int y = (int)cy - 4; y <= (int)cy + 4; y++)
+            for (int x = (int)cx - 4; x <= (int)cx + 4; x++)
+                if (x >= 0 && y >= 0 && x < im->w && y < im->h) {
+                    double r2 = (x - cx) * (x - cx) + (y - cy) * (y - cy);
+                    im->px[(size_t)y * (size_t)im->w + (size_t)x] += (float)(amp * exp(-r2 / 2.25));
+                }
+    }
+}
+
+static double ramp(int x, int y)
+{
+    return 200.0 + 3.1873 * x + 1.25 * y; /* a strong, smooth background */
+}
+
+static double dark(int x, int y)
+{
+    (void)x;
+    (void)y;
+    return 3.0;
+}
+
+static void parse_and_format_round_trip(void)
+{
+    rpiv_preprocess_params p = rpiv_preprocess_params_default();
+    CHECK(p.nops == 0);
+    CHECK_OK(rpiv_preprocess_parse("clahe:48,highpass,cap,normalize:21,invert", &p));
+    CHECK(p.nops == 5);
+    CHECK(p.op[0].kind == RPIV_PREP_CLAHE && p.op[0].size_px == 48);
+    CHECK(p.op[1].kind == RPIV_PREP_HIGHPASS && p.op[1].size_px == 0);
+    CHECK(p.op[3].kind == RPIV_PREP_NORMALIZE && p.op[3].size_px == 21);
+    char buf[128];
+    rpiv_preprocess_format(&p, buf, sizeof buf);
+    CHECK(!strcmp(buf, "clahe:48,highpass,cap,normalize:21,invert"));
+    CHECK_OK(rpiv_preprocess_parse("none", &p));
+    CHECK(p.nops == 0);
+    rpiv_preprocess_format(&p, buf, sizeof buf);
+    CHECK(!strcmp(buf, "none"));
+}
+
+static void parse_errors_name_the_word(void)
+{
+    rpiv_preprocess_params p = rpiv_preprocess_params_default();
+    CHECK_FAILS(rpiv_preprocess_parse("clahe,sharpen", &p), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "'sharpen'") != NULL);
+    CHECK_FAILS(rpiv_preprocess_parse("highpass:2", &p), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "3..1024") != NULL);
+    CHECK_FAILS(rpiv_preprocess_parse("highpass:4294967311", &p), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("highpass:15x", &p), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("cap:3", &p), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "no size") != NULL);
+    CHECK_FAILS(rpiv_preprocess_parse("clahe,,cap", &p), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("clahe,", &p), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("cap,cap,cap,cap,cap,cap,cap,cap,cap", &p), RPIV_EINVAL);
+    CHECK(p.nops == 0); /* unchanged by the failures */
+    p.clahe_clip = 1.5;
+    rpiv_image *im = image(8, 8);
+    CHECK_FAILS(rpiv_preprocess_run(&p, im, 1), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "clahe_clip") != NULL);
+    rpiv_image_free(im);
+}
+
+static void invert_and_cap_are_exact(void)
+{
+    rpiv_image *im = image(5, 4);
+    for (int i = 0; i < 20; i++)
+        im->px[i] = (float)(i * i % 7) + 0.25f;
+    im->px[13] = 100.0f; /* an outlier */
+    rpiv_preprocess_params p = rpiv_preprocess_params_default();
+    CHECK_OK(rpiv_preprocess_parse("invert", &p));
+    float before[20];
+    memcpy(before, im->px, sizeof before);
+    CHECK_OK(rpiv_preprocess_run(&p, im, 2));
+    for (int i = 0; i < 20; i++)
+        CHECK(im->px[i] == (100.0f - before[i]) + 0.25f);
+    memcpy(im->px, before, sizeof before);
+    /* cap: mean + 2 std over the 20 values, in double */
+    double s = 0, s2 = 0;
+    for (int i = 0; i < 20; i++)
+        s += (double)before[i];
+    for (int i = 0; i < 20; i++)
+        s2 += ((double)before[i] - s / 20) * ((double)before[i] - s / 20);
+    float top = (float)(s / 20 + 2 * sqrt(s2 / 20));
+    CHECK_OK(rpiv_preprocess_parse("cap", &p));
+    CHECK_OK(rpiv_preprocess_run(&p, im, 1));
+    CHECK(im->px[13] == top);
+    for (int i = 0; i < 20; i++)
+        if (i != 13)
+            CHECK(im->px[i] == before[i]);
+    rpiv_image_free(im);
+}
+
+/* The high-pass removes a smooth background: far from particles the result is ~0, particles
+ * keep most of their height. */
+static void highpass_removes_the_background(void)
+{
+    for (int how = 0; how < 2; how++) {
+        rpiv_image *im = image(96, 80), *bare = image(96, 80);
+        particles(im, 500, ramp, 11, 40);
+        for (int y = 0; y < 80; y++)
+            for (int x = 0; x < 96; x++)
+                bare->px[y * 96 + x] = (float)ramp(x, y);
+        rpiv_preprocess_params p = rpiv_preprocess_params_default();
+        p.highpass_method = how ? RPIV_PREP_BG_BLUR : RPIV_PREP_BG_MIN;
+        CHECK_OK(rpiv_preprocess_parse("highpass:15", &p));
+        rpiv_image *ref = NULL;
+        CHECK_OK(rpiv_image_copy(im, &ref));
+        CHECK_OK(rpiv_preprocess_run(&p, im, 2));
+        /* the pure ramp: its background is itself, up to the windows' end effects */
+        CHECK_OK(rpiv_preprocess_run(&p, bare, 2));
+        /* the pure ramp: the blur's background is the ramp itself; the sliding minimum lags
+         * it by the slopes times the half window (3.1873 * 7 + 1.25 * 7 = 31.06), a constant
+         * that the correlation's mean removal ignores: what matters is that it is flat */
+        double rlo = 1e30, rhi = -1e30;
+        for (int y = 16; y < 64; y++) /* two half windows from the edges: no end effect */
+            for (int x = 16; x < 80; x++) {
+                double v = (double)bare->px[y * 96 + x];
+                rlo = fmin(rlo, v);
+                rhi = fmax(rhi, v);
+            }
+        printf("    %s: ramp 200..600 leaves %.4g .. %.4g above the background inside\n", how ? "blur" : "min",
+               rlo, rhi);
+        CHECK(rhi - rlo < 0.5);
+        CHECK(how ? fabs(rhi) < 0.5 : fabs(rlo - 31.06) < 0.1);
+        /* particles stand out: the brightest pixel keeps > 60 % of the spot amplitude */
+        float mx = 0;
+        for (int i = 0; i < 96 * 80; i++)
+            mx = im->px[i] > mx ? im->px[i] : mx;
+        CHECK(mx > 300.0f);
+        for (int i = 0; i < 96 * 80; i++)
+            CHECK(im->px[i] >= 0.0f);
+        rpiv_image_free(ref);
+        rpiv_image_free(im);
+        rpiv_image_free(bare);
+    }
+}
+
+/* Normalisation brings a dim half and a bright half of the same particle pattern to the same
+ * local contrast. */
+static void normalize_equalises_local_contrast(void)
+{
+    rpiv_image *im = image(128, 64);
+    particles(im, 50, dark, 7, 120);
+    for (int y = 0; y < 64; y++)
+        for (int x = 64; x < 128; x++)
+            im->px[y * 128 + x] *= 20.0f; /* the right half 20 times brighter */
+    rpiv_preprocess_params p = rpiv_preprocess_params_default();
+    CHECK_OK(rpiv_preprocess_parse("normalize", &p));
+    CHECK_OK(rpiv_preprocess_run(&p, im, 2));
+    double sl = 0, sr = 0;
+    for (int y = 0; y < 64; y++)
+        for (int x = 8; x < 56; x++) {
+            sl += (double)im->px[y * 128 + x];
+            sr += (double)im->px[y * 128 + x + 64];
+        }
+    printf("    mean after normalisation: left %.4f, right %.4f\n", sl / 3072, sr / 3072);
+    for (int i = 0; i < 128 * 64; i++)
+        CHECK(im->px[i] >= 0 && im->px[i] <= 1);
+    CHECK(sl > 0.02 && fabs(sl - sr) / sr < 0.35);
+    rpiv_image_free(im);
+}
+
+/* CLAHE spreads a dark, low-contrast image over the grey range: the darkest quarter of the
+ * pixels no longer holds 90 % of the range's bottom, and the result is within the input's
+ * range. */
+static void clahe_spreads_a_dark_image(void)
+{
+    rpiv_image *im = image(160, 128);
+    particles(im, 40, dark, 5, 200);
+    float lo = im->px[0], hi = im->px[0];
+    for (int i = 0; i < 160 * 128; i++) {
+        lo = fminf(lo, im->px[i]);
+        hi = fmaxf(hi, im->px[i]);
+    }
+    double mean0 = 0, mean1 = 0;
+    for (int i = 0; i < 160 * 128; i++)
+        mean0 += (double)((im->px[i] - lo) / (hi - lo));
+    rpiv_preprocess_params p = rpiv_preprocess_params_default();
+    CHECK_OK(rpiv_preprocess_parse("clahe:32", &p));
+    CHECK_OK(rpiv_preprocess_run(&p, im, 2));
+    for (int i = 0; i < 160 * 128; i++) {
+        CHECK(im->px[i] >= lo - 1e-3f && im->px[i] <= hi + 1e-3f);
+        mean1 += (double)((im->px[i] - lo) / (hi - lo));
+    }
+    mean0 /= 160 * 128;
+    mean1 /= 160 * 128;
+    printf("    mean grey (0..1 of the range): %.4f before, %.4f after\n", mean0, mean1);
+    CHECK(mean0 < 0.1 && mean1 > 2 * mean0);
+    /* a constant image is left as it is */
+    rpiv_image *flat = image(40, 40);
+    for (int i = 0; i < 1600; i++)
+        flat->px[i] = 7.5f;
+    CHECK_OK(rpiv_preprocess_parse("clahe,normalize", &p));
+    CHECK_OK(rpiv_preprocess_run(&p, flat, 1));
+    for (int i = 0; i < 1600; i++)
+        CHECK(flat->px[i] == 7.5f);
+    rpiv_image_free(flat);
+    rpiv_image_free(im);
+}
+
+/* The same bits for 1 and 2 threads, every operation in one list; images smaller than the
+ * windows too. */
+static void any_thread_count_gives_the_same_bits(void)
+{
+    const int sizes[3][2] = {{200, 150}, {17, 9}, {3, 64}};
+    for (int s = 0; s < 3; s++) {
+        int w = sizes[s][0], h = sizes[s][1];
+        rpiv_image *a = image(w, h), *b = NULL;
+        particles(a, 300, ramp, 3, w * h / 60 + 1);
+        CHECK_OK(rpiv_image_copy(a, &b));
+        rpiv_preprocess_params p = rpiv_preprocess_params_default();
+        CHECK_OK(rpiv_preprocess_parse("clahe,highpass,cap,normalize,invert", &p));
+        CHECK_OK(rpiv_preprocess_run(&p, a, 1));
+        CHECK_OK(rpiv_preprocess_run(&p, b, 2));
+        CHECK(!memcmp(a->px, b->px, (size_t)w * (size_t)h * sizeof *a->px));
+        p.highpass_method = RPIV_PREP_BG_BLUR;
+        CHECK_OK(rpiv_preprocess_run(&p, a, 1));
+        CHECK_OK(rpiv_preprocess_run(&p, b, 2));
+        CHECK(!memcmp(a->px, b->px, (size_t)w * (size_t)h * sizeof *a->px));
+        for (size_t i = 0; i < (size_t)w * (size_t)h; i++)
+            CHECK(isfinite(a->px[i]));
+        rpiv_image_free(a);
+        rpiv_image_free(b);
+    }
+}
+
+int main(void)
+{
+    rpiv_init();
+    RUN_TEST(parse_and_format_round_trip);
+    RUN_TEST(parse_errors_name_the_word);
+    RUN_TEST(invert_and_cap_are_exact);
+    RUN_TEST(highpass_removes_the_background);
+    RUN_TEST(normalize_equalises_local_contrast);
+    RUN_TEST(clahe_spreads_a_dark_image);
+    RUN_TEST(any_thread_count_gives_the_same_bits);
+    return check_summary();
+}
