@@ -205,6 +205,62 @@ static void piv_sinusoidal_shear_amplitude(void)
     pair_free(&p);
 }
 
+/* Iterative refinement at the final size (opt-in: refine_max, refine_filter, median_lines) on
+ * the shear of issue 15: u = 3 sin(2 pi y / 64), 512 x 512, 8 bit, 1 % noise, validation on.
+ * Measured when written: defaults amplitude 0.377, 23.3 % replaced; refined 0.817, 6.8 %
+ * (targets of the issue, 0.85 and 2 %, not reached yet). */
+static void piv_refinement_recovers_a_shear(void)
+{
+    ti_params tp = {512, 512, 0.05, 2.5, 200, 0.01, 20, 4242};
+    pair p;
+    pair_make(&p, &tp, sine, NULL);
+    for (size_t k = 0; k < (size_t)512 * 512; k++) {
+        p.a[k] = floorf(fminf(p.a[k], 255) + 0.5f);
+        p.b[k] = floorf(fminf(p.b[k], 255) + 0.5f);
+    }
+    rpiv_piv_params d = rpiv_piv_params_default(), r = d;
+    r.refine_max = 6;
+    r.refine_filter = 0.2;
+    r.median_lines = 1;
+    rpiv_field *fd = run(&d, &p), *fr = run(&r, &p);
+    if (fd && fr) {
+        double ad = sine_amplitude(fd) / 3, ar = sine_amplitude(fr) / 3;
+        int nd = 0, nr = 0, n = fd->nx * fd->ny;
+        for (int k = 0; k < n; k++) {
+            nd += fd->flag[k] == RPIV_FLAG_REPLACED;
+            nr += fr->flag[k] == RPIV_FLAG_REPLACED;
+        }
+        printf("    shear 3 px / 64 px, noisy 8 bit: amplitude %.3f, %.1f %% replaced (defaults); "
+               "%.3f, %.1f %% (refinement)\n",
+               ad, 100.0 * nd / n, ar, 100.0 * nr / n);
+        CHECK(ar >= 0.78 && ar <= 1.02);
+        CHECK(ar > ad + 0.2);
+        CHECK(nr <= 0.08 * n && nr < nd / 2);
+    }
+    rpiv_field_free(fd);
+    rpiv_field_free(fr);
+    /* a smooth flow is not changed by more than noise, and converges at once */
+    double u[2] = {3.3, -1.7};
+    pair q;
+    tp.w = tp.h = 256;
+    pair_make(&q, &tp, ti_uniform, u);
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    int nref = -1;
+    CHECK_OK(rpiv_piv_new(&r, 256, 256, NULL, &pv));
+    if (pv && !rpiv_piv_load(pv, &q.ia, &q.ib) && !rpiv_piv_passes(pv, &f, &nref) && f) {
+        errs e = field_errors(f, ti_uniform, u);
+        printf("    uniform (3.3, -1.7), refinement on: %d repeats, RMS %.4f %.4f px\n", nref,
+               e.rms_u, e.rms_v);
+        CHECK(nref == 0);
+        CHECK(fmax(e.rms_u, e.rms_v) < 0.03);
+    }
+    rpiv_field_free(f);
+    rpiv_piv_free(pv);
+    pair_free(&q);
+    pair_free(&p);
+}
+
 /* ---- Lamb-Oseen vortex -------------------------------------------------------------------- */
 
 /* Swirl u_theta(r) = a * g(r / rc) / g_max, g(s) = (1 - exp(-s^2)) / s; the peak a = 6 px is
@@ -495,6 +551,7 @@ int main(void)
     RUN_TEST(piv_uniform_shifts_have_no_peak_locking);
     RUN_TEST(piv_uniform_with_noise);
     RUN_TEST(piv_sinusoidal_shear_amplitude);
+    RUN_TEST(piv_refinement_recovers_a_shear);
     RUN_TEST(piv_lamb_oseen_vortex_has_few_outliers);
     RUN_TEST(piv_results_identical_for_1_and_2_threads);
     RUN_TEST(piv_grid_and_peak_values);

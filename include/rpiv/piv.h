@@ -34,6 +34,8 @@ typedef struct rpiv_piv_params {
     rpiv_subpixel subpixel;         /* (gauss)                                     */
     double median_thr;              /* normalised median threshold; 0 = off (2)    */
     double median_eps;              /* median test epsilon, px (0.1)               */
+    int median_lines;               /* 1: keep a vector failing the 3x3 test that
+                                       agrees with a row, column or diagonal (0)   */
     rpiv_background background;     /* (none)                                      */
     int roi[4];                     /* x0, y0, x1, y1 px; all 0 = whole image      */
     char mask[512];                 /* mask image, 0 = masked ("" = none)          */
@@ -42,6 +44,12 @@ typedef struct rpiv_piv_params {
     double dt_s;                    /* pulse separation, s; 0 = unset (0)          */
     int deform;                     /* 1: deform images between passes (1)         */
     double max_mem_mb;              /* refuse runs needing more memory, MB (4096)  */
+    /* Iterative refinement at the final window size (rpiv_piv_passes): the last pass is
+     * repeated, each time deformed by the low-pass filtered result of the one before, until
+     * the RMS change of the field falls below refine_tol_px or refine_max repeats are done. */
+    int refine_max;       /* repeats of the last pass, 0..20 (0; 6 suggested) */
+    double refine_tol_px; /* convergence: RMS change between iterations, px (0.02) */
+    double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.2 suggested) */
 } rpiv_piv_params;
 
 rpiv_piv_params rpiv_piv_params_default(void);
@@ -117,8 +125,14 @@ RPIV_NODISCARD rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a, cons
 RPIV_NODISCARD rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor,
                                          rpiv_field **out);
 
-/* The whole multi-pass run on one pair: load, then every pass, each pass's field being the
- * next one's predictor. *out is the last pass's field. */
+/* Every pass on the loaded pair, each pass's field being the next one's predictor, then the
+ * refinement at the final window size: the last pass repeated (deformed by the low-pass
+ * filtered field before it, params refine_filter) until the RMS change of the field between
+ * two passes of the final size is below refine_tol_px, at most refine_max times (none with
+ * deformation off). *out is the last field; *nrefine (may be NULL) the repeats done. */
+RPIV_NODISCARD rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine);
+
+/* The whole run on one pair: rpiv_piv_load, then rpiv_piv_passes. */
 RPIV_NODISCARD rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b,
                                         rpiv_field **out);
 

@@ -354,14 +354,47 @@ double piv_shift(const rpiv_piv *pv, int k)
     return k > 0 && pv->deforms ? RPIV_DEFORM_SHIFT : 0.0;
 }
 
+/* The predictor's low-pass filter: [a/2, 1 - a, a/2] along x, then along y. At the edge of
+ * the grid the missing neighbour is the point-symmetric extension 2 U(0) - U(1), with which
+ * the filter leaves the edge value as it is (and a linear field linear anywhere). Its response
+ * to a wave of k grid steps per wavelength is 1 - a (1 - cos(2 pi / k)): 1 - 2a at the grid's
+ * Nyquist limit, where the window's own response is nil and the iteration would otherwise
+ * keep every error it once made (docs/piv.md, "Refinement"). */
+static rpiv_status pred_filter(rpiv_field *f, double a)
+{
+    const int nx = f->nx, ny = f->ny, n = nx > ny ? nx : ny;
+    float *line = malloc((size_t)n * sizeof *line);
+    if (!line)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor filter");
+    const float c0 = (float)(1 - a), c1 = (float)(0.5 * a);
+    for (int comp = 0; comp < 2; comp++) {
+        float *g = comp ? f->v : f->u;
+        for (int j = 0; nx > 2 && j < ny; j++) {
+            float *r = g + (size_t)j * (size_t)nx;
+            memcpy(line, r, (size_t)nx * sizeof *line);
+            for (int i = 1; i < nx - 1; i++)
+                r[i] = c0 * line[i] + c1 * (line[i - 1] + line[i + 1]);
+        }
+        for (int i = 0; ny > 2 && i < nx; i++) {
+            for (int j = 0; j < ny; j++)
+                line[j] = g[(size_t)j * (size_t)nx + (size_t)i];
+            for (int j = 1; j < ny - 1; j++)
+                g[(size_t)j * (size_t)nx + (size_t)i] =
+                    c0 * line[j] + c1 * (line[j - 1] + line[j + 1]);
+        }
+    }
+    free(line);
+    return RPIV_OK;
+}
+
 rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double shift,
-                         rpiv_deform_pred **out)
+                         double filter, rpiv_deform_pred **out)
 {
     rpiv_field *f = NULL;
     rpiv_status st = rpiv_field_copy(predictor, &f);
     if (st)
         return st;
-    if (!(st = rpiv_validate_replace(f, 1, NULL)))
+    if (!(st = rpiv_validate_replace(f, 1, NULL)) && !(filter > 0 && (st = pred_filter(f, filter))))
         st = rpiv_deform_pred_new(f, pv->w, pv->h, shift, out);
     rpiv_field_free(f);
     return st;
@@ -599,10 +632,10 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, cons
 rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f)
 {
     rpiv_status st;
-    if (pv->p.median_thr > 0 &&
-        (st = validate_median_nt(f, pv->p.median_thr, pv->p.median_eps, NULL, pv->nthreads)))
+    if (pv->p.median_thr > 0 && (st = validate_median_nt(f, pv->p.median_thr, pv->p.median_eps,
+                                                         pv->p.median_lines, NULL, pv->nthreads)))
         return st;
-    return rpiv_validate_replace(f, 0, NULL);
+    return validate_replace_lines(f, 0, pv->p.median_lines, NULL);
 }
 
 typedef struct step_ctx {
@@ -629,7 +662,11 @@ rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, r
     rpiv_deform_pred *pred = NULL;
     rpiv_field *f = NULL;
     rpiv_status st;
-    if (predictor && (st = piv_pred_new(pv, predictor, piv_shift(pv, pass), &pred)))
+    /* a repeat of the window size before it (a refinement): its predictor low-passed */
+    const int refines = pass > 0 && pv->deforms && ps->ww == pv->pass[pass - 1].ww &&
+                        ps->wh == pv->pass[pass - 1].wh;
+    if (predictor && (st = piv_pred_new(pv, predictor, piv_shift(pv, pass),
+                                        refines ? pv->p.refine_filter : 0, &pred)))
         return st;
     if ((st = rpiv_piv_grid(pv, pass, &f)))
         goto out_free;
@@ -637,7 +674,9 @@ rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, r
         if (ps->masked[win])
             f->flag[win] = RPIV_FLAG_MASKED;
     step_ctx c = {pv, ps, f};
-    if ((st = piv_pass_run(pv, pass, pred, step_vector, &c)) || (st = piv_validate(pv, f)))
+    if ((st = piv_pass_run(pv, pass, pred, step_vector, &c)))
+        goto out_free;
+    if ((st = piv_validate(pv, f)))
         goto out_free;
     *out = f;
     f = NULL;
@@ -647,20 +686,66 @@ out_free:
     return st;
 }
 
-rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b, rpiv_field **out)
+/* RMS difference of the vectors of two fields on the same grid (masked ones left out). */
+static double field_change(const rpiv_field *a, const rpiv_field *b)
+{
+    size_t n = (size_t)a->nx * (size_t)a->ny, m = 0;
+    double s = 0;
+    for (size_t k = 0; k < n; k++) {
+        if (a->flag[k] == RPIV_FLAG_MASKED)
+            continue;
+        double du = (double)a->u[k] - (double)b->u[k], dv = (double)a->v[k] - (double)b->v[k];
+        s += du * du + dv * dv;
+        m++;
+    }
+    return m ? sqrt(s / (double)m) : 0;
+}
+
+rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
 {
     rpiv_field *prev = NULL, *f = NULL;
+    rpiv_status st = RPIV_OK;
+    const int last = pv->npass - 1;
+    double change = INFINITY;
+    int it = 0;
+    *out = NULL;
+    if (nrefine)
+        *nrefine = 0;
+    for (int k = 0; k < pv->npass; k++) {
+        if ((st = rpiv_piv_step(pv, k, prev, &f)))
+            goto out_free;
+        /* the listed passes may already end with a repeat of the final size */
+        if (k == last && k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
+            pv->pass[k].wh == pv->pass[k - 1].wh)
+            change = field_change(f, prev);
+        rpiv_field_free(prev);
+        prev = f;
+        f = NULL;
+    }
+    if (!pv->deforms)
+        it = pv->p.refine_max; /* window offsets do not iterate */
+    for (; it < pv->p.refine_max && !(change < pv->p.refine_tol_px); it++) {
+        if ((st = rpiv_piv_step(pv, last, prev, &f)))
+            goto out_free;
+        change = field_change(f, prev);
+        rpiv_field_free(prev);
+        prev = f;
+        f = NULL;
+        if (nrefine)
+            *nrefine = it + 1;
+    }
+    *out = prev;
+    prev = NULL;
+out_free:
+    rpiv_field_free(prev);
+    return st;
+}
+
+rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b, rpiv_field **out)
+{
     rpiv_status st;
     *out = NULL;
     if ((st = rpiv_piv_load(pv, a, b)))
         return st;
-    for (int k = 0; k < pv->npass; k++) {
-        st = rpiv_piv_step(pv, k, prev, &f);
-        rpiv_field_free(prev);
-        prev = f;
-        if (st)
-            return st;
-    }
-    *out = prev;
-    return RPIV_OK;
+    return rpiv_piv_passes(pv, out, NULL);
 }

@@ -68,9 +68,10 @@ RPIV_NODISCARD rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_p
 double piv_shift(const rpiv_piv *pv, int k);
 
 /* Build the interpolant of a predictor field (copied; rejected and masked vectors filled
- * with neighbour medians first), rows evaluated at pixel + shift. */
+ * with neighbour medians first, then low-pass filtered with weight `filter`, 0 = none), rows
+ * evaluated at pixel + shift. */
 RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
-                                        double shift, rpiv_deform_pred **out);
+                                        double shift, double filter, rpiv_deform_pred **out);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

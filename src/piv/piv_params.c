@@ -17,6 +17,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .subpixel = RPIV_SUBPIXEL_GAUSS,
                              .median_thr = 2.0,
                              .median_eps = 0.1,
+                             .median_lines = 0,
                              .background = RPIV_BACKGROUND_NONE,
                              .roi = {0, 0, 0, 0},
                              .mask = "",
@@ -24,7 +25,10 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .scale_mm_per_px = 0,
                              .dt_s = 0,
                              .deform = 1,
-                             .max_mem_mb = 4096};
+                             .max_mem_mb = 4096,
+                             .refine_max = 0,
+                             .refine_tol_px = 0.02,
+                             .refine_filter = 0};
 }
 
 rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
@@ -47,8 +51,16 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
     if (!(p->scale_mm_per_px >= 0 && isfinite(p->scale_mm_per_px)) ||
         !(p->dt_s >= 0 && isfinite(p->dt_s)))
         return rpiv_fail(RPIV_EINVAL, "piv: scale and dt must be >= 0");
+    if (p->median_lines != 0 && p->median_lines != 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.median_lines: %d is not 0 or 1", p->median_lines);
     if (p->threads < 0)
         return rpiv_fail(RPIV_EINVAL, "piv.threads: %d < 0", p->threads);
+    if (p->refine_max < 0 || p->refine_max > 20)
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_max: %d outside 0..20", p->refine_max);
+    if (!(p->refine_tol_px >= 0 && p->refine_tol_px <= 10))
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_tol_px: %g outside 0..10", p->refine_tol_px);
+    if (!(p->refine_filter >= 0 && p->refine_filter <= 0.5))
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_filter: %g outside 0..0.5", p->refine_filter);
     if (!(p->max_mem_mb > 0))
         return rpiv_fail(RPIV_EINVAL, "piv.max_mem_mb: %g must be > 0", p->max_mem_mb);
     return RPIV_OK;

@@ -141,8 +141,8 @@ static int gather(const rpiv_field *f, const unsigned char *ok, int i, int j, fl
     return m;
 }
 
-/* Normalised residual of component c[k] against neighbours nb[0..n-1]. */
-static double residual(double c0, const float *nb, int n, double eps)
+/* Normalised residual of component c0 against neighbours nb[0..n-1]; *rm_out gets rm. */
+static double residual_rm(double c0, const float *nb, int n, double eps, double *rm_out)
 {
     float tmp[8], r[8];
     memcpy(tmp, nb, (size_t)n * sizeof *tmp);
@@ -150,16 +150,77 @@ static double residual(double c0, const float *nb, int n, double eps)
     for (int i = 0; i < n; i++)
         r[i] = (float)fabs((double)nb[i] - um);
     double rm = median(r, n);
+    *rm_out = rm;
     return fabs(c0 - um) / (rm + eps);
+}
+
+static double residual(double c0, const float *nb, int n, double eps)
+{
+    double rm;
+    return residual_rm(c0, nb, n, eps, &rm);
+}
+
+/* Does the vector (i, j) agree with its neighbours along the grid line (a row, a column or a
+ * diagonal) on which the field varies least? A line's neighbourhood is the usable vectors 1
+ * and 2 steps either way (at least 3 of them); the line chosen is the one whose neighbours
+ * scatter least about their median (rm of u plus rm of v; the first in the order row, column,
+ * diagonals on a tie), and the vector is tested against it as against the block. A vector
+ * that fails the block's test but agrees with the most uniform line sits on a ridge or a
+ * trough of the flow, not off it: a shear layer sampled with only a few vectors per
+ * wavelength, whose extrema the block's median (taken across the layer) calls outliers. An
+ * outlier agrees with no line; a line across the layer, along which the field swings, is never
+ * the one chosen where a line along the layer is there. */
+static int best_line(const rpiv_field *f, const unsigned char *ok, int i, int j, double eps,
+                     double *ru, double *rv, float *mu, float *mv)
+{
+    static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    const int nx = f->nx, ny = f->ny;
+    const size_t k = (size_t)j * (size_t)nx + (size_t)i;
+    double best = (double)INFINITY;
+    for (int d = 0; d < 4; d++) {
+        float nu[4], nv[4];
+        int m = 0;
+        for (int s = -2; s <= 2; s++) {
+            int ii = i + s * dir[d][0], jj = j + s * dir[d][1];
+            if (!s || ii < 0 || jj < 0 || ii >= nx || jj >= ny)
+                continue;
+            size_t q = (size_t)jj * (size_t)nx + (size_t)ii;
+            if (ok[q] != 1)
+                continue;
+            nu[m] = f->u[q];
+            nv[m] = f->v[q];
+            m++;
+        }
+        if (m < 3)
+            continue;
+        double rmu, rmv, r_u = residual_rm((double)f->u[k], nu, m, eps, &rmu),
+                         r_v = residual_rm((double)f->v[k], nv, m, eps, &rmv);
+        if (rmu + rmv < best) {
+            best = rmu + rmv;
+            *ru = r_u;
+            *rv = r_v;
+            *mu = (float)median(nu, m);
+            *mv = (float)median(nv, m);
+        }
+    }
+    return best < (double)INFINITY;
+}
+
+static int agrees_along_a_line(const rpiv_field *f, const unsigned char *ok, int i, int j,
+                               double threshold, double eps)
+{
+    double ru = 0, rv = 0;
+    float mu = 0, mv = 0;
+    return best_line(f, ok, i, j, eps, &ru, &rv, &mu, &mv) && ru <= threshold && rv <= threshold;
 }
 
 rpiv_status rpiv_validate_median(rpiv_field *f, double threshold, double eps, size_t *nrejected)
 {
-    return validate_median_nt(f, threshold, eps, nrejected, 0);
+    return validate_median_nt(f, threshold, eps, 0, nrejected, 0);
 }
 
-rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, size_t *nrejected,
-                               int nthreads)
+rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, int lines,
+                               size_t *nrejected, int nthreads)
 {
     if (nrejected)
         *nrejected = 0;
@@ -187,8 +248,9 @@ rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, size
             int m = gather(f, ok, i, j, nu, nv);
             if (m < 2)
                 continue;
-            if (residual((double)f->u[k], nu, m, eps) > threshold ||
-                residual((double)f->v[k], nv, m, eps) > threshold)
+            if ((residual((double)f->u[k], nu, m, eps) > threshold ||
+                 residual((double)f->v[k], nv, m, eps) > threshold) &&
+                !(lines && agrees_along_a_line(f, ok, i, j, threshold, eps)))
                 rej[k] = 1;
         }
     for (size_t k = 0; k < n; k++)
@@ -203,6 +265,11 @@ rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, size
 }
 
 rpiv_status rpiv_validate_replace(rpiv_field *f, int fill_masked, size_t *nfilled)
+{
+    return validate_replace_lines(f, fill_masked, 0, nfilled);
+}
+
+rpiv_status validate_replace_lines(rpiv_field *f, int fill_masked, int lines, size_t *nfilled)
 {
     if (nfilled)
         *nfilled = 0;
@@ -232,6 +299,14 @@ rpiv_status rpiv_validate_replace(rpiv_field *f, int fill_masked, size_t *nfille
                 if (known[k] != 0)
                     continue;
                 float bu[8], bv[8];
+                double ru, rv;
+                if (lines && best_line(f, known, i, j, 0.1, &ru, &rv, &bu[0], &bv[0])) {
+                    nu[k] = bu[0];
+                    nv[k] = bv[0];
+                    now[k] = 1;
+                    done++;
+                    continue;
+                }
                 int m = gather(f, known, i, j, bu, bv);
                 if (m) {
                     nu[k] = (float)median(bu, m);

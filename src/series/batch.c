@@ -303,12 +303,8 @@ static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **
         st = rpiv_piv_load(pv, a, bb);
         rpiv_image_free(a);
         rpiv_image_free(bb);
-        for (int k = 0; !st && k < rpiv_piv_npass(pv); k++) {
-            rpiv_field *next = NULL;
-            st = rpiv_piv_step(pv, k, prev, &next);
-            rpiv_field_free(prev);
-            prev = next;
-        }
+        if (!st)
+            st = rpiv_piv_passes(pv, &prev, NULL);
         if (st) {
             char msg[768];
             snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
