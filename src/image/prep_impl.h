@@ -12,7 +12,12 @@ RPIV_NODISCARD rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_bac
                                          int nt);
 RPIV_NODISCARD rpiv_status prep_normalize(rpiv_image *im, int size, int nt);
 
-/* The smallest and largest value of im. */
-void prep_range(const rpiv_image *im, float *lo, float *hi);
+/* The smallest and largest value of im (rpiv_image_stats_of). */
+static inline void prep_range(const rpiv_image *im, float *lo, float *hi)
+{
+    rpiv_image_stats st = rpiv_image_stats_of(im);
+    *lo = (float)st.min;
+    *hi = (float)st.max;
+}
 
 #endif /* RPIV_PREP_IMPL_H */

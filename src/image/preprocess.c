@@ -143,18 +143,6 @@ void rpiv_preprocess_format(const rpiv_preprocess_params *p, char *buf, size_t s
     }
 }
 
-void prep_range(const rpiv_image *im, float *lo, float *hi)
-{
-    size_t n = (size_t)im->w * (size_t)im->h;
-    float a = im->px[0], b = im->px[0];
-    for (size_t i = 1; i < n; i++) {
-        a = im->px[i] < a ? im->px[i] : a;
-        b = im->px[i] > b ? im->px[i] : b;
-    }
-    *lo = a;
-    *hi = b;
-}
-
 /* Values above mean + k std (over the whole image, in double, in pixel order) set to it. */
 static void cap(rpiv_image *im, double k, int nt)
 {
