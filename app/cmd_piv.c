@@ -232,6 +232,13 @@ static const cli_opt options[] = {
     PIV_KEY("scale", "MM_PER_PX", "scale_mm_per_px",
             "physical scale, adds mm and m/s columns [scale_mm_per_px]"),
     PIV_KEY("dt", "S", "dt_s", "pulse separation, s [dt_s]"),
+    {.name = "preprocess",
+     .kind = CLI_KEY,
+     .arg = "LIST",
+     .section = "preprocess",
+     .key = "ops",
+     .help = "image preprocessing, in order: clahe[:TILE], highpass[:SIZE], cap,\n"
+             "normalize[:SIZE], invert (docs/preprocess.md) [preprocess.ops]"},
     {.kind = CLI_HEAD, .help = "other options:"},
     {.name = "output",
      .letter = 'o',

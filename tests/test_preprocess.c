@@ -3,6 +3,7 @@
  * point operations, backgrounds removed, local contrast equalised, the same bits for any
  * thread count, and the errors of the list's parser. */
 #include "check.h"
+#include "rpiv/piv.h"
 #include "rpiv/preprocess.h"
 
 #include <math.h>
@@ -50,39 +51,48 @@ static double dark(int x, int y)
     return 3.0;
 }
 
-static void parse_and_format_round_trip(void)
+static void parse_reads_the_list(void)
 {
     rpiv_preprocess_params p = rpiv_preprocess_params_default();
-    CHECK(p.nops == 0);
-    CHECK_OK(rpiv_preprocess_parse("clahe:48,highpass,cap,normalize:21,invert", &p));
-    CHECK(p.nops == 5);
-    CHECK(p.op[0].kind == RPIV_PREP_CLAHE && p.op[0].size_px == 48);
-    CHECK(p.op[1].kind == RPIV_PREP_HIGHPASS && p.op[1].size_px == 0);
-    CHECK(p.op[3].kind == RPIV_PREP_NORMALIZE && p.op[3].size_px == 21);
-    char buf[128];
-    rpiv_preprocess_format(&p, buf, sizeof buf);
-    CHECK(!strcmp(buf, "clahe:48,highpass,cap,normalize:21,invert"));
-    CHECK_OK(rpiv_preprocess_parse("none", &p));
-    CHECK(p.nops == 0);
-    rpiv_preprocess_format(&p, buf, sizeof buf);
-    CHECK(!strcmp(buf, "none"));
+    CHECK(p.ops[0] == '\0');
+    rpiv_prep_op op[RPIV_PREPROCESS_MAX_OPS];
+    int n = -1;
+    CHECK_OK(rpiv_preprocess_parse("clahe:48,highpass,cap,normalize:21,invert", op, &n));
+    CHECK(n == 5);
+    CHECK(op[0].kind == RPIV_PREP_CLAHE && op[0].size_px == 48);
+    CHECK(op[1].kind == RPIV_PREP_HIGHPASS && op[1].size_px == 0);
+    CHECK(op[2].kind == RPIV_PREP_CAP && op[4].kind == RPIV_PREP_INVERT);
+    CHECK(op[3].kind == RPIV_PREP_NORMALIZE && op[3].size_px == 21);
+    CHECK_OK(rpiv_preprocess_parse("none", op, &n));
+    CHECK(n == 0);
+    CHECK_OK(rpiv_preprocess_parse("", op, &n));
+    CHECK(n == 0);
 }
 
 static void parse_errors_name_the_word(void)
 {
     rpiv_preprocess_params p = rpiv_preprocess_params_default();
-    CHECK_FAILS(rpiv_preprocess_parse("clahe,sharpen", &p), RPIV_EINVAL);
+    rpiv_prep_op op[RPIV_PREPROCESS_MAX_OPS];
+    int n = 0;
+    CHECK_FAILS(rpiv_preprocess_parse("clahe,sharpen", op, &n), RPIV_EINVAL);
     CHECK(strstr(rpiv_errmsg(), "'sharpen'") != NULL);
-    CHECK_FAILS(rpiv_preprocess_parse("highpass:2", &p), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("highpass:2", op, &n), RPIV_EINVAL);
     CHECK(strstr(rpiv_errmsg(), "3..1024") != NULL);
-    CHECK_FAILS(rpiv_preprocess_parse("highpass:4294967311", &p), RPIV_EINVAL);
-    CHECK_FAILS(rpiv_preprocess_parse("highpass:15x", &p), RPIV_EINVAL);
-    CHECK_FAILS(rpiv_preprocess_parse("cap:3", &p), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("highpass:4294967311", op, &n), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("highpass:15x", op, &n), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("cap:3", op, &n), RPIV_EINVAL);
     CHECK(strstr(rpiv_errmsg(), "no size") != NULL);
-    CHECK_FAILS(rpiv_preprocess_parse("clahe,,cap", &p), RPIV_EINVAL);
-    CHECK_FAILS(rpiv_preprocess_parse("clahe,", &p), RPIV_EINVAL);
-    CHECK_FAILS(rpiv_preprocess_parse("cap,cap,cap,cap,cap,cap,cap,cap,cap", &p), RPIV_EINVAL);
-    CHECK(p.nops == 0); /* unchanged by the failures */
+    CHECK_FAILS(rpiv_preprocess_parse("clahe,,cap", op, &n), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("clahe,", op, &n), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_preprocess_parse("cap,cap,cap,cap,cap,cap,cap,cap,cap", op, &n), RPIV_EINVAL);
+    CHECK(n == 0); /* nothing on failure */
+    /* run refuses a bad list with the same message */
+    strcpy(p.ops, "clahe,sharpen");
+    rpiv_image *bad = image(8, 8);
+    CHECK_FAILS(rpiv_preprocess_run(&p, bad, 1), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "'sharpen'") != NULL);
+    rpiv_image_free(bad);
+    p.ops[0] = '\0';
     p.clahe_clip = 1.5;
     rpiv_image *im = image(8, 8);
     CHECK_FAILS(rpiv_preprocess_run(&p, im, 1), RPIV_EINVAL);
@@ -97,7 +107,7 @@ static void invert_and_cap_are_exact(void)
         im->px[i] = (float)(i * i % 7) + 0.25f;
     im->px[13] = 100.0f; /* an outlier */
     rpiv_preprocess_params p = rpiv_preprocess_params_default();
-    CHECK_OK(rpiv_preprocess_parse("invert", &p));
+    strcpy(p.ops, "invert");
     float before[20];
     memcpy(before, im->px, sizeof before);
     CHECK_OK(rpiv_preprocess_run(&p, im, 2));
@@ -111,7 +121,7 @@ static void invert_and_cap_are_exact(void)
     for (int i = 0; i < 20; i++)
         s2 += ((double)before[i] - s / 20) * ((double)before[i] - s / 20);
     float top = (float)(s / 20 + 2 * sqrt(s2 / 20));
-    CHECK_OK(rpiv_preprocess_parse("cap", &p));
+    strcpy(p.ops, "cap");
     CHECK_OK(rpiv_preprocess_run(&p, im, 1));
     CHECK(im->px[13] == top);
     for (int i = 0; i < 20; i++)
@@ -132,7 +142,7 @@ static void highpass_removes_the_background(void)
                 bare->px[y * 96 + x] = (float)ramp(x, y);
         rpiv_preprocess_params p = rpiv_preprocess_params_default();
         p.highpass_method = how ? RPIV_PREP_BG_BLUR : RPIV_PREP_BG_MIN;
-        CHECK_OK(rpiv_preprocess_parse("highpass:15", &p));
+        strcpy(p.ops, "highpass:15");
         rpiv_image *ref = NULL;
         CHECK_OK(rpiv_image_copy(im, &ref));
         CHECK_OK(rpiv_preprocess_run(&p, im, 2));
@@ -148,8 +158,8 @@ static void highpass_removes_the_background(void)
                 rlo = fmin(rlo, v);
                 rhi = fmax(rhi, v);
             }
-        printf("    %s: ramp 200..600 leaves %.4g .. %.4g above the background inside\n", how ? "blur" : "min",
-               rlo, rhi);
+        printf("    %s: ramp 200..600 leaves %.4g .. %.4g above the background inside\n",
+               how ? "blur" : "min", rlo, rhi);
         CHECK(rhi - rlo < 0.5);
         CHECK(how ? fabs(rhi) < 0.5 : fabs(rlo - 31.06) < 0.1);
         /* particles stand out: the brightest pixel keeps > 60 % of the spot amplitude */
@@ -175,7 +185,7 @@ static void normalize_equalises_local_contrast(void)
         for (int x = 64; x < 128; x++)
             im->px[y * 128 + x] *= 20.0f; /* the right half 20 times brighter */
     rpiv_preprocess_params p = rpiv_preprocess_params_default();
-    CHECK_OK(rpiv_preprocess_parse("normalize", &p));
+    strcpy(p.ops, "normalize");
     CHECK_OK(rpiv_preprocess_run(&p, im, 2));
     double sl = 0, sr = 0;
     for (int y = 0; y < 64; y++)
@@ -206,7 +216,7 @@ static void clahe_spreads_a_dark_image(void)
     for (int i = 0; i < 160 * 128; i++)
         mean0 += (double)((im->px[i] - lo) / (hi - lo));
     rpiv_preprocess_params p = rpiv_preprocess_params_default();
-    CHECK_OK(rpiv_preprocess_parse("clahe:32", &p));
+    strcpy(p.ops, "clahe:32");
     CHECK_OK(rpiv_preprocess_run(&p, im, 2));
     for (int i = 0; i < 160 * 128; i++) {
         CHECK(im->px[i] >= lo - 1e-3f && im->px[i] <= hi + 1e-3f);
@@ -220,7 +230,7 @@ static void clahe_spreads_a_dark_image(void)
     rpiv_image *flat = image(40, 40);
     for (int i = 0; i < 1600; i++)
         flat->px[i] = 7.5f;
-    CHECK_OK(rpiv_preprocess_parse("clahe,normalize", &p));
+    strcpy(p.ops, "clahe,normalize");
     CHECK_OK(rpiv_preprocess_run(&p, flat, 1));
     for (int i = 0; i < 1600; i++)
         CHECK(flat->px[i] == 7.5f);
@@ -239,7 +249,7 @@ static void any_thread_count_gives_the_same_bits(void)
         particles(a, 300, ramp, 3, w * h / 60 + 1);
         CHECK_OK(rpiv_image_copy(a, &b));
         rpiv_preprocess_params p = rpiv_preprocess_params_default();
-        CHECK_OK(rpiv_preprocess_parse("clahe,highpass,cap,normalize,invert", &p));
+        strcpy(p.ops, "clahe,highpass,cap,normalize,invert");
         CHECK_OK(rpiv_preprocess_run(&p, a, 1));
         CHECK_OK(rpiv_preprocess_run(&p, b, 2));
         CHECK(!memcmp(a->px, b->px, (size_t)w * (size_t)h * sizeof *a->px));
@@ -254,15 +264,65 @@ static void any_thread_count_gives_the_same_bits(void)
     }
 }
 
+/* The plan applies its preprocessing to both frames of the pair it loads: the field equals the
+ * one of a plan without preprocessing run on frames preprocessed beforehand. */
+static void the_plan_preprocesses_both_frames(void)
+{
+    rpiv_image *a = image(192, 160), *b = image(192, 160);
+    particles(a, 400, ramp, 21, 600);
+    particles(b, 400, ramp, 21, 600);
+    /* b: a shifted by (2, 1) px, so there is a displacement to find */
+    for (int y = 159; y >= 0; y--)
+        for (int x = 191; x >= 0; x--)
+            b->px[y * 192 + x] = a->px[(y >= 1 ? y - 1 : 0) * 192 + (x >= 2 ? x - 2 : 0)];
+    rpiv_piv_params p = rpiv_piv_params_default();
+    p.threads = 2;
+    strcpy(p.prep.ops, "clahe:48,highpass");
+    rpiv_piv *with = NULL, *without = NULL;
+    rpiv_field *f1 = NULL, *f2 = NULL;
+    CHECK_OK(rpiv_piv_new(&p, 192, 160, NULL, &with));
+    CHECK_OK(rpiv_piv_run(with, a, b, &f1));
+    CHECK_OK(rpiv_preprocess_run(&p.prep, a, 2));
+    CHECK_OK(rpiv_preprocess_run(&p.prep, b, 2));
+    p.prep.ops[0] = '\0';
+    CHECK_OK(rpiv_piv_new(&p, 192, 160, NULL, &without));
+    CHECK_OK(rpiv_piv_run(without, a, b, &f2));
+    if (f1 && f2) {
+        size_t n = (size_t)f1->nx * (size_t)f1->ny;
+        CHECK(f1->nx == f2->nx && f1->ny == f2->ny);
+        CHECK(!memcmp(f1->u, f2->u, n * sizeof *f1->u) && !memcmp(f1->v, f2->v, n * sizeof *f1->v));
+        double su = 0, sv = 0;
+        for (size_t i = 0; i < n; i++) {
+            su += (double)f1->u[i];
+            sv += (double)f1->v[i];
+        }
+        printf("    mean displacement with preprocessing: %.3f, %.3f px (2, 1 expected)\n",
+               su / (double)n, sv / (double)n);
+        CHECK(fabs(su / (double)n - 2) < 0.1 && fabs(sv / (double)n - 1) < 0.1);
+    }
+    /* a bad list is refused when the plan is made */
+    strcpy(p.prep.ops, "clahe,blur");
+    rpiv_piv *bad = NULL;
+    CHECK_FAILS(rpiv_piv_new(&p, 192, 160, NULL, &bad), RPIV_EINVAL);
+    CHECK(bad == NULL && strstr(rpiv_errmsg(), "'blur'") != NULL);
+    rpiv_field_free(f1);
+    rpiv_field_free(f2);
+    rpiv_piv_free(with);
+    rpiv_piv_free(without);
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+}
+
 int main(void)
 {
     rpiv_init();
-    RUN_TEST(parse_and_format_round_trip);
+    RUN_TEST(parse_reads_the_list);
     RUN_TEST(parse_errors_name_the_word);
     RUN_TEST(invert_and_cap_are_exact);
     RUN_TEST(highpass_removes_the_background);
     RUN_TEST(normalize_equalises_local_contrast);
     RUN_TEST(clahe_spreads_a_dark_image);
     RUN_TEST(any_thread_count_gives_the_same_bits);
+    RUN_TEST(the_plan_preprocesses_both_frames);
     return check_summary();
 }

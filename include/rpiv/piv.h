@@ -8,6 +8,7 @@
 #include "rpiv/field.h"
 #include "rpiv/image.h"
 #include "rpiv/peak.h"
+#include "rpiv/preprocess.h"
 #include "rpiv/progress.h"
 
 #include <stddef.h>
@@ -49,7 +50,11 @@ typedef struct rpiv_piv_params {
      * the RMS change of the field falls below refine_tol_px or refine_max repeats are done. */
     int refine_max;       /* repeats of the last pass, 0..20 (0; 6 suggested) */
     double refine_tol_px; /* convergence: RMS change between iterations, px (0.02) */
-    double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.2 suggested) */
+    double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.2
+                             suggested) */
+    /* Image preprocessing applied to both frames of every pair on loading, after the
+     * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
+    rpiv_preprocess_params prep;
 } rpiv_piv_params;
 
 rpiv_piv_params rpiv_piv_params_default(void);

@@ -31,14 +31,18 @@ typedef enum rpiv_prep_background {
     RPIV_PREP_BG_BLUR = 1 /* Gaussian blur of standard deviation size / 4           */
 } rpiv_prep_background;
 
+/* The methods' names in enum order (NULL-terminated): "min", "blur". */
+extern const char *const rpiv_prep_background_names[];
+
 typedef struct rpiv_prep_op {
     rpiv_prep_kind kind;
     int size_px; /* tile (clahe) or window (highpass, normalize) side; 0: the default */
 } rpiv_prep_op;
 
+#define RPIV_PREPROCESS_LIST_MAX 128
+
 typedef struct rpiv_preprocess_params {
-    int nops; /* operations applied, in order (0: none) */
-    rpiv_prep_op op[RPIV_PREPROCESS_MAX_OPS];
+    char ops[RPIV_PREPROCESS_LIST_MAX];   /* the list, e.g. "clahe,highpass:21" ("": none) */
     int clahe_tile_px;                    /* default tile side (64)                 */
     double clahe_clip;                    /* clip limit, 0..1 of a tile (0.01)      */
     int clahe_bins;                       /* histogram bins (256)                   */
@@ -48,20 +52,18 @@ typedef struct rpiv_preprocess_params {
     int normalize_px;                     /* default min/max window (15)            */
 } rpiv_preprocess_params;
 
-/* No operation; the defaults above for each operation's parameters. */
+/* No operation (ops ""); the defaults above for each operation's parameters. */
 rpiv_preprocess_params rpiv_preprocess_params_default(void);
 
-/* RPIV_EINVAL naming the field and its range: 0..RPIV_PREPROCESS_MAX_OPS operations, sizes
- * 3..1024 px (0 = default), clip 0..1, bins 16..65536, cap_k 0.1..100. */
+/* RPIV_EINVAL naming the field and its range: ops a list rpiv_preprocess_parse reads, sizes
+ * 3..1024 px, clip 0..1, bins 16..65536, cap_k 0.1..100. */
 RPIV_NODISCARD rpiv_status rpiv_preprocess_params_check(const rpiv_preprocess_params *p);
 
-/* Parse a list "clahe[:TILE],highpass[:SIZE],cap,normalize[:SIZE],invert" (any order, each
- * at most RPIV_PREPROCESS_MAX_OPS in all; "" or "none": no operation) into p->op / p->nops,
- * keeping p's other fields. RPIV_EINVAL naming the word at fault and the accepted words. */
-RPIV_NODISCARD rpiv_status rpiv_preprocess_parse(const char *list, rpiv_preprocess_params *p);
-
-/* The list of p as rpiv_preprocess_parse reads it ("none" when empty), into buf. */
-void rpiv_preprocess_format(const rpiv_preprocess_params *p, char *buf, size_t size);
+/* Parse a list "clahe[:TILE],highpass[:SIZE],cap,normalize[:SIZE],invert" (any order, at
+ * most RPIV_PREPROCESS_MAX_OPS in all; "" or "none": no operation) into op[0..*n-1].
+ * RPIV_EINVAL naming the word at fault and the accepted words. */
+RPIV_NODISCARD rpiv_status rpiv_preprocess_parse(const char *list,
+                                                 rpiv_prep_op op[RPIV_PREPROCESS_MAX_OPS], int *n);
 
 /* Apply p's operations in order to im, in place, with nthreads threads (0: OpenMP's
  * default). An image of one grey level is left as it is by clahe and normalize. RPIV_EINVAL

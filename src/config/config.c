@@ -164,6 +164,26 @@ static const key_spec keys[] = {
      "deform the images by the predictor between passes", 0},
     {"piv", "max_mem_mb", KEY_DOUBLE, OFF(piv.max_mem_mb), 1, 1e9, 1, "MB",
      "refuse runs that would need more memory", 0},
+    /* [preprocess] */
+    {"preprocess", "ops", KEY_STRING, OFF(piv.prep.ops), 0, RPIV_PREPROCESS_LIST_MAX, 1, "list",
+     "image preprocessing of both frames, in order: clahe[:TILE], highpass[:SIZE], cap, "
+     "normalize[:SIZE], invert (\"\" = none)",
+     0},
+    {"preprocess", "clahe_tile_px", KEY_INT, OFF(piv.prep.clahe_tile_px), 3, 1024, 1, "px",
+     "CLAHE tile side", 0},
+    {"preprocess", "clahe_clip", KEY_DOUBLE, OFF(piv.prep.clahe_clip), 0, 1, 1, "-",
+     "CLAHE clip limit, 0 (uniform histogram) .. 1 (no limit)", 0},
+    {"preprocess", "clahe_bins", KEY_INT, OFF(piv.prep.clahe_bins), 16, 65536, 1, "-",
+     "CLAHE histogram bins", 0},
+    {"preprocess", "highpass_px", KEY_INT, OFF(piv.prep.highpass_px), 3, 1024, 1, "px",
+     "high-pass background window", 0},
+    {"preprocess", "highpass_method", KEY_ENUM, OFF(piv.prep.highpass_method), 0, 0, 1, "-",
+     "background: min (sliding minimum, smoothed) or blur (Gaussian, sigma = size / 4)",
+     rpiv_prep_background_names},
+    {"preprocess", "cap_k", KEY_DOUBLE, OFF(piv.prep.cap_k), 0.1, 100, 1, "-",
+     "intensity capping at mean + cap_k std", 0},
+    {"preprocess", "normalize_px", KEY_INT, OFF(piv.prep.normalize_px), 3, 1024, 1, "px",
+     "local min/max normalisation window", 0},
     /* [synth] */
     {"synth", "width_px", KEY_INT, OFF(synth.width_px), 0, 65536, 1, "px",
      "image width (0 = camera sensor)", 0},
@@ -270,7 +290,8 @@ static void range_text(const key_spec *k, char *buf, size_t n)
     } else if (k->type == KEY_BOOL) {
         snprintf(buf, n, "0|1|true|false|yes|no");
     } else if (k->type == KEY_STRING) {
-        snprintf(buf, n, "text up to %d characters", RPIV_PATH_MAX - 1);
+        snprintf(buf, n, "text up to %d characters",
+                 (k->max > 0 ? (int)k->max : RPIV_PATH_MAX) - 1);
     } else if (k->type == KEY_WINDOWS) {
         snprintf(buf, n, "1..%d sizes of 8..1024 px, W or WxH", RPIV_PIV_MAX_PASSES);
     } else {
@@ -324,8 +345,8 @@ static rpiv_status set_value(rpiv_experiment *e, const key_spec *k, const char *
     double v;
     range_text(k, range, sizeof range);
     switch (k->type) {
-    case KEY_STRING:
-        if (strlen(value) >= RPIV_PATH_MAX)
+    case KEY_STRING: /* the capacity is the row's max, or RPIV_PATH_MAX */
+        if (strlen(value) >= (k->max > 0 ? (size_t)k->max : RPIV_PATH_MAX))
             break;
         strcpy(base, value);
         return RPIV_OK;

@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+const char *const rpiv_prep_background_names[] = {"min", "blur", NULL};
 const char *const rpiv_prep_kind_names[] = {"clahe",     "highpass", "cap",
                                             "normalize", "invert",   NULL};
 
@@ -35,18 +36,14 @@ static int size_ok(int s)
 
 rpiv_status rpiv_preprocess_params_check(const rpiv_preprocess_params *p)
 {
-    if (p->nops < 0 || p->nops > RPIV_PREPROCESS_MAX_OPS)
-        return rpiv_fail(RPIV_EINVAL, "preprocess: %d operations, at most %d", p->nops,
-                         RPIV_PREPROCESS_MAX_OPS);
-    for (int k = 0; k < p->nops; k++) {
-        const rpiv_prep_op *o = &p->op[k];
-        if (o->kind < RPIV_PREP_CLAHE || o->kind > RPIV_PREP_INVERT)
-            return rpiv_fail(RPIV_EINVAL, "preprocess: operation %d of unknown kind %d", k + 1,
-                             (int)o->kind);
-        if (o->size_px != 0 && !size_ok(o->size_px))
-            return rpiv_fail(RPIV_EINVAL, "preprocess: %s:%d: the size must be 3..1024 px",
-                             rpiv_prep_kind_names[o->kind], o->size_px);
-    }
+    rpiv_prep_op op[RPIV_PREPROCESS_MAX_OPS];
+    int n;
+    if (!memchr(p->ops, '\0', sizeof p->ops))
+        return rpiv_fail(RPIV_EINVAL, "preprocess.ops: longer than %d characters",
+                         RPIV_PREPROCESS_LIST_MAX - 1);
+    rpiv_status st = rpiv_preprocess_parse(p->ops, op, &n);
+    if (st)
+        return st;
     if (!size_ok(p->clahe_tile_px))
         return rpiv_fail(RPIV_EINVAL, "preprocess.clahe_tile_px = %d outside 3..1024",
                          p->clahe_tile_px);
@@ -71,14 +68,14 @@ rpiv_status rpiv_preprocess_params_check(const rpiv_preprocess_params *p)
 
 static const char accepted[] = "clahe[:TILE], highpass[:SIZE], cap, normalize[:SIZE], invert";
 
-rpiv_status rpiv_preprocess_parse(const char *list, rpiv_preprocess_params *p)
+rpiv_status rpiv_preprocess_parse(const char *list, rpiv_prep_op op[RPIV_PREPROCESS_MAX_OPS],
+                                  int *nops)
 {
     int n = 0;
     rpiv_prep_op ops[RPIV_PREPROCESS_MAX_OPS];
-    if (!strcmp(list, "none")) {
-        p->nops = 0;
+    *nops = 0;
+    if (!strcmp(list, "none"))
         return RPIV_OK;
-    }
     for (const char *w = list; *w;) {
         size_t len = strcspn(w, ",");
         if (len == 0)
@@ -117,30 +114,9 @@ rpiv_status rpiv_preprocess_parse(const char *list, rpiv_preprocess_params *p)
         if (*w == ',' && !*++w)
             return rpiv_fail(RPIV_EINVAL, "preprocess '%s': an empty operation at the end", list);
     }
-    memcpy(p->op, ops, (size_t)n * sizeof *ops);
-    p->nops = n;
+    memcpy(op, ops, (size_t)n * sizeof *ops);
+    *nops = n;
     return RPIV_OK;
-}
-
-void rpiv_preprocess_format(const rpiv_preprocess_params *p, char *buf, size_t size)
-{
-    size_t used = 0;
-    if (size)
-        buf[0] = '\0';
-    if (!p->nops) {
-        snprintf(buf, size, "none");
-        return;
-    }
-    for (int k = 0; k < p->nops && used < size; k++) {
-        const rpiv_prep_op *o = &p->op[k];
-        int w = o->size_px ? snprintf(buf + used, size - used, "%s%s:%d", k ? "," : "",
-                                      rpiv_prep_kind_names[o->kind], o->size_px)
-                           : snprintf(buf + used, size - used, "%s%s", k ? "," : "",
-                                      rpiv_prep_kind_names[o->kind]);
-        if (w < 0)
-            return;
-        used += (size_t)w;
-    }
 }
 
 /* Values above mean + k std (over the whole image, in double, in pixel order) set to it. */
@@ -175,10 +151,14 @@ static void invert(rpiv_image *im, int nt)
 
 rpiv_status rpiv_preprocess_run(const rpiv_preprocess_params *p, rpiv_image *im, int nthreads)
 {
+    rpiv_prep_op op[RPIV_PREPROCESS_MAX_OPS];
+    int n = 0;
     rpiv_status st = rpiv_preprocess_params_check(p);
+    if (!st)
+        st = rpiv_preprocess_parse(p->ops, op, &n);
     int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
-    for (int k = 0; !st && k < p->nops; k++) {
-        const rpiv_prep_op *o = &p->op[k];
+    for (int k = 0; !st && k < n; k++) {
+        const rpiv_prep_op *o = &op[k];
         switch (o->kind) {
         case RPIV_PREP_CLAHE:
             st = prep_clahe(im, o->size_px ? o->size_px : p->clahe_tile_px, p->clahe_clip,

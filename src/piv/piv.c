@@ -38,6 +38,7 @@ void rpiv_piv_free(rpiv_piv *pv)
     free(pv->bgb);
     free(pv->ia);
     free(pv->ib);
+    free(pv->prep);
     free(pv);
 }
 
@@ -159,6 +160,8 @@ rpiv_status rpiv_piv_new(const rpiv_piv_params *p, int w, int h, const rpiv_imag
     pv->ia = frame_alloc(pv);
     pv->ib = frame_alloc(pv);
     if (!pv->ia || !pv->ib)
+        goto out_nomem;
+    if (p->prep.ops[0] && !(pv->prep = frame_alloc(pv)))
         goto out_nomem;
     pv->deforms = p->deform && p->npass > 1;
     for (int k = 0; k < pv->npass; k++) {
@@ -340,9 +343,28 @@ rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b
     if (!rows)
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory");
     long *counts = (long *)(rows + pv->h);
-    pv->fill_a = load_frame(pv, a->px, pv->bga, pv->ia, rows, counts);
-    pv->fill_b = load_frame(pv, b->px, pv->bgb, pv->ib, rows, counts);
+    rpiv_status st = RPIV_OK;
+    if (!pv->prep) {
+        pv->fill_a = load_frame(pv, a->px, pv->bga, pv->ia, rows, counts);
+        pv->fill_b = load_frame(pv, b->px, pv->bgb, pv->ib, rows, counts);
+    } else {
+        /* background first, then the preprocessing, then the mask's fill */
+        for (int f = 0; !st && f < 2; f++) {
+            const rpiv_image *src = f ? b : a;
+            const float *bg = f ? pv->bgb : pv->bga;
+            size_t n = (size_t)pv->w * (size_t)pv->h;
+            for (size_t i = 0; i < n; i++)
+                pv->prep[i] = bg ? src->px[i] - bg[i] : src->px[i];
+            rpiv_image t = {pv->w, pv->h, src->bits, pv->prep};
+            if ((st = rpiv_preprocess_run(&pv->p.prep, &t, pv->nthreads)))
+                break;
+            float fill = load_frame(pv, pv->prep, NULL, f ? pv->ib : pv->ia, rows, counts);
+            *(f ? &pv->fill_b : &pv->fill_a) = fill;
+        }
+    }
     free(rows);
+    if (st)
+        return st;
     pv->state = PIV_RAW;
     return RPIV_OK;
 }

@@ -32,6 +32,7 @@ struct rpiv_piv {
     unsigned char *mask;  /* w*h, 1 = masked pixel; NULL = no mask                */
     float *bga, *bgb;     /* backgrounds, NULL = none                             */
     float *ia, *ib;       /* loaded frames, then their B-spline coefficients      */
+    float *prep;          /* a frame being preprocessed; NULL without preprocessing */
     int deforms;          /* passes after the first deform the frames             */
     float fill_a, fill_b; /* mean grey level of the loaded frames                 */
     int state;            /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */

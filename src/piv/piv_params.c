@@ -28,11 +28,15 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .max_mem_mb = 4096,
                              .refine_max = 0,
                              .refine_tol_px = 0.02,
-                             .refine_filter = 0};
+                             .refine_filter = 0,
+                             .prep = rpiv_preprocess_params_default()};
 }
 
 rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
 {
+    rpiv_status st = rpiv_preprocess_params_check(&p->prep);
+    if (st)
+        return st;
     if (p->npass < 1 || p->npass > RPIV_PIV_MAX_PASSES)
         return rpiv_fail(RPIV_EINVAL, "piv.windows: %d passes outside 1..%d", p->npass,
                          RPIV_PIV_MAX_PASSES);
