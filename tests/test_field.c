@@ -596,21 +596,25 @@ static void vtk_header_and_values_parse_back(void)
         float u, v, w;
         bad += fscanf(fp, "%f %f %f", &u, &v, &w) != 3 || u != f->u[k] || v != f->v[k] || w != 0;
     }
+    /* every other array as FIELD data, which VTK's default reader settings load */
     char name[32], type[32];
-    CHECK(fscanf(fp, " SCALARS %31s %31s 1 LOOKUP_TABLE default", name, type) == 2);
-    CHECK(strcmp(name, "flag") == 0 && strcmp(type, "int") == 0);
+    size_t narr = 0, ntup = 0;
+    int ncomp = 0;
+    CHECK(fscanf(fp, " FIELD point_arrays %zu", &narr) == 1 && narr == 3);
+    CHECK(fscanf(fp, " %31s %d %zu %31s", name, &ncomp, &ntup, type) == 4);
+    CHECK(strcmp(name, "flag") == 0 && ncomp == 1 && ntup == 35 && strcmp(type, "int") == 0);
     for (int k = 0; k < 35; k++) {
         int fl;
         bad += fscanf(fp, "%d", &fl) != 1 || fl != f->flag[k];
     }
-    CHECK(fscanf(fp, " SCALARS %31s %31s 1 LOOKUP_TABLE default", name, type) == 2);
-    CHECK(strcmp(name, "peak_ratio") == 0);
+    CHECK(fscanf(fp, " %31s %d %zu %31s", name, &ncomp, &ntup, type) == 4);
+    CHECK(strcmp(name, "peak_ratio") == 0 && ncomp == 1 && strcmp(type, "float") == 0);
     for (int k = 0; k < 35; k++) {
         float p;
         bad += fscanf(fp, "%f", &p) != 1 || p != f->peak_ratio[k];
     }
-    CHECK(fscanf(fp, " SCALARS %31s %31s 1 LOOKUP_TABLE default", name, type) == 2);
-    CHECK(strcmp(name, "correlation") == 0);
+    CHECK(fscanf(fp, " %31s %d %zu %31s", name, &ncomp, &ntup, type) == 4);
+    CHECK(strcmp(name, "correlation") == 0 && ncomp == 1 && strcmp(type, "float") == 0);
     for (int k = 0; k < 35; k++) {
         float p;
         bad += fscanf(fp, "%f", &p) != 1 || p != f->corr[k];
