@@ -80,7 +80,7 @@ RPIV_NODISCARD rpiv_status rpiv_field_add_quantity(rpiv_field *f, const char *na
                                                    float **data);
 /* The quantity called name, or NULL. */
 const rpiv_quantity *rpiv_field_quantity(const rpiv_field *f, const char *name);
-/* The name of a unit kind: in pixels ("1", "px", "px/dt", "1/dt") or physical ("1", "mm",
+/* The name of a unit kind: in pixels ("1", "pix", "pix/dt", "1/dt") or physical ("1", "mm",
  * "m/s", "1/s"). */
 const char *rpiv_unit_name(int unit, int physical);
 /* The factor from a unit kind's pixel value to its physical value for f's scale and dt (1 for

@@ -171,7 +171,7 @@ const rpiv_quantity *rpiv_field_quantity(const rpiv_field *f, const char *name)
 
 const char *rpiv_unit_name(int unit, int physical)
 {
-    static const char *const px[] = {"1", "px", "px/dt", "1/dt"};
+    static const char *const px[] = {"1", "pix", "pix/dt", "1/dt"};
     static const char *const si[] = {"1", "mm", "m/s", "1/s"};
     int k = unit & ~RPIV_UNIT_ODD_Y;
     if (k < 0 || k > RPIV_UNIT_PER_DT)
@@ -359,10 +359,10 @@ field_col *field_columns(const rpiv_field *f, size_t *ncol)
     size_t n = 0;
     if (!c)
         return NULL;
-    col_set(&c[n++], "x", "", "px", FIELD_COL_X, NULL, 1, 0);
-    col_set(&c[n++], "y", "", "px", FIELD_COL_Y, NULL, 1, 0);
-    col_set(&c[n++], "u", "", "px/dt", FIELD_COL_FLOAT, f->u, 1, 0);
-    col_set(&c[n++], "v", "", "px/dt", FIELD_COL_FLOAT, f->v, 1, 0);
+    col_set(&c[n++], "x", "", "pix", FIELD_COL_X, NULL, 1, 0);
+    col_set(&c[n++], "y", "", "pix", FIELD_COL_Y, NULL, 1, 0);
+    col_set(&c[n++], "u", "", "pix/dt", FIELD_COL_FLOAT, f->u, 1, 0);
+    col_set(&c[n++], "v", "", "pix/dt", FIELD_COL_FLOAT, f->v, 1, 0);
     col_set(&c[n++], "flag", "", "1", FIELD_COL_FLAG, NULL, 1, 0);
     col_set(&c[n++], "peak_ratio", "", "1", FIELD_COL_FLOAT, f->peak_ratio, 1, 0);
     col_set(&c[n++], "correlation", "", "1", FIELD_COL_FLOAT, f->corr, 1, 0);

@@ -118,8 +118,8 @@ rpiv_status field_write_vtk(const rpiv_field *f, const rpiv_meta *meta, FILE *fp
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
     char title[256];
     int at = snprintf(title, sizeof title,
-                      "rpiv vector field %d x %d, orientation %s (%s); units: x y px, velocity "
-                      "px/dt",
+                      "rpiv vector field %d x %d, orientation %s (%s); units: x y pix, velocity "
+                      "pix/dt",
                       f->nx, f->ny, f->y_up ? "y-up" : "image", f->y_up ? "y up" : "y down");
     for (size_t k = 0; k < nc && at < (int)sizeof title; k++)
         if (c[k].kind == FIELD_COL_FLOAT && k >= 7 && !c[k].physical)
