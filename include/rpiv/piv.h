@@ -42,6 +42,7 @@ typedef struct rpiv_piv_params {
     double dt_s;                    /* pulse separation, s; 0 = unset (0)          */
     int deform;                     /* 1: deform images between passes (1)         */
     double max_mem_mb;              /* refuse runs needing more memory, MB (4096)  */
+    int y_up; /* output files: 1 origin bottom-left, y and v up; 0 image coordinates (0) */
 } rpiv_piv_params;
 
 rpiv_piv_params rpiv_piv_params_default(void);
