@@ -12,8 +12,10 @@
 
 #include "field_impl.h"
 
+#include <errno.h>
 #include <math.h>
 #include <netcdf.h>
+#include <netcdf_mem.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -265,7 +267,10 @@ rpiv_status rpiv_field_series_open(const char *path, const rpiv_field *grid, con
             series_free(s);
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
     }
-    rpiv_status st = atomic_begin(&s->af, path, 0);
+    /* the file is built in memory (HDF5's core driver) and written out by rpiv's atomic
+     * writer at close: a full disk is then an ordinary write error, where HDF5 writing it
+     * itself fails its close and crashes at exit (issue #20) */
+    rpiv_status st = atomic_begin(&s->af, path, 1);
     if (st) {
         series_free(s);
         return st;
@@ -280,7 +285,7 @@ rpiv_status rpiv_field_series_open(const char *path, const rpiv_field *grid, con
     s->nq = grid->nq;
     for (size_t q = 0; q < grid->nq; q++)
         memcpy(s->qname[q], grid->q[q].name, sizeof s->qname[q]);
-    int e = nc_create(s->af.tmp, NC_NETCDF4 | NC_CLOBBER, &s->ncid);
+    int e = nc_create_mem(s->af.tmp, NC_NETCDF4, 4096, &s->ncid);
     if (e) {
         st = nc_err(path, "create", e);
         atomic_abort(&s->af);
@@ -290,7 +295,9 @@ rpiv_status rpiv_field_series_open(const char *path, const rpiv_field *grid, con
     e = define(s, grid, meta);
     if (e) {
         st = nc_err(path, "define", e);
-        nc_close(s->ncid);
+        NC_memio mem = {0};
+        nc_close_memio(s->ncid, &mem);
+        free(mem.memory);
         atomic_abort(&s->af);
         series_free(s);
         return st;
@@ -366,15 +373,20 @@ rpiv_status rpiv_field_series_close(rpiv_field_series *s, int abort)
     if (!s)
         return RPIV_OK;
     rpiv_status st = RPIV_OK;
-    int e = nc_close(s->ncid);
+    NC_memio mem = {0};
+    int e = nc_close_memio(s->ncid, &mem);
     if (abort) {
         atomic_abort(&s->af);
     } else if (e) {
         st = nc_err(s->af.path, "close", e);
         atomic_abort(&s->af);
+    } else if (fwrite(mem.memory, 1, mem.size, s->af.fp) != mem.size || fflush(s->af.fp)) {
+        st = rpiv_fail(RPIV_EIO, "%s: cannot write: %s", s->af.path, strerror(errno));
+        atomic_abort(&s->af);
     } else {
         st = atomic_commit(&s->af);
     }
+    free(mem.memory);
     series_free(s);
     return st;
 }
