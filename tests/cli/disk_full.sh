@@ -16,7 +16,7 @@ if ! mount -t tmpfs -o size=64k tmpfs "$full" 2>/dev/null; then
 fi
 trap 'umount "$full"; rm -rf "$tmp"' EXIT
 printf 'leak:libfontconfig.so\n' >"$tmp/lsan.supp"
-export LSAN_OPTIONS="suppressions=$tmp/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
+export LSAN_OPTIONS="suppressions=$tmp/lsan.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
 fail=0; pass=0
 ok() { pass=$((pass + 1)); }
 ko() { echo "FAIL: $*" >&2; fail=$((fail + 1)); }
