@@ -53,7 +53,45 @@ typedef struct run_ctx {
     rpiv_field *first;         /* kept for --plot (rank 0)                     */
     size_t first_index;
     size_t nvec, nreplaced;
+    int y_up, height; /* --y-up: files turned y-up for images `height` px high */
 } run_ctx;
+
+/* f as written: itself, or with --y-up a turned copy in *tmp (freed by the caller). */
+static rpiv_status oriented(const run_ctx *r, const rpiv_field *f, rpiv_field **tmp,
+                            const rpiv_field **out)
+{
+    *tmp = NULL;
+    *out = f;
+    if (!r->y_up)
+        return RPIV_OK;
+    rpiv_status st = rpiv_field_copy(f, tmp);
+    if (!st)
+        st = rpiv_field_y_up(*tmp, r->height);
+    if (!st)
+        *out = *tmp;
+    return st;
+}
+
+/* Save f as oriented; rms: f holds standard deviations, which keep their sign y-up. */
+static rpiv_status save_as(const run_ctx *r, const rpiv_field *f, const rpiv_meta *meta,
+                           const char *path, int rms)
+{
+    rpiv_field *tmp;
+    const rpiv_field *g;
+    rpiv_status st = oriented(r, f, &tmp, &g);
+    for (size_t k = 0; !st && rms && tmp && k < (size_t)tmp->nx * (size_t)tmp->ny; k++)
+        tmp->v[k] = tmp->v[k] == 0 ? 0.0f : -tmp->v[k];
+    if (!st)
+        st = rpiv_field_save(g, meta, path);
+    rpiv_field_free(tmp);
+    return st;
+}
+
+static rpiv_status save(const run_ctx *r, const rpiv_field *f, const rpiv_meta *meta,
+                        const char *path)
+{
+    return save_as(r, f, meta, path, 0);
+}
 
 /* On the rank that made pair i's field: its own file, unless it goes into a .nc series. */
 static rpiv_status local_sink(void *user, size_t i, const rpiv_field *f)
@@ -62,11 +100,11 @@ static rpiv_status local_sink(void *user, size_t i, const rpiv_field *f)
     if (r->nc_series)
         return RPIV_OK;
     if (r->npairs == 1)
-        return rpiv_field_save(f, r->meta, r->out);
+        return save(r, f, r->meta, r->out);
     char tag[32], path[RPIV_PATH_MAX + 32];
     snprintf(tag, sizeof tag, "_%0*zu", r->digits, i + 1);
     rpiv_status st = out_name(r->out, tag, path, sizeof path);
-    return st ? st : rpiv_field_save(f, r->meta, path);
+    return st ? st : save(r, f, r->meta, path);
 }
 
 /* On rank 0, every field in pair order: counts, the .nc series, statistics, the first. */
@@ -76,8 +114,14 @@ static rpiv_status root_sink(void *user, size_t i, const rpiv_field *f)
     rpiv_status st = RPIV_OK;
     r->nvec += (size_t)f->nx * (size_t)f->ny;
     r->nreplaced += rpiv_field_count(f, RPIV_FLAG_REPLACED);
-    if (r->series)
-        st = rpiv_field_series_append(r->series, f, (double)i);
+    if (r->series) {
+        rpiv_field *tmp;
+        const rpiv_field *g;
+        st = oriented(r, f, &tmp, &g);
+        if (!st) /* t: the pair index, in frames */
+            st = rpiv_field_series_append(r->series, g, (double)i);
+        rpiv_field_free(tmp);
+    }
     if (!st && r->stats)
         st = rpiv_series_stats_add(r->stats, f);
     if (!st && !r->first) {
@@ -122,6 +166,28 @@ static rpiv_status add_skipped(rpiv_meta *m, const rpiv_batch *b, const rpiv_pai
     return st;
 }
 
+/* "files": the image files of every pair, "A B; C D; ..." (a NetCDF string array). */
+static rpiv_status add_files(rpiv_meta *m, const rpiv_pairs *pairs)
+{
+    size_t len = 1;
+    for (size_t k = 0; k < pairs->n; k++)
+        len += strlen(pairs->pair[k].path_a) +
+               (pairs->pair[k].path_b ? strlen(pairs->pair[k].path_b) : 0) + 3;
+    char *list = malloc(len);
+    if (!list)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory");
+    size_t at = 0;
+    list[0] = '\0';
+    for (size_t k = 0; k < pairs->n; k++) {
+        const rpiv_pair_src *q = &pairs->pair[k];
+        at += (size_t)snprintf(list + at, len - at, "%s%s%s%s", k ? "; " : "", q->path_a,
+                               q->path_b ? " " : "", q->path_b ? q->path_b : "");
+    }
+    rpiv_status st = rpiv_meta_add(m, "files", "%s", list);
+    free(list);
+    return st;
+}
+
 static rpiv_status add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_pairs *pairs,
                             const rpiv_piv *pv)
 {
@@ -147,7 +213,9 @@ static rpiv_status add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_p
         (st = rpiv_meta_add(m, "background", "%s", bg[p->background])) ||
         (st = rpiv_meta_add(m, "mask", "%s", p->mask[0] ? p->mask : "none")) ||
         (st = rpiv_meta_add(m, "roi", "%d,%d,%d,%d", p->roi[0], p->roi[1], p->roi[2], p->roi[3])) ||
-        (st = rpiv_meta_add(m, "threads", "%d", rpiv_piv_threads(pv))))
+        (st = rpiv_meta_add(m, "threads", "%d", rpiv_piv_threads(pv))) ||
+        (st = rpiv_meta_add(m, "orientation", "%s", p->y_up ? "y-up" : "image")) ||
+        (st = add_files(m, pairs)))
         return st;
     return RPIV_OK;
 }
@@ -239,6 +307,11 @@ static const cli_opt options[] = {
      .key = "ops",
      .help = "image preprocessing, in order: clahe[:TILE], highpass[:SIZE], cap,\n"
              "normalize[:SIZE], invert (docs/preprocess.md) [preprocess.ops]"},
+    {.name = "y-up",
+     .kind = CLI_FLAG,
+     .off = offsetof(piv_opts, c.exp.piv.y_up),
+     .help = "output files with the origin at the bottom-left pixel, y and v\n"
+             "upward (default: image coordinates, y and v down) [y_up]"},
     {.kind = CLI_HEAD, .help = "other options:"},
     {.name = "output",
      .letter = 'o',
@@ -309,7 +382,9 @@ const cli_spec cmd_piv_spec = {
         "pairs goes into one file along t), .dat (Tecplot), .vtk (legacy VTK). Several pairs\n"
         "and a non-.nc OUT give one file per pair, OUT with _0001, _0002, ... before the\n"
         "extension. x, y are pixel coordinates of frame A (pixel centres at integers), u along\n"
-        "+x, v along +y (down), in px; flag 0 valid, 1 replaced, 2 masked.\n\n",
+        "+x, v along +y (down; up with --y-up), in px; flag 0 valid, 1 replaced, 2 masked.\n"
+        "Every format holds the same quantities with their units in its header\n"
+        "(docs/formats.md).\n\n",
     .opt = options,
     .nopt = sizeof options / sizeof options[0],
     .more = help_mpi,
@@ -424,6 +499,8 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
     if (!st && rpiv_mpi_size(mpi) > 1)
         st = rpiv_meta_add(&meta, "mpi_ranks", "%d", rpiv_mpi_size(mpi));
     r.out = out;
+    r.y_up = p->y_up;
+    r.height = h;
     r.npairs = pairs ? pairs->n : 0;
     r.meta = &meta;
     r.digits = 4;
@@ -433,8 +510,15 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
     if (!st && !p->ensemble && root) {
         if ((st = rpiv_piv_grid(pv, rpiv_piv_npass(pv) - 1, &grid)))
             goto out_agree;
-        if (r.nc_series && (st = rpiv_field_series_open(out, grid, &meta, &r.series)))
-            goto out_agree;
+        if (r.nc_series) {
+            rpiv_field *tmp;
+            const rpiv_field *g;
+            if (!(st = oriented(&r, grid, &tmp, &g)))
+                st = rpiv_field_series_open(out, g, &meta, &r.series);
+            rpiv_field_free(tmp);
+            if (st)
+                goto out_agree;
+        }
         if (o->meanrms && (st = rpiv_series_stats_new(grid, &r.stats)))
             goto out_agree;
     }
@@ -446,8 +530,7 @@ out_agree:
     if (p->ensemble) {
         if ((st = rpiv_batch_ensemble(batch, pv, &pr, &field)))
             goto out_free;
-        if (root &&
-            ((st = add_skipped(&meta, batch, pairs)) || (st = rpiv_field_save(field, &meta, out))))
+        if (root && ((st = add_skipped(&meta, batch, pairs)) || (st = save(&r, field, &meta, out))))
             goto out_free;
         r.nvec = (size_t)field->nx * (size_t)field->ny;
         r.nreplaced = rpiv_field_count(field, RPIV_FLAG_REPLACED);
@@ -466,9 +549,9 @@ out_agree:
             if ((st = add_skipped(&meta, batch, pairs)) ||
                 (st = rpiv_series_stats_finish(r.stats, &mean, &rms)) ||
                 (st = out_name(out, "_mean", path, sizeof path)) ||
-                (st = rpiv_field_save(mean, &meta, path)) ||
+                (st = save(&r, mean, &meta, path)) ||
                 (st = out_name(out, "_rms", path, sizeof path)) ||
-                (st = rpiv_field_save(rms, &meta, path)))
+                (st = save_as(&r, rms, &meta, path, 1)))
                 goto out_free;
         }
     }

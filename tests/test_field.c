@@ -180,6 +180,109 @@ static void txt_without_units_has_seven_columns(void)
     rpiv_field_free(f);
 }
 
+/* Extra quantities: added, copied, written with their units and read back exactly. */
+static void quantities_copy_and_round_trip(void)
+{
+    rpiv_field *f = sample(), *c = NULL, *g = NULL;
+    float *w = NULL, *s = NULL;
+    CHECK_OK(rpiv_field_add_quantity(f, "vorticity", RPIV_UNIT_PER_DT | RPIV_UNIT_ODD_Y, &w));
+    CHECK_OK(rpiv_field_add_quantity(f, "sigma_u", RPIV_UNIT_PX_PER_DT, &s));
+    CHECK_FAILS(rpiv_field_add_quantity(f, "vorticity", RPIV_UNIT_ONE, NULL), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_field_add_quantity(f, "u", RPIV_UNIT_ONE, NULL), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_field_add_quantity(f, "u_ms", RPIV_UNIT_ONE, NULL), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_field_add_quantity(f, "a b", RPIV_UNIT_ONE, NULL), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_field_add_quantity(f, "ok", 7, NULL), RPIV_EINVAL);
+    if (!w || !s)
+        goto out;
+    for (int k = 0; k < 35; k++) {
+        w[k] = 0.0123f * (float)k - 0.21f;
+        s[k] = 0.05f + 0.001f * (float)k;
+    }
+    f->scale_mm_per_px = 0.0213;
+    f->dt_s = 3.1e-4;
+    CHECK_OK(rpiv_field_copy(f, &c));
+    CHECK(c && c->nq == 2 && rpiv_field_quantity(c, "sigma_u") &&
+          rpiv_field_quantity(c, "sigma_u")->data != s &&
+          memcmp(rpiv_field_quantity(c, "sigma_u")->data, s, 35 * sizeof *s) == 0);
+    CHECK_OK(rpiv_field_save(f, NULL, tpath("q.txt")));
+    char *text = read_all(tpath("q.txt"));
+    CHECK(text && strstr(text, "# quantity = vorticity 1/dt odd_y\n") &&
+          strstr(text, "# quantity = sigma_u pix/dt\n"));
+    CHECK(text && strstr(text, "# units = pix pix pix/dt pix/dt 1 1 1 1/dt pix/dt mm mm m/s m/s "
+                               "1/s m/s\n"));
+    CHECK(text && strstr(text, "# x y u v flag peak_ratio correlation vorticity sigma_u x_mm "
+                               "y_mm u_ms v_ms vorticity_per_s sigma_u_ms\n"));
+    free(text);
+    CHECK_OK(rpiv_field_load_txt(tpath("q.txt"), &g));
+    const rpiv_quantity *q = g ? rpiv_field_quantity(g, "vorticity") : NULL;
+    CHECK(g && g->nq == 2 && q && q->unit == (RPIV_UNIT_PER_DT | RPIV_UNIT_ODD_Y));
+    CHECK(q && memcmp(q->data, w, 35 * sizeof *w) == 0);
+    q = g ? rpiv_field_quantity(g, "sigma_u") : NULL;
+    CHECK(q && q->unit == RPIV_UNIT_PX_PER_DT && memcmp(q->data, s, 35 * sizeof *s) == 0);
+    CHECK(g && memcmp(g->u, f->u, 35 * sizeof *f->u) == 0 && g->y_up == 0);
+    /* the same columns in Tecplot and VTK */
+    CHECK_OK(rpiv_field_save(f, NULL, tpath("q.dat")));
+    text = read_all(tpath("q.dat"));
+    CHECK(text && strstr(text, "VARIABLES = \"x\",\"y\",\"u\",\"v\",\"flag\",\"peak_ratio\","
+                               "\"correlation\",\"vorticity\",\"sigma_u\",\"x_mm\",\"y_mm\","
+                               "\"u_ms\",\"v_ms\",\"vorticity_per_s\",\"sigma_u_ms\"\n"));
+    CHECK(text && strstr(text, "# units = pix pix pix/dt pix/dt 1 1 1 1/dt pix/dt mm mm"));
+    free(text);
+    CHECK_OK(rpiv_field_save(f, NULL, tpath("q.vtk")));
+    text = read_all(tpath("q.vtk"));
+    CHECK(text && strstr(text, "FIELD point_arrays 9\n") &&
+          strstr(text, "\nvorticity 1 35 float\n") &&
+          strstr(text, "\nvorticity_per_s 1 35 float\n") &&
+          strstr(text, "\nvelocity_ms 3 35 float\n") && strstr(text, "\ncoords_mm 3 35 double\n"));
+    free(text);
+out:
+    rpiv_field_free(g);
+    rpiv_field_free(c);
+    rpiv_field_free(f);
+}
+
+/* y-up: rows reversed, y measured from the bottom pixel, v and odd quantities negated, and
+ * the orientation recorded and read back. */
+static void y_up_turns_and_is_recorded(void)
+{
+    rpiv_field *f = sample(), *g = NULL, *h = NULL;
+    float *w = NULL;
+    CHECK_OK(rpiv_field_add_quantity(f, "vorticity", RPIV_UNIT_PER_DT | RPIV_UNIT_ODD_Y, &w));
+    CHECK_OK(rpiv_field_add_quantity(f, "sigma_v", RPIV_UNIT_PX_PER_DT, NULL));
+    if (!w)
+        goto out;
+    for (int k = 0; k < 35; k++)
+        w[k] = (float)k + 0.5f;
+    f->q[1].data[3] = 0.25f;
+    CHECK_OK(rpiv_field_copy(f, &g));
+    /* an image 80 px high: rows at y = 9.25 ... 57.25 become 80 - 1 - 57.25 = 21.75 ... 69.75 */
+    CHECK_OK(rpiv_field_y_up(g, 80));
+    CHECK_FAILS(rpiv_field_y_up(g, 80), RPIV_EINVAL);
+    CHECK(g->y_up == 1 && g->y0 == 21.75 && g->dy == 12 && g->x0 == 12.5);
+    int bad = 0;
+    for (int j = 0; j < 5; j++)
+        for (int i = 0; i < 7; i++) {
+            size_t k = (size_t)j * 7 + (size_t)i, m = (size_t)(4 - j) * 7 + (size_t)i;
+            bad += g->u[k] != f->u[m] || g->v[k] != -f->v[m] || g->flag[k] != f->flag[m] ||
+                   g->q[0].data[k] != -w[m] || g->q[1].data[k] != f->q[1].data[m];
+        }
+    CHECK(bad == 0);
+    CHECK_OK(rpiv_field_save(g, NULL, tpath("up.txt")));
+    char *text = read_all(tpath("up.txt"));
+    CHECK(text && strstr(text, "# orientation = y-up\n"));
+    free(text);
+    CHECK_OK(rpiv_field_load_txt(tpath("up.txt"), &h));
+    CHECK(h && h->y_up == 1 && h->y0 == 21.75 && memcmp(h->v, g->v, 35 * sizeof *h->v) == 0);
+    CHECK_OK(rpiv_field_save(g, NULL, tpath("up.vtk")));
+    text = read_all(tpath("up.vtk"));
+    CHECK(text && strstr(text, "orientation y-up"));
+    free(text);
+out:
+    rpiv_field_free(h);
+    rpiv_field_free(g);
+    rpiv_field_free(f);
+}
+
 static void load_reads_openpiv_style_columns(void)
 {
     /* OpenPIV's save(): tab separated, a '# x y u v flags mask' header, 6th column a mask;
@@ -417,9 +520,15 @@ static void netcdf_layout_reads_back(void)
     rpiv_field *f = sample();
     f->scale_mm_per_px = 0.0213;
     f->dt_s = 3.1e-4;
+    float *vort = NULL;
+    CHECK_OK(rpiv_field_add_quantity(f, "vorticity", RPIV_UNIT_PER_DT | RPIV_UNIT_ODD_Y, &vort));
+    for (int k = 0; vort && k < 35; k++)
+        vort[k] = 0.01f * (float)k - 0.2f;
+    double ms = 0.0213 * 1e-3 / 3.1e-4;
     rpiv_meta m = {0};
     CHECK_OK(rpiv_meta_add(&m, "piv.window", "64,32"));
     CHECK_OK(rpiv_meta_add(&m, "seed", "%d", 4711));
+    CHECK_OK(rpiv_meta_add(&m, "files", "a.tif b.tif"));
     CHECK_OK(rpiv_field_save(f, &m, tpath("f.nc")));
     int ncid, fmt, ndims, nvars, unlim, id, dims[3];
     size_t len;
@@ -428,7 +537,8 @@ static void netcdf_layout_reads_back(void)
         goto out;
     }
     CHECK(nc_inq_format(ncid, &fmt) == 0 && fmt == NC_FORMAT_NETCDF4);
-    CHECK(nc_inq(ncid, &ndims, &nvars, NULL, &unlim) == 0 && ndims == 3 && nvars == 8);
+    /* x y t x_px y_px, u v chc flag peak_ratio correlation vorticity, u_px v_px vorticity_px */
+    CHECK(nc_inq(ncid, &ndims, &nvars, NULL, &unlim) == 0 && ndims == 3 && nvars == 15);
     CHECK(nc_inq_dimid(ncid, "t", &id) == 0 && id == unlim);
     CHECK(nc_inq_dimlen(ncid, unlim, &len) == 0 && len == 1);
     CHECK(nc_inq_dimid(ncid, "y", &id) == 0 && nc_inq_dimlen(ncid, id, &len) == 0 && len == 5);
@@ -438,34 +548,59 @@ static void netcdf_layout_reads_back(void)
     char dn[3][NC_MAX_NAME + 1];
     for (int d = 0; d < 3; d++)
         nc_inq_dimname(ncid, dims[d], dn[d]);
-    CHECK(!strcmp(dn[0], "t") && !strcmp(dn[1], "y") && !strcmp(dn[2], "x"));
-    float u[35], v[35], pr[35], cc[35];
-    CHECK(nc_get_var_float(ncid, id, u) == 0 && memcmp(u, f->u, sizeof u) == 0);
-    CHECK(att_text_is(ncid, id, "units", "pix/dt"));
+    CHECK(!strcmp(dn[0], "y") && !strcmp(dn[1], "x") && !strcmp(dn[2], "t"));
+    float u[35], v[35], pr[35], cc[35], w[35];
+    int bad = 0;
+    CHECK(nc_get_var_float(ncid, id, u) == 0);
+    CHECK(att_text_is(ncid, id, "units", "m/s"));
     CHECK(nc_inq_varid(ncid, "v", &id) == 0 && nc_get_var_float(ncid, id, v) == 0);
-    CHECK(memcmp(v, f->v, sizeof v) == 0);
+    for (int k = 0; k < 35; k++)
+        bad += u[k] != (float)((double)f->u[k] * ms) || v[k] != (float)((double)f->v[k] * ms);
+    CHECK(nc_inq_varid(ncid, "u_px", &id) == 0 && nc_get_var_float(ncid, id, u) == 0);
+    CHECK(memcmp(u, f->u, sizeof u) == 0 && att_text_is(ncid, id, "units", "pix/dt"));
+    CHECK(nc_inq_varid(ncid, "vorticity", &id) == 0 && nc_get_var_float(ncid, id, w) == 0);
+    CHECK(att_text_is(ncid, id, "units", "1/s"));
+    for (int k = 0; vort && k < 35; k++)
+        bad += w[k] != (float)((double)vort[k] / 3.1e-4);
+    CHECK(nc_inq_varid(ncid, "vorticity_px", &id) == 0 && nc_get_var_float(ncid, id, w) == 0);
+    CHECK(vort && memcmp(w, vort, sizeof w) == 0 && att_text_is(ncid, id, "units", "1/dt"));
+    CHECK(bad == 0);
     CHECK(nc_inq_varid(ncid, "peak_ratio", &id) == 0 && nc_get_var_float(ncid, id, pr) == 0);
     CHECK(memcmp(pr, f->peak_ratio, sizeof pr) == 0);
     CHECK(nc_inq_varid(ncid, "correlation", &id) == 0 && nc_get_var_float(ncid, id, cc) == 0);
     CHECK(memcmp(cc, f->corr, sizeof cc) == 0);
     nc_type type;
     unsigned char fl[35];
+    signed char chc[35];
     CHECK(nc_inq_varid(ncid, "flag", &id) == 0 && nc_inq_vartype(ncid, id, &type) == 0 &&
           type == NC_BYTE);
     CHECK(nc_get_var_uchar(ncid, id, fl) == 0 && memcmp(fl, f->flag, 35) == 0);
     CHECK(att_text_is(ncid, id, "flag_meanings", "valid replaced masked"));
+    CHECK(nc_inq_varid(ncid, "chc", &id) == 0 && nc_get_var_schar(ncid, id, chc) == 0);
+    for (int k = 0; k < 35; k++)
+        bad += chc[k] != (f->flag[k] == RPIV_FLAG_VALID);
+    CHECK(bad == 0);
     double x[7], y[5], t;
     CHECK(nc_inq_varid(ncid, "x", &id) == 0 && nc_get_var_double(ncid, id, x) == 0);
-    CHECK(x[0] == 12.5 && x[6] == 12.5 + 6 * 16);
-    CHECK(att_text_is(ncid, id, "units", "pix"));
+    CHECK(x[0] == 12.5 * 0.0213 && x[6] == (12.5 + 6 * 16) * 0.0213);
+    CHECK(att_text_is(ncid, id, "units", "mm"));
+    CHECK(nc_inq_varid(ncid, "x_px", &id) == 0 && nc_get_var_double(ncid, id, x) == 0);
+    CHECK(x[0] == 12.5 && x[6] == 12.5 + 6 * 16 && att_text_is(ncid, id, "units", "pix"));
     CHECK(nc_inq_varid(ncid, "y", &id) == 0 && nc_get_var_double(ncid, id, y) == 0);
-    CHECK(y[0] == 9.25 && y[4] == 9.25 + 4 * 12);
+    CHECK(y[0] == 9.25 * 0.0213 && y[4] == (9.25 + 4 * 12) * 0.0213);
     CHECK(nc_inq_varid(ncid, "t", &id) == 0 && nc_get_var_double(ncid, id, &t) == 0 && t == 0);
-    CHECK(att_text_is(ncid, id, "units", "s"));
+    CHECK(att_text_is(ncid, id, "units", "frame"));
     CHECK(att_text_is(ncid, NC_GLOBAL, "piv.window", "64,32"));
     CHECK(att_text_is(ncid, NC_GLOBAL, "seed", "4711"));
-    double sc = 0;
+    CHECK(att_text_is(ncid, NC_GLOBAL, "orientation", "image"));
+    double sc = 0, dt = 0;
     CHECK(nc_get_att_double(ncid, NC_GLOBAL, "scale_mm_per_px", &sc) == 0 && sc == 0.0213);
+    CHECK(nc_get_att_double(ncid, NC_GLOBAL, "delta_t", &dt) == 0 && dt == 3.1e-4);
+    char *files[1] = {NULL};
+    CHECK(nc_inq_att(ncid, NC_GLOBAL, "files", &type, &len) == 0 && type == NC_STRING && len == 1);
+    CHECK(nc_get_att_string(ncid, NC_GLOBAL, "files", files) == 0 && files[0] &&
+          strcmp(files[0], "a.tif b.tif") == 0);
+    nc_free_string(1, files);
     nc_close(ncid);
 out:
     rpiv_meta_clear(&m);
@@ -503,7 +638,9 @@ static void netcdf_series_of_three_along_t(void)
     CHECK(t[0] == times[0] && t[1] == times[1] && t[2] == times[2]);
     float u[3 * 35];
     CHECK(nc_inq_varid(ncid, "u", &id) == 0 && nc_get_var_float(ncid, id, u) == 0);
-    CHECK(u[0] == 0.3187f && u[35 + 20] == 0.3187f * 2 + 20 && u[70 + 34] == 0.3187f * 3 + 34);
+    /* dims (y, x, t): point q of field k at q * 3 + k */
+    CHECK(u[0] == 0.3187f && u[20 * 3 + 1] == 0.3187f * 2 + 20 &&
+          u[34 * 3 + 2] == 0.3187f * 3 + 34);
     nc_close(ncid);
     CHECK(count_tmp_files() == 0);
     /* an aborted series leaves nothing */
@@ -596,21 +733,25 @@ static void vtk_header_and_values_parse_back(void)
         float u, v, w;
         bad += fscanf(fp, "%f %f %f", &u, &v, &w) != 3 || u != f->u[k] || v != f->v[k] || w != 0;
     }
+    /* every other array as FIELD data, which VTK's default reader settings load */
     char name[32], type[32];
-    CHECK(fscanf(fp, " SCALARS %31s %31s 1 LOOKUP_TABLE default", name, type) == 2);
-    CHECK(strcmp(name, "flag") == 0 && strcmp(type, "int") == 0);
+    size_t narr = 0, ntup = 0;
+    int ncomp = 0;
+    CHECK(fscanf(fp, " FIELD point_arrays %zu", &narr) == 1 && narr == 3);
+    CHECK(fscanf(fp, " %31s %d %zu %31s", name, &ncomp, &ntup, type) == 4);
+    CHECK(strcmp(name, "flag") == 0 && ncomp == 1 && ntup == 35 && strcmp(type, "int") == 0);
     for (int k = 0; k < 35; k++) {
         int fl;
         bad += fscanf(fp, "%d", &fl) != 1 || fl != f->flag[k];
     }
-    CHECK(fscanf(fp, " SCALARS %31s %31s 1 LOOKUP_TABLE default", name, type) == 2);
-    CHECK(strcmp(name, "peak_ratio") == 0);
+    CHECK(fscanf(fp, " %31s %d %zu %31s", name, &ncomp, &ntup, type) == 4);
+    CHECK(strcmp(name, "peak_ratio") == 0 && ncomp == 1 && strcmp(type, "float") == 0);
     for (int k = 0; k < 35; k++) {
         float p;
         bad += fscanf(fp, "%f", &p) != 1 || p != f->peak_ratio[k];
     }
-    CHECK(fscanf(fp, " SCALARS %31s %31s 1 LOOKUP_TABLE default", name, type) == 2);
-    CHECK(strcmp(name, "correlation") == 0);
+    CHECK(fscanf(fp, " %31s %d %zu %31s", name, &ncomp, &ntup, type) == 4);
+    CHECK(strcmp(name, "correlation") == 0 && ncomp == 1 && strcmp(type, "float") == 0);
     for (int k = 0; k < 35; k++) {
         float p;
         bad += fscanf(fp, "%f", &p) != 1 || p != f->corr[k];
@@ -707,6 +848,8 @@ int main(void)
     RUN_TEST(meta_add_replaces_and_rejects_bad_keys);
     RUN_TEST(txt_round_trip_is_exact);
     RUN_TEST(txt_without_units_has_seven_columns);
+    RUN_TEST(quantities_copy_and_round_trip);
+    RUN_TEST(y_up_turns_and_is_recorded);
     RUN_TEST(load_reads_openpiv_style_columns);
     RUN_TEST(load_errors_name_file_and_line);
     RUN_TEST(profile_load_reads_and_reverses);

@@ -5,6 +5,12 @@
  * Point (i, j) (i along x, j along y) has centre (x0 + i*dx, y0 + j*dy) in pixel coordinates of
  * image A (0-based, pixel centres at integers). u is along +x (columns), v along +y (rows,
  * downward), both in pixels of displacement. Arrays are row-major: index j * nx + i.
+ * A field turned y-up (rpiv_field_y_up) has its origin at the centre of the bottom-left pixel,
+ * y upward and v positive upward; y_up records it and every file says which (orientation).
+ *
+ * Besides u, v, flag, peak_ratio and corr, a field carries any number of named per-vector
+ * quantities (uncertainty, bias, vorticity...), each with its unit kind
+ * (rpiv_field_add_quantity); they are copied with the field and written by every writer.
  *
  * Files are described in docs/formats.md. Every writer is atomic: the data go to a temporary
  * file in the destination folder, which is flushed, fsync'ed and renamed over the path, so a
@@ -23,6 +29,25 @@ enum {
     RPIV_FLAG_MASKED = 2    /* inside the mask or outside the ROI     */
 };
 
+/* The unit kind of a per-vector quantity: its unit in pixels, and with scale and dt set its
+ * physical unit (docs/formats.md). */
+typedef enum rpiv_unit {
+    RPIV_UNIT_ONE = 0,       /* dimensionless: "1"                                 */
+    RPIV_UNIT_PX = 1,        /* a length: px, or mm (x scale)                      */
+    RPIV_UNIT_PX_PER_DT = 2, /* a displacement per pair: px/dt, or m/s             */
+    RPIV_UNIT_PER_DT = 3     /* a rate (vorticity, strain): 1/dt, or 1/s           */
+} rpiv_unit;
+/* Or'ed into a unit: the quantity changes sign when y is reversed (v, vorticity, bias_v). */
+#define RPIV_UNIT_ODD_Y        0x100
+#define RPIV_QUANTITY_NAME_MAX 32 /* bytes, with the NUL */
+
+/* One extra per-vector quantity: nx * ny floats, row-major like u. */
+typedef struct rpiv_quantity {
+    char name[RPIV_QUANTITY_NAME_MAX];
+    int unit; /* rpiv_unit, | RPIV_UNIT_ODD_Y */
+    float *data;
+} rpiv_quantity;
+
 typedef struct rpiv_field {
     int nx, ny;    /* grid size                                   */
     double x0, y0; /* centre of point (0,0), px                   */
@@ -33,6 +58,9 @@ typedef struct rpiv_field {
     float *corr;            /* normalised correlation value at the peak   */
     double scale_mm_per_px; /* 0 = not set; with dt_s gives mm and m/s columns */
     double dt_s;            /* 0 = not set */
+    size_t nq;              /* extra quantities (rpiv_field_add_quantity), owned */
+    rpiv_quantity *q;
+    int y_up; /* 0: image coordinates (y down); 1: turned by rpiv_field_y_up */
 } rpiv_field;
 
 /* A new zeroed nx x ny field (flags RPIV_FLAG_VALID, scale and dt unset). RPIV_EINVAL if
@@ -43,6 +71,27 @@ RPIV_NODISCARD rpiv_status rpiv_field_new(int nx, int ny, double x0, double y0, 
 void rpiv_field_free(rpiv_field *f); /* NULL is a no-op */
 /* A deep copy of f (all arrays, scale and dt). */
 RPIV_NODISCARD rpiv_status rpiv_field_copy(const rpiv_field *f, rpiv_field **out);
+/* Add a zeroed quantity `name` of unit kind `unit` (rpiv_unit, optionally | RPIV_UNIT_ODD_Y)
+ * and set *data (if not NULL) to its nx * ny floats, owned by f. The name starts with a
+ * letter, holds letters, digits and '_', is shorter than RPIV_QUANTITY_NAME_MAX and is none
+ * of the names the files use already (x, y, t, u, v, flag, chc, peak_ratio, correlation,
+ * velocity, x_px..., *_mm, *_ms, *_per_s, *_px): RPIV_EINVAL, also for a name f has. */
+RPIV_NODISCARD rpiv_status rpiv_field_add_quantity(rpiv_field *f, const char *name, int unit,
+                                                   float **data);
+/* The quantity called name, or NULL. */
+const rpiv_quantity *rpiv_field_quantity(const rpiv_field *f, const char *name);
+/* The name of a unit kind: in pixels ("1", "pix", "pix/dt", "1/dt") or physical ("1", "mm",
+ * "m/s", "1/s"). */
+const char *rpiv_unit_name(int unit, int physical);
+/* The factor from a unit kind's pixel value to its physical value for f's scale and dt (1 for
+ * RPIV_UNIT_ONE; 0 if f has no scale and dt). */
+double rpiv_unit_factor(const rpiv_field *f, int unit);
+/* Turn an image-coordinate field y-up in place: origin at the centre of the bottom-left pixel
+ * of an image `height` pixels high (y' = height - 1 - y), rows reordered so y' increases with
+ * j, v and every RPIV_UNIT_ODD_Y quantity negated; y_up set. RPIV_EINVAL if it already is
+ * or height < 1. */
+RPIV_NODISCARD rpiv_status rpiv_field_y_up(rpiv_field *f, int height);
+
 /* The number of vectors of f flagged `flag` (RPIV_FLAG_VALID, _REPLACED or _MASKED). */
 size_t rpiv_field_count(const rpiv_field *f, int flag);
 

@@ -55,6 +55,7 @@ typedef struct rpiv_piv_params {
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;
+    int y_up; /* output files: 1 origin bottom-left, y and v up; 0 image coordinates (0) */
 } rpiv_piv_params;
 
 rpiv_piv_params rpiv_piv_params_default(void);

@@ -162,6 +162,8 @@ static const key_spec keys[] = {
      "pulse separation for m/s columns (0 = unset)", 0},
     {"piv", "deform", KEY_BOOL, OFF(piv.deform), 0, 1, 1, "-",
      "deform the images by the predictor between passes", 0},
+    {"piv", "y_up", KEY_BOOL, OFF(piv.y_up), 0, 1, 1, "-",
+     "output files with origin bottom-left, y and v up (0 = image coordinates)", 0},
     {"piv", "max_mem_mb", KEY_DOUBLE, OFF(piv.max_mem_mb), 1, 1e9, 1, "MB",
      "refuse runs that would need more memory", 0},
     /* [preprocess] */

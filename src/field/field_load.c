@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/field/field_load.c - reading whitespace column files (rpiv's own, OpenPIV's) back into a field
- * on a regular grid. */
+/* src/field/field_load.c - reading whitespace column files (rpiv's own, OpenPIV's) back into a
+ * field on a regular grid. */
 #include "rpiv/field.h"
 
 #include "field_impl.h"
@@ -19,7 +19,19 @@ typedef struct rows {
     float *u, *v, *pr, *cc;
     unsigned char *flag;
     long *line;
+    size_t nq; /* extra quantities per row (rpiv's files) */
+    float *ex; /* nq per row */
 } rows;
+
+/* What rpiv's header says. */
+#define MAXQ 64
+typedef struct header {
+    int is_rpiv, y_up;
+    double scale, dt;
+    size_t nq;
+    char qname[MAXQ][RPIV_QUANTITY_NAME_MAX];
+    int qunit[MAXQ];
+} header;
 
 static void rows_free(rows *r)
 {
@@ -31,6 +43,7 @@ static void rows_free(rows *r)
     free(r->cc);
     free(r->flag);
     free(r->line);
+    free(r->ex);
 }
 
 #define GROW(p, cap) (tmp = realloc((p), (cap) * sizeof *(p))) ? ((p) = tmp, 1) : 0
@@ -45,31 +58,53 @@ static int rows_push(rows *r)
         !(GROW(r->pr, cap)) || !(GROW(r->cc, cap)) || !(GROW(r->flag, cap)) ||
         !(GROW(r->line, cap)))
         return 0;
+    if (r->nq && !(tmp = realloc(r->ex, cap * r->nq * sizeof *r->ex)))
+        return 0;
+    if (r->nq)
+        r->ex = tmp;
     r->cap = cap;
     return 1;
 }
 
-/* "# key = value" header lines rpiv writes; only the ones that change the field are used. */
-static void header_line(const char *s, int *is_rpiv, double *scale, double *dt)
+/* "# key = value" header lines rpiv writes; only the ones that change the field are used.
+ * RPIV_EFORMAT for a quantity line that cannot be used. */
+static rpiv_status header_line(const char *s, header *h, const char *path, long lineno)
 {
     while (*s == '#' || *s == ' ' || *s == '\t')
         s++;
     if (strncmp(s, "rpiv vector field", 17) == 0) {
-        *is_rpiv = 1;
-        return;
+        h->is_rpiv = 1;
+        return RPIV_OK;
     }
     double val;
-    char key[32];
+    char key[32], name[64], unit[16], odd[16];
+    if (sscanf(s, "orientation = %15s", unit) == 1) {
+        h->y_up = strcmp(unit, "y-up") == 0;
+        return RPIV_OK;
+    }
+    int nf = sscanf(s, "quantity = %63s %15s %15s", name, unit, odd);
+    if (nf >= 2) {
+        int u = field_unit_of_name(unit);
+        if (u < 0 || h->nq == MAXQ || strlen(name) >= RPIV_QUANTITY_NAME_MAX)
+            return rpiv_fail(RPIV_EFORMAT, "%s:%ld: quantity '%s' in '%s': %s", path, lineno, name,
+                             unit, u < 0 ? "unknown unit" : "too many or name too long");
+        if (nf == 3 && strcmp(odd, "odd_y") == 0)
+            u |= RPIV_UNIT_ODD_Y;
+        memcpy(h->qname[h->nq], name, strlen(name) + 1);
+        h->qunit[h->nq++] = u;
+        return RPIV_OK;
+    }
     if (sscanf(s, "%31[A-Za-z0-9_] = %lf", key, &val) == 2) {
         /* an unusable value (<= 0, or infinite after an overflow) leaves the field unscaled */
         if (strcmp(key, "scale_mm_per_px") == 0 && val > 0 && isfinite(val))
-            *scale = val;
+            h->scale = val;
         else if (strcmp(key, "dt_s") == 0 && val > 0 && isfinite(val))
-            *dt = val;
+            h->dt = val;
     }
+    return RPIV_OK;
 }
 
-#define MAXCOL 7
+#define MAXCOL (7 + MAXQ)
 
 static int cmp_double(const void *a, const void *b)
 {
@@ -124,8 +159,7 @@ static rpiv_status infer_axis(const double *v, size_t n, double *o0, double *ste
     return RPIV_OK;
 }
 
-static rpiv_status build_field(const rows *r, const char *path, double scale, double dt,
-                               rpiv_field **out)
+static rpiv_status build_field(const rows *r, const char *path, const header *h, rpiv_field **out)
 {
     double x0, y0, dx, dy;
     long nx, ny;
@@ -158,6 +192,14 @@ static rpiv_status build_field(const rows *r, const char *path, double scale, do
     rpiv_status st = rpiv_field_new((int)nx, (int)ny, x0, y0, dx, dy, &f);
     if (st)
         return st;
+    for (size_t q = 0; q < r->nq; q++) {
+        if ((st = rpiv_field_add_quantity(f, h->qname[q], h->qunit[q], NULL))) {
+            char msg[512];
+            snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+            rpiv_field_free(f);
+            return rpiv_fail(RPIV_EFORMAT, "%s: %s", path, msg);
+        }
+    }
     long *seen = calloc(r->n, sizeof *seen);
     if (!seen) {
         rpiv_field_free(f);
@@ -179,14 +221,17 @@ static rpiv_status build_field(const rows *r, const char *path, double scale, do
         f->flag[idx] = r->flag[k];
         f->peak_ratio[idx] = r->pr[k];
         f->corr[idx] = r->cc[k];
+        for (size_t q = 0; q < r->nq; q++)
+            f->q[q].data[idx] = r->ex[k * r->nq + q];
     }
     free(seen);
     if (st) {
         rpiv_field_free(f);
         return st;
     }
-    f->scale_mm_per_px = scale;
-    f->dt_s = dt;
+    f->scale_mm_per_px = h->scale;
+    f->dt_s = h->dt;
+    f->y_up = h->y_up;
     *out = f;
     return RPIV_OK;
 }
@@ -201,15 +246,15 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
     char *line = NULL;
     size_t cap = 0;
     long lineno = 0, ncol_line = 0;
-    int is_rpiv = 0, ncol = 0;
-    double scale = 0, dt = 0;
+    int ncol = 0;
+    header h = {0};
     rpiv_status st = RPIV_OK;
     ssize_t len;
     while ((len = text_getline(fp, &line, &cap, path, &lineno, &st)) >= 0) {
         char *s = line + strspn(line, " \t\r\n");
         if (*s == '#') {
-            if (r.n == 0)
-                header_line(s, &is_rpiv, &scale, &dt);
+            if (r.n == 0 && (st = header_line(s, &h, path, lineno)))
+                goto out_free;
             continue;
         }
         if (*s == '\0')
@@ -218,9 +263,18 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
         int nc = text_columns(s, val, MAXCOL, path, lineno, &st);
         if (nc < 0)
             goto out_free;
+        if (!r.n && h.is_rpiv)
+            r.nq = h.nq;
         if (nc < 4) {
             st = rpiv_fail(RPIV_EFORMAT, "%s:%ld: %d column%s, need at least 4 (x y u v)", path,
                            lineno, nc, nc == 1 ? "" : "s");
+            goto out_free;
+        }
+        if (r.nq && nc < 7 + (int)r.nq) {
+            st = rpiv_fail(RPIV_EFORMAT,
+                           "%s:%ld: %d columns, the header names %zu quantities "
+                           "after column 7",
+                           path, lineno, nc, r.nq);
             goto out_free;
         }
         if (!ncol) {
@@ -238,7 +292,7 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
         }
         /* u, v (and rpiv's peak ratio and correlation) are stored as float */
         for (int c = 2; c < (nc < MAXCOL ? nc : MAXCOL); c++) {
-            if ((c == 2 || c == 3 || (is_rpiv && c >= 5)) && fabs(val[c]) > (double)FLT_MAX) {
+            if ((c == 2 || c == 3 || (h.is_rpiv && c >= 5)) && fabs(val[c]) > (double)FLT_MAX) {
                 st = rpiv_fail(RPIV_EFORMAT,
                                "%s:%ld: column %d: %g is beyond the range of a "
                                "32-bit float",
@@ -258,8 +312,10 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
         r.flag[k] = (unsigned char)val[4];
         /* columns 6-7 mean peak ratio and correlation only in rpiv's files (OpenPIV's 6th
          * column is a mask) */
-        r.pr[k] = is_rpiv ? (float)val[5] : 0.0f;
-        r.cc[k] = is_rpiv ? (float)val[6] : 0.0f;
+        r.pr[k] = h.is_rpiv ? (float)val[5] : 0.0f;
+        r.cc[k] = h.is_rpiv ? (float)val[6] : 0.0f;
+        for (size_t q = 0; q < r.nq; q++)
+            r.ex[k * r.nq + q] = (float)val[7 + q];
         r.line[k] = lineno;
     }
     if (len == -2)
@@ -272,7 +328,7 @@ rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out)
         st = rpiv_fail(RPIV_EFORMAT, "%s: no vectors (expected columns x y u v)", path);
         goto out_free;
     }
-    st = build_field(&r, path, scale, dt, out);
+    st = build_field(&r, path, &h, out);
 out_free:
     free(line);
     rows_free(&r);

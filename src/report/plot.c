@@ -7,12 +7,14 @@
 
 #include "base/atomic.h"
 
+#include <errno.h>
 #include <math.h>
 #include <plplot/plplot.h>
 #include <setjmp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/statvfs.h>
 
 /* The call in progress, for the exit hook (PLplot's hook has no user pointer). */
 typedef struct plot_call {
@@ -108,16 +110,43 @@ static void set_cmap1(rpiv_plot_cmap cm)
 
 typedef rpiv_status (*draw_fn)(const void *ctx, const rpiv_plot_opts *o);
 
-static int is_png(const char *path)
+/* 1 if path holds a whole PNG: the signature, then chunks whose lengths walk exactly to the
+ * end of the file, the last one IEND. cairo does not report a failed write (a full disk), so
+ * a truncated file is found here, before it could replace a good one. */
+static int png_complete(const char *path)
 {
     static const unsigned char sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
     unsigned char buf[8];
     FILE *fp = fopen(path, "rb");
     if (!fp)
         return 0;
-    size_t got = fread(buf, 1, 8, fp);
+    int ok = fread(buf, 1, 8, fp) == 8 && memcmp(buf, sig, 8) == 0, iend = 0;
+    while (ok && !iend) {
+        if (fread(buf, 1, 8, fp) != 8) {
+            ok = 0;
+            break;
+        }
+        unsigned long len = (unsigned long)buf[0] << 24 | (unsigned long)buf[1] << 16 |
+                            (unsigned long)buf[2] << 8 | buf[3];
+        iend = memcmp(buf + 4, "IEND", 4) == 0;
+        /* data and CRC */
+        ok = len <= 0x7fffffffUL && fseek(fp, (long)len + 4, SEEK_CUR) == 0;
+    }
+    if (ok) { /* the seek may pass the end: the position must be the file's size */
+        long at = ftell(fp);
+        ok = at > 0 && fseek(fp, 0, SEEK_END) == 0 && ftell(fp) == at;
+    }
     fclose(fp);
-    return got == 8 && memcmp(buf, sig, 8) == 0;
+    return ok && iend;
+}
+
+/* Why a PNG came out incomplete: a (nearly) full file system, or something else. */
+static rpiv_status png_incomplete(const char *path, const char *tmp)
+{
+    struct statvfs sv;
+    if (statvfs(tmp, &sv) == 0 && (double)sv.f_bavail * (double)sv.f_frsize < 1048576.0)
+        return rpiv_fail(RPIV_EIO, "%s: cannot write: %s", path, strerror(ENOSPC));
+    return rpiv_fail(RPIV_EIO, "%s: PLplot's pngcairo device wrote no complete PNG", path);
 }
 
 /* Open a pngcairo stream on a temporary file next to path, run draw, close, check, publish. */
@@ -170,9 +199,10 @@ static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn d
         atomic_abort(&af);
         return rpiv_fail(RPIV_EFORMAT, "%s: PLplot: %s", path, m);
     }
-    if (!is_png(af.tmp)) {
+    if (!png_complete(af.tmp)) {
+        st = png_incomplete(path, af.tmp);
         atomic_abort(&af);
-        return rpiv_fail(RPIV_EIO, "%s: PLplot's pngcairo device did not write a PNG", path);
+        return st;
     }
     return atomic_commit(&af);
 }
