@@ -88,12 +88,13 @@ RPIV_NODISCARD rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e
 
 /* ---- flat entry points for bindings (the Python package, ctypes) --------------------------- */
 
+/* The library's version, RPIV_VERSION_STRING of the build ("0.1.0"). */
+const char *rpiv_version_string(void);
+
 /* A default experiment (rpiv_experiment_default) on the heap, so that a binding need not know
  * its layout: set keys with rpiv_config_set, release with rpiv_experiment_free. RPIV_ENOMEM. */
 RPIV_NODISCARD rpiv_status rpiv_experiment_new(rpiv_experiment **out);
 void rpiv_experiment_free(rpiv_experiment *e); /* NULL is a no-op */
-/* The library's version, RPIV_VERSION_STRING of the build ("0.1.0"). */
-const char *rpiv_version_string(void);
 /* Its [piv] section, for rpiv_piv_new. */
 rpiv_piv_params *rpiv_experiment_piv(rpiv_experiment *e);
 

@@ -17,10 +17,11 @@ def _units(scale, dt, physical):
 
 
 def make_dataset(x_px, y_px, t, u_px, v_px, flag, peak_ratio, corr, scale, dt, attrs,
-                 physical=True):
+                 physical=True, t_units=None):
     """A Dataset from arrays on (y, x, t) in pixels; t in frames (pair index) or, with
     scale and dt, seconds as given."""
     xu, uu, tu, cfac, ufac, delta_t = _units(scale, dt, physical)
+    tu = t_units or tu
     flag = np.asarray(flag, dtype=np.int8)
     chc = (flag == FLAG_VALID).astype(np.int8)
     dims = ("y", "x", "t")
@@ -113,4 +114,4 @@ def load_nc(path):
     # the older layout's t is the pair index (its writer had no time between pairs)
     return make_dataset(ds["x"].values / cfac, ds["y"].values / cfac, ds["t"].values,
                         ds["u"].values / ufac, ds["v"].values / ufac, flag, get("peak_ratio"),
-                        get("correlation"), scale, dt, attrs)
+                        get("correlation"), scale, dt, attrs, t_units="frame")

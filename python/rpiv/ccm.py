@@ -2,6 +2,7 @@
 """The cross-correlation model (CCM) of the paper: what an R-PIV window measures."""
 import collections
 import ctypes
+import math
 
 from . import _Experiment, _check, _lib, lib, InputError
 
@@ -17,11 +18,12 @@ def predict(xstar, ystar=0.5, zop_star=-1.0, dt_s=0.0, config=None, set=None, **
     set = {"section.key": value}. Returns Prediction: U* of the continuous peak and of the
     sub-pixel estimator, the peak in px, R at the peak and the px per unit U*."""
     for name, v in (("xstar", xstar), ("ystar", ystar), ("zop_star", zop_star), ("dt_s", dt_s)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            try:
-                float(v)
-            except (TypeError, ValueError):
-                raise InputError("ccm.predict: %s must be a number, got %r" % (name, v)) from None
+        try:
+            ok = not isinstance(v, bool) and math.isfinite(float(v))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError("ccm.predict: %s must be a finite number, got %r" % (name, v))
     exp = _Experiment(config)
     exp.apply(["camera", "particles", "channel", "sheet"], keys, set, "ccm.predict")
     pk = _lib.CcmPeak()

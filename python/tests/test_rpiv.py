@@ -186,6 +186,7 @@ def test_netcdf_round_trip_and_old_layout(series, tmp_path):
     assert np.allclose(conv.u.values, ds.u.values * 0.1e-3 / 1e-3, rtol=1e-6)
     assert np.array_equal(conv.chc.values == 1, ds.flag.values == 0)
     assert conv.x.attrs["units"] == "mm" and np.allclose(conv.x.values, ds.x.values * 0.1)
+    assert conv.t.attrs["units"] == "frame" and conv.attrs["delta_t"] == 1e-3
 
 
 # ---- errors: raise, never crash ----------------------------------------------------------------
@@ -258,3 +259,5 @@ def test_ccm_predict():
     assert p == rpiv.ccm.predict(0.5)  # deterministic
     with pytest.raises(rpiv.InputError):
         rpiv.ccm.predict(0.5, nosuchkey=1)
+    with pytest.raises(rpiv.InputError, match="xstar"):
+        rpiv.ccm.predict(float("nan"))
