@@ -4,6 +4,7 @@
 #   make test    the whole test suite under ASan+UBSan, the install/consumer check, valgrind
 #                over the quick unit programs, then the fuzz targets
 #   make bench   the benchmarks (Release build), printing ratios
+#   make python  the Python package (python/rpiv over build/librpiv.so)
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 WERROR ?= OFF
 DEMO_ARGS ?=
@@ -11,7 +12,7 @@ FUZZ_SECONDS ?= 30
 CMAKE ?= cmake
 
 .PHONY: all deps build build-test demo test install-check fuzz bench memcheck memcheck-quick \
-	format lint clean
+	format lint clean python
 
 all: build
 
@@ -21,6 +22,13 @@ deps:
 build: deps
 	$(CMAKE) -S . -B build -DCMAKE_BUILD_TYPE=Release -DRPIV_WERROR=$(WERROR) >/dev/null
 	$(CMAKE) --build build -j $(JOBS)
+
+# The Python package (python/rpiv, ctypes over librpiv): the library built, then copied next to
+# the package, so that `PYTHONPATH=python /usr/bin/python3 -c 'import rpiv'` works from the
+# source tree and `pip install ./python` installs it (docs/python.md).
+python: build
+	cp -f build/librpiv.so python/rpiv/librpiv.so
+	PYTHONPATH=python /usr/bin/python3 -c 'import rpiv; print("rpiv", rpiv.__version__, "for Python: ok")'
 
 demo: build
 	./build/rpiv demo --out demo-out $(DEMO_ARGS)
@@ -76,4 +84,4 @@ lint: build
 	    --suppress='*:/usr/*' --error-exitcode=1 -q
 
 clean:
-	rm -rf build build-test build-memcheck build-install build-fuzz
+	rm -rf build build-test build-memcheck build-install build-fuzz python/rpiv/librpiv.so

@@ -86,4 +86,34 @@ RPIV_NODISCARD rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e
                                                         double scale_px, double ystar,
                                                         rpiv_ccm_curve **out);
 
+/* ---- flat entry points for bindings (the Python package, ctypes) --------------------------- */
+
+/* The library's version, RPIV_VERSION_STRING of the build ("0.1.0"). */
+const char *rpiv_version_string(void);
+
+/* A default experiment (rpiv_experiment_default) on the heap, so that a binding need not know
+ * its layout: set keys with rpiv_config_set, release with rpiv_experiment_free. RPIV_ENOMEM. */
+RPIV_NODISCARD rpiv_status rpiv_experiment_new(rpiv_experiment **out);
+void rpiv_experiment_free(rpiv_experiment *e); /* NULL is a no-op */
+/* Its [piv] section, for rpiv_piv_new. */
+rpiv_piv_params *rpiv_experiment_piv(rpiv_experiment *e);
+
+/* The sheet of the experiment's [laser], [prism] and channel height traced at the stations
+ * xstar[0..nx-1] (rpiv_optics_trace, as `rpiv raytrace` does). Errors: RPIV_EINVAL (a section
+ * or o out of range, no station), those of rpiv_optics_trace. */
+RPIV_NODISCARD rpiv_status rpiv_config_raytrace(const rpiv_experiment *e, const double *xstar,
+                                                size_t nx, const rpiv_optics_opts *o,
+                                                const rpiv_progress *progress,
+                                                rpiv_optics_result **out);
+
+/* The displacement Eq. "statform" predicts for one R-PIV window of the experiment (as `rpiv ccm
+ * convergence` computes its integral value): the model of rpiv_config_ccm_model(e, dt_s;
+ * dt_s <= 0: [synth] dt_s), lit by the [sheet] at section xstar, the duct's U*(z*) at y* =
+ * ystar, the object plane zop_star (< 0: the camera's), P(z*) from [synth] pz_profile, the
+ * peak fit of [piv] subpixel. *out is the peak in px; *scale_px (may be NULL) the px per unit
+ * U*. Errors: those of the parameters' checks, the profile reader and rpiv_ccm_predict. */
+RPIV_NODISCARD rpiv_status rpiv_config_ccm_predict(const rpiv_experiment *e, double dt_s,
+                                                   double xstar, double ystar, double zop_star,
+                                                   rpiv_ccm_peak *out, double *scale_px);
+
 #endif /* RPIV_CONFIG_H */
