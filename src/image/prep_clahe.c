@@ -127,27 +127,38 @@ rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, int nt)
     for (size_t k = 0; k < ntiles; k++)
         tile_map(im, &g, (int)(k % (size_t)g.ntx), (int)(k / (size_t)g.ntx), clip, hi,
                  hists + (size_t)omp_get_thread_num() * B, maps + k * B);
+    /* the column weights are the same for every row: once */
+    int *tx = malloc(2 * (size_t)g.w * sizeof *tx);
+    float *fxs = malloc((size_t)g.w * sizeof *fxs);
+    if (!tx || !fxs) {
+        free(tx);
+        free(fxs);
+        free(maps);
+        free(hists);
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for CLAHE");
+    }
+    for (int x = 0; x < g.w; x++)
+        between(x, tile, g.w, g.ntx, &tx[2 * x], &tx[2 * x + 1], &fxs[x]);
     float *px = im->px;
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int y = 0; y < g.h; y++) {
         int ty0, ty1;
         float fy;
         between(y, tile, g.h, g.nty, &ty0, &ty1, &fy);
+        const float *r0 = maps + (size_t)ty0 * (size_t)g.ntx * B;
+        const float *r1 = maps + (size_t)ty1 * (size_t)g.ntx * B;
+        float *row = px + (size_t)y * (size_t)g.w;
         for (int x = 0; x < g.w; x++) {
-            int tx0, tx1;
-            float fx;
-            between(x, tile, g.w, g.ntx, &tx0, &tx1, &fx);
-            float *p = px + (size_t)y * (size_t)g.w + (size_t)x;
-            size_t b = (size_t)bin_of(&g, *p);
-            const float *m00 = maps + ((size_t)ty0 * (size_t)g.ntx + (size_t)tx0) * B;
-            const float *m01 = maps + ((size_t)ty0 * (size_t)g.ntx + (size_t)tx1) * B;
-            const float *m10 = maps + ((size_t)ty1 * (size_t)g.ntx + (size_t)tx0) * B;
-            const float *m11 = maps + ((size_t)ty1 * (size_t)g.ntx + (size_t)tx1) * B;
-            float top = m00[b] + fx * (m01[b] - m00[b]);
-            float bot = m10[b] + fx * (m11[b] - m10[b]);
-            *p = top + fy * (bot - top);
+            size_t b = (size_t)bin_of(&g, row[x]);
+            size_t a0 = (size_t)tx[2 * x] * B + b, a1 = (size_t)tx[2 * x + 1] * B + b;
+            float fx = fxs[x];
+            float top = r0[a0] + fx * (r0[a1] - r0[a0]);
+            float bot = r1[a0] + fx * (r1[a1] - r1[a0]);
+            row[x] = top + fy * (bot - top);
         }
     }
+    free(tx);
+    free(fxs);
     free(maps);
     free(hists);
     return RPIV_OK;
