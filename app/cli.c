@@ -72,6 +72,26 @@ rpiv_status cli_parse_int(const char *opt, const char *s, long lo, long hi, long
     return RPIV_OK;
 }
 
+rpiv_status cli_parse_size(const char *opt, const char *s, long lo, long hi, int *w, int *h)
+{
+    char *end, *end2;
+    errno = 0;
+    long a = strtol(s, &end, 10), b = 0;
+    int ok = end != s && (*end == 'x' || *end == 'X') && !errno;
+    if (ok) {
+        b = strtol(end + 1, &end2, 10);
+        ok = end2 != end + 1 && !*end2 && !errno;
+    }
+    if (!ok)
+        return rpiv_fail(RPIV_EINVAL, "%s: '%s' is not WxH", opt, s);
+    if (a < lo || a > hi || b < lo || b > hi)
+        return rpiv_fail(RPIV_EINVAL, "%s: '%s' outside the accepted range %ld..%ld px per side",
+                         opt, s, lo, hi);
+    *w = (int)a;
+    *h = (int)b;
+    return RPIV_OK;
+}
+
 rpiv_status cli_set(cli_ctx *c, const char *assignment)
 {
     char buf[1024];
@@ -133,6 +153,7 @@ void cli_catch_signals(void)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
+    sigaction(SIGHUP, &sa, NULL); /* a closed terminal or session: stop as for SIGTERM */
 }
 
 int cli_interrupted(void)

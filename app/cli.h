@@ -103,6 +103,9 @@ RPIV_NODISCARD rpiv_status cli_parse_double(const char *opt, const char *s, doub
                                             double *out);
 RPIV_NODISCARD rpiv_status cli_parse_int(const char *opt, const char *s, long lo, long hi,
                                          long *out);
+/* "WxH", both integers in lo..hi (strtol with errno: no wrap past 2^32). */
+RPIV_NODISCARD rpiv_status cli_parse_size(const char *opt, const char *s, long lo, long hi, int *w,
+                                          int *h);
 
 /* Usage error: message "<cmd>: <text>" and RPIV_EINVAL. */
 rpiv_status cli_usage_error(const char *cmd, const char *fmt, ...) RPIV_PRINTF(2, 3);

@@ -7,6 +7,7 @@
 #include "rpiv/image.h"
 #include "rpiv/report.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -49,8 +50,9 @@ static rpiv_status parse_ints(const char *opt, const char *arg, int n, int *out)
     char *end;
     const char *s = arg;
     for (int i = 0; i < n; i++) {
+        errno = 0;
         long v = strtol(s, &end, 10);
-        if (end == s || v < 0 || v > 1000000 || (i + 1 < n ? *end != ',' : *end != '\0'))
+        if (end == s || errno || v < 0 || v > 1000000 || (i + 1 < n ? *end != ',' : *end != '\0'))
             return rpiv_fail(RPIV_EINVAL, "%s: '%s' is not %d non-negative integers a,b%s", opt,
                              arg, n, n > 2 ? ",..." : "");
         out[i] = (int)v;
@@ -498,11 +500,12 @@ static rpiv_status run_render(job *j, const char *name)
     int w = e->camera.width_px, h = e->camera.height_px;
     if (!j->output)
         return cli_usage_error(name, "missing -o FILE");
+    if (rpiv_image_save_check(j->output)) /* before the rendering, not after */
+        return cli_usage_error(name, "-o %s: the extension must be .tif, .tiff or .png", j->output);
     if (j->size) {
-        char tail;
-        if (sscanf(j->size, "%dx%d%c", &w, &h, &tail) != 2 || w < 8 || h < 8 || w > 65536 ||
-            h > 65536)
-            return cli_usage_error(name, "--size: '%s' is not WxH with 8..65536 px", j->size);
+        rpiv_status st = cli_parse_size("--size", j->size, 8, 65536, &w, &h);
+        if (st)
+            return st;
     }
     if (j->nfeet > 1 || j->nx > 1)
         return cli_usage_error(name, "one --foot-px and one --x at most");

@@ -428,6 +428,11 @@ rpiv_status cmd_piv(int argc, char **argv)
     if ((ro.every || ro.resume) && !ro.checkpoint)
         return cli_usage_error("piv", "%s needs --checkpoint FILE",
                                ro.resume ? "--resume" : "--checkpoint-every");
+    if (ro.every) {
+        long every;
+        if ((st = cli_parse_int("--checkpoint-every", ro.every, 1, 1000000000L, &every)))
+            return st;
+    }
     if (ro.checkpoint && !ro.checkpoint[0])
         return cli_usage_error("piv", "--checkpoint: empty file name");
     if (ro.every) {
@@ -465,8 +470,11 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
     bp.resume = o->resume;
     bp.skip_bad = o->skip_bad;
     bp.on_skip = warn_skip;
-    if (o->every)
-        bp.checkpoint_every = strtoul(o->every, NULL, 10);
+    if (o->every) { /* checked with the options: cannot fail here */
+        long every = 0;
+        if (cli_parse_int("--checkpoint-every", o->every, 1, 1000000000L, &every) == RPIV_OK)
+            bp.checkpoint_every = (size_t)every;
+    }
     /* each step that may fail on one rank alone is agreed on before the next collective */
     rpiv_status st = rpiv_pairs_from_args(nargs, args, o->pairing, &pairs);
     if (!st)

@@ -10,18 +10,21 @@
 #include "rpiv/series.h"
 #include "rpiv/synth.h"
 
+#include <dirent.h>
+#include <errno.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 rpiv_status cmd_synth(int argc, char **argv);
-static rpiv_status run(const rpiv_experiment *e, int quiet, const rpiv_mpi *mpi);
+static rpiv_status run(const rpiv_experiment *e, int quiet, int overwrite, const rpiv_mpi *mpi);
 
 /* Command-line values that override the configuration, applied after it is read. */
 typedef struct synth_opts {
     cli_ctx c;
     const char *pairs, *out, *flow, *sheet, *seed, *size;
-    int double_frame;
+    int double_frame, overwrite;
 } synth_opts;
 
 #define SYNTH_STR(nm, a, field, text)                                                              \
@@ -47,6 +50,11 @@ static const cli_opt options[] = {
      .kind = CLI_FLAG,
      .off = offsetof(synth_opts, double_frame),
      .help = "write A above B in one file (synth.double_frame)"},
+    {.name = "overwrite",
+     .kind = CLI_FLAG,
+     .off = offsetof(synth_opts, overwrite),
+     .help = "write into a folder that is not empty, removing the pair\n"
+             "files of an earlier run first (without it: an error)"},
 };
 
 const cli_spec cmd_synth_spec = {
@@ -85,10 +93,8 @@ static rpiv_status apply(const synth_opts *o, rpiv_experiment *e)
     }
     if (o->size) {
         int w, h;
-        char tail;
-        if (sscanf(o->size, "%dx%d%c", &w, &h, &tail) != 2 || w < 8 || h < 8 || w > 65536 ||
-            h > 65536)
-            return cli_usage_error("synth", "--size: '%s' is not WxH with 8..65536 px", o->size);
+        if ((st = cli_parse_size("--size", o->size, 8, 65536, &w, &h)))
+            return st;
         e->synth.width_px = w;
         e->synth.height_px = h;
     }
@@ -221,14 +227,56 @@ rpiv_status cmd_synth(int argc, char **argv)
     rpiv_mpi *mpi = NULL;
     if ((st = rpiv_mpi_new(NULL, NULL, &mpi)))
         return st;
-    st = run(e, c.quiet, mpi);
+    st = run(e, c.quiet, o.overwrite, mpi);
     rpiv_mpi_free(mpi);
+    return st;
+}
+
+/* 1 if name is one of the pair files rpiv synth writes: pair_NNNNN.tif, pair_NNNNN_a.tif or
+ * pair_NNNNN_b.tif (five digits or more). */
+static int is_pair_file(const char *name)
+{
+    if (strncmp(name, "pair_", 5))
+        return 0;
+    const char *c = name + 5;
+    size_t nd = strspn(c, "0123456789");
+    if (nd < 5)
+        return 0;
+    c += nd;
+    return !strcmp(c, ".tif") || !strcmp(c, "_a.tif") || !strcmp(c, "_b.tif");
+}
+
+/* An existing output folder: refused when it holds anything, unless overwrite; then the
+ * pair files of an earlier run are removed, so that none is left over from a run with more
+ * pairs (truth.txt and synth.ini are replaced atomically, other files are left). */
+static rpiv_status prepare_dir(const char *dir, int overwrite)
+{
+    DIR *d = opendir(dir);
+    if (!d)
+        return errno == ENOENT ? RPIV_OK
+                               : rpiv_fail(RPIV_EIO, "%s: cannot read: %s", dir, strerror(errno));
+    rpiv_status st = RPIV_OK;
+    char path[RPIV_PATH_MAX + 300];
+    for (struct dirent *de; !st && (de = readdir(d));) {
+        if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
+            continue;
+        if (!overwrite)
+            st = rpiv_fail(RPIV_EINVAL,
+                           "synth: --out %s is not empty (--overwrite replaces an earlier run's "
+                           "pairs)",
+                           dir);
+        else if (is_pair_file(de->d_name) &&
+                 snprintf(path, sizeof path, "%s/%s", dir, de->d_name) < (int)sizeof path &&
+                 unlink(path) != 0)
+            st = rpiv_fail(RPIV_EIO, "%s: cannot remove: %s", path, strerror(errno));
+    }
+    closedir(d);
     return st;
 }
 
 /* The work after option parsing, on every rank of the team: each step that may fail on one
  * rank alone is agreed on, so that all ranks stop together. */
-static rpiv_status run(const rpiv_experiment *e, int quiet, const rpiv_mpi *mpi)
+static rpiv_status run(const rpiv_experiment *e, int quiet, int overwrite, const rpiv_mpi *mpi)
 {
     const char *dir = e->output.dir;
     int root = rpiv_mpi_rank(mpi) == 0;
@@ -236,8 +284,13 @@ static rpiv_status run(const rpiv_experiment *e, int quiet, const rpiv_mpi *mpi)
     rpiv_field *grid = NULL;
     char path[RPIV_PATH_MAX + 64];
     rpiv_status st = rpiv_config_synth_new(e, NULL, &s);
-    if (!st && !(st = piv_grid(s, e, &grid)))
-        st = cli_mkdirs(dir);
+    if (!st)
+        st = piv_grid(s, e, &grid);
+    if (!st && root)
+        st = prepare_dir(dir, overwrite);
+    if ((st = rpiv_mpi_agree(mpi, st)))
+        goto out;
+    st = cli_mkdirs(dir);
     if (!st && root) {
         snprintf(path, sizeof path, "%s/synth.ini", dir);
         if (!(st = rpiv_config_save_synth(e, s, path))) {

@@ -18,6 +18,9 @@
 #include <setjmp.h>
 #include <stdint.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 typedef enum kind {
     IMAGE,   /* rpiv_image_load(file, page) */
@@ -307,6 +310,59 @@ static void png_size_check_keeps_highly_compressed_images(void)
     remove(path);
 }
 
+/* Peak RSS (KB) of a child process that loads path, and its status. */
+static long child_load_rss_kb(const char *path, rpiv_status *st)
+{
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        rpiv_image *im = NULL;
+        rpiv_status s = rpiv_image_load(path, 0, &im, NULL);
+        rpiv_image_free(im);
+        _exit((int)s);
+    }
+    int status = 0;
+    struct rusage ru;
+    memset(&ru, 0, sizeof ru);
+    if (pid < 0 || wait4(pid, &status, 0, &ru) != pid || !WIFEXITED(status))
+        return -1;
+    *st = (rpiv_status)WEXITSTATUS(status);
+    return ru.ru_maxrss;
+}
+
+/* Issue 20 item 4: a 4 KB PNG whose tEXt chunk declares 0x7ffffff0 bytes made libpng
+ * allocate and touch 2 GB (peak RSS 2.1 GB) before the read ran out of file. Any file under
+ * 1 MB must load or fail within 100 MB of peak RSS over the process's own. */
+static void huge_chunk_declarations_stay_small(void)
+{
+    static const unsigned char head[] = {
+        0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d,
+        0x49, 0x48, 0x44, 0x52, 0x00, 0x00, 0x00, 0x08, 0x00, 0x00, 0x00, 0x08,
+        0x08, 0x00, 0x00, 0x00, 0x00, 0xe1, 0x64, 0xe1, 0x57, /* signature, IHDR 8x8 grey 8-bit */
+        0x7f, 0xff, 0xff, 0xf0, 't',  'E',  'X',  't',  'C',  'o',  'm',  'm',
+        'e',  'n',  't',  0};
+    const char *path = "fuzz_regressions_huge_text.png";
+    FILE *f = fopen(path, "wb");
+    CHECK(f != NULL);
+    if (!f)
+        return;
+    fwrite(head, 1, sizeof head, f);
+    for (int i = 0; i < 4000; i++)
+        fputc('x', f);
+    fclose(f);
+    /* the growth over a child that loads nothing (a sanitizer's shadow memory alone is
+     * about 100 MB of RSS) */
+    rpiv_status st = RPIV_OK, st0 = RPIV_OK;
+    long kb0 = child_load_rss_kb("fuzz_regressions_no_such_file.png", &st0);
+    long kb = child_load_rss_kb(path, &st);
+    printf("4 KB PNG declaring a 2 GB tEXt chunk: status %d, peak RSS %ld KB (%ld KB loading "
+           "nothing)\n",
+           (int)st, kb, kb0);
+    CHECK(st == RPIV_EFORMAT && st0 == RPIV_EIO);
+    CHECK(kb0 > 0 && kb > 0 && kb - kb0 < 100 * 1024);
+    remove(path);
+}
+
 int main(void)
 {
     rpiv_init();
@@ -315,5 +371,6 @@ int main(void)
     RUN_TEST(every_file_has_an_expectation);
     RUN_TEST(each_regression_ends_cleanly);
     RUN_TEST(png_size_check_keeps_highly_compressed_images);
+    RUN_TEST(huge_chunk_declarations_stay_small);
     return check_summary();
 }

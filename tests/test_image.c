@@ -138,6 +138,43 @@ static void save_is_atomic_and_clean(void)
     rpiv_image_free(im);
 }
 
+/* Issue 20 item 10: a name of 240-255 bytes could not be written (the temporary name's
+ * suffix passed the 255-byte limit), and a message on a long path lost its reason. */
+static void long_names_are_written_and_reasons_kept(void)
+{
+    rpiv_image *im = image16(5, 3), *back = NULL;
+    char name[256];
+    memset(name, 'n', 251);
+    strcpy(name + 251, ".tif"); /* 255 bytes: the longest file name */
+    int before = count_dir_entries();
+    CHECK_OK(rpiv_image_save(im, tu_path(name)));
+    CHECK_OK(rpiv_image_load(tu_path(name), 0, &back, NULL));
+    CHECK(back && back->w == 5 && back->h == 3);
+    CHECK(count_dir_entries() == before + 1); /* no temporary left */
+    remove(tu_path(name));
+    /* a 3000-character path: the message keeps its start (the path) and its end (the
+     * reason) */
+    size_t n = 3000;
+    char *path = malloc(n + 1);
+    CHECK(path != NULL);
+    if (path) {
+        memset(path, 'd', n);
+        memcpy(path, "/nonexistent/", 13);
+        strcpy(path + n - 4, ".png");
+        rpiv_image_free(back);
+        back = NULL;
+        CHECK_FAILS(rpiv_image_load(path, 0, &back, NULL), RPIV_EIO);
+        const char *m = rpiv_errmsg();
+        size_t len = strlen(m);
+        CHECK(!strncmp(m, "/nonexistent/", 13));
+        CHECK(len > 30 && strstr(m, "No such file or directory") &&
+              !strcmp(m + len - 25, "No such file or directory"));
+        free(path);
+    }
+    rpiv_image_free(back);
+    rpiv_image_free(im);
+}
+
 static void new_copy_stats(void)
 {
     rpiv_image *im = NULL, *cp = NULL;
@@ -1118,6 +1155,7 @@ int main(void)
     RUN_TEST(roundtrip_float_tiff_exact);
     RUN_TEST(writers_round_and_clamp);
     RUN_TEST(save_is_atomic_and_clean);
+    RUN_TEST(long_names_are_written_and_reasons_kept);
     RUN_TEST(new_copy_stats);
     RUN_TEST(pgm_p5_8bit_with_comment);
     RUN_TEST(pgm_p5_16bit_big_endian);

@@ -201,6 +201,35 @@ static void list_file(void)
     CHECK(p == NULL);
 }
 
+/* Issue 20 item 11: an unterminated quote took the line's newline into the path (a 2-line
+ * message), and a UTF-8 BOM became part of the first path. */
+static void list_quote_and_bom(void)
+{
+    CHECK(make_frame("qa.tif", 21, 6, 4) && make_frame("qb.tif", 22, 6, 4));
+    rpiv_pairs *p = NULL;
+    char *args[1];
+    const char *quote = "qa.tif qb.tif\n\"qa.tif qb.tif\n";
+    CHECK(tu_write(tu_path("quote.txt"), quote, strlen(quote)));
+    args[0] = (char *)tu_path("quote.txt");
+    CHECK_ERR(rpiv_pairs_from_args(1, args, RPIV_PAIR_AB, &p), RPIV_EFORMAT, "quote.txt:2");
+    CHECK(strstr(rpiv_errmsg(), "double quote") && !strchr(rpiv_errmsg(), '\n'));
+    CHECK(p == NULL);
+    const char *bom = "\xef\xbb\xbfqa.tif qb.tif\n";
+    CHECK(tu_write(tu_path("bom.txt"), bom, strlen(bom)));
+    args[0] = (char *)tu_path("bom.txt");
+    CHECK_OK(rpiv_pairs_from_args(1, args, RPIV_PAIR_AB, &p));
+    CHECK(p && p->n == 1 && ends_with(p->pair[0].path_a, "/qa.tif") &&
+          !strstr(p->pair[0].path_a, "\xef"));
+    if (p && p->n == 1) {
+        rpiv_image *a = NULL, *b = NULL;
+        CHECK_OK(rpiv_pairs_load(p, 0, &a, &b));
+        CHECK(frame_id(a) == 21 && frame_id(b) == 22);
+        rpiv_image_free(a);
+        rpiv_image_free(b);
+    }
+    rpiv_pairs_free(p);
+}
+
 static void glob_ab_rule(void)
 {
     char d[600];
@@ -372,6 +401,7 @@ int main(void)
     RUN_TEST(size_mismatch_names_both);
     RUN_TEST(double_frame_halves_and_pages);
     RUN_TEST(list_file);
+    RUN_TEST(list_quote_and_bom);
     RUN_TEST(glob_ab_rule);
     RUN_TEST(glob_consecutive_and_time_resolved);
     RUN_TEST(missing_file_in_series_has_index);

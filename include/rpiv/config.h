@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* rpiv/config.h - the experiment: every parameter of every module, read from an INI file
- * (libinih) with strict keys, printed back as a complete INI file.
+ * (rpiv's own reader over text_getline: no line-length limit) with strict keys, printed back as a
+ * complete INI file.
  *
  * One table drives parsing, checking, --help and docs/config.md: each key has a section, a
  * name, a type, a unit, a range, a default (from the modules' *_default()) and a help line. */

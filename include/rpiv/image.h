@@ -75,5 +75,8 @@ RPIV_NODISCARD rpiv_status rpiv_image_save_tiff_float(const rpiv_image *im, cons
 /* Chooses the writer from the extension (any case): .tif/.tiff (16-bit), .png (16-bit);
  * another extension is RPIV_EINVAL. */
 RPIV_NODISCARD rpiv_status rpiv_image_save(const rpiv_image *im, const char *path);
+/* RPIV_OK if rpiv_image_save can choose a writer for path's extension, else its
+ * RPIV_EINVAL: for checking an output name before the work that makes the image. */
+RPIV_NODISCARD rpiv_status rpiv_image_save_check(const char *path);
 
 #endif /* RPIV_IMAGE_H */

@@ -3,6 +3,7 @@
  * temporary name in the target's folder, fsync'd, renamed over the target, the folder fsync'd.
  * A failure at any step removes the temporary file and leaves the old file intact. */
 #include "atomic.h"
+#include "hash.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -13,6 +14,36 @@
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
+
+/* The temporary name of path: path.tmp-<pid>-<hex> when that fits in a file name (255 bytes),
+ * else, for names of 224 bytes and more, the short .rpiv-<hash of the name>.tmp-<pid>-<hex>
+ * in the same folder (issue 20 item 10: names of 240-255 bytes could not be written). */
+#define TMP_SUFFIX_MAX 31 /* ".tmp-" + a 10-digit pid + "-" + 8 hex digits + 7 spare */
+#define NAME_MAX_BYTES 255
+
+static const char *base_of(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    return slash ? slash + 1 : path;
+}
+
+static size_t short_prefix(const char *path, char *out, size_t cap)
+{
+    const char *base = base_of(path);
+    return (size_t)snprintf(out, cap, "%.*s.rpiv-%016llx", (int)(base - path), path,
+                            (unsigned long long)hash_bytes(HASH0, base, strlen(base)));
+}
+
+static void tmp_name(char *out, size_t cap, const char *path, long pid, unsigned long r)
+{
+    if (strlen(base_of(path)) + TMP_SUFFIX_MAX <= NAME_MAX_BYTES) {
+        snprintf(out, cap, "%s.tmp-%ld-%08lx", path, pid, r);
+        return;
+    }
+    size_t n = short_prefix(path, out, cap);
+    if (n < cap)
+        snprintf(out + n, cap - n, ".tmp-%ld-%08lx", pid, r);
+}
 
 rpiv_status atomic_begin(atomic_file *af, const char *path, int want_stream)
 {
@@ -33,8 +64,7 @@ rpiv_status atomic_begin(atomic_file *af, const char *path, int want_stream)
     int fd = -1, err = 0;
     for (int attempt = 0; attempt < 100 && fd < 0; attempt++) {
         seed = seed * 6364136223846793005UL + 1442695040888963407UL;
-        snprintf(af->tmp, len + 64, "%s.tmp-%ld-%08lx", path, (long)getpid(),
-                 (seed >> 32) & 0xfffffffful);
+        tmp_name(af->tmp, len + 64, path, (long)getpid(), (seed >> 32) & 0xfffffffful);
         fd = open(af->tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
         err = errno;
         if (fd < 0 && err != EEXIST)
@@ -150,4 +180,16 @@ void atomic_remove_stale(const char *path)
             snprintf(name, sizeof name, "%s/%s", dir, de->d_name) < (int)sizeof name)
             remove(name);
     closedir(d);
+    /* the short names of long ones */
+    char prefix[4096];
+    size_t np = short_prefix(path, prefix, sizeof prefix);
+    if (np < sizeof prefix && (d = opendir(dir))) {
+        const char *pb = base_of(prefix);
+        size_t npb = strlen(pb);
+        for (struct dirent *de; (de = readdir(d));)
+            if (!strncmp(de->d_name, pb, npb) && !strncmp(de->d_name + npb, ".tmp", 4) &&
+                snprintf(name, sizeof name, "%s/%s", dir, de->d_name) < (int)sizeof name)
+                remove(name);
+        closedir(d);
+    }
 }

@@ -4,6 +4,7 @@
 #include <gsl/gsl_errno.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <tiffio.h>
 
 #define MSG_MAX 1024
@@ -22,10 +23,21 @@ void rpiv_errclear(void)
 
 rpiv_status rpiv_fail(rpiv_status code, const char *fmt, ...)
 {
-    va_list ap;
+    va_list ap, again;
     va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_copy(again, ap);
+    int n = vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
+    /* too long (a long path): keep the start and the end, where the reason is (issue 20
+     * item 10), and cut the middle */
+    char *full = n >= MSG_MAX ? malloc((size_t)n + 1) : NULL;
+    if (full) {
+        vsnprintf(full, (size_t)n + 1, fmt, again);
+        size_t head = 200, tail = MSG_MAX - head - 7;
+        snprintf(msg, sizeof msg, "%.*s [...]%s", (int)head, full, full + (size_t)n - tail);
+        free(full);
+    }
+    va_end(again);
     return code;
 }
 

@@ -2,13 +2,17 @@
 /* The experiment's key table drives the INI reader, the writer and the key reference. */
 #include "rpiv/config.h"
 
+#include "base/text.h"
+
 #include <errno.h>
-#include <ini.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 typedef enum {
     KEY_INT,
@@ -377,11 +381,20 @@ static rpiv_status set_value(rpiv_experiment *e, const key_spec *k, const char *
         break;
     case KEY_ROI: {
         int r[4];
-        char tail;
-        if (sscanf(value, " %d , %d , %d , %d %c", &r[0], &r[1], &r[2], &r[3], &tail) != 4)
-            break;
-        if (r[0] < 0 || r[1] < 0 || r[2] < 0 || r[3] < 0 ||
-            ((r[2] || r[3]) && (r[2] <= r[0] || r[3] <= r[1])))
+        const char *c = value;
+        int n = 0;
+        for (; n < 4; n++) {
+            char *end;
+            errno = 0;
+            long x = strtol(c, &end, 10);
+            if (end == c || errno || x < 0 || x > (long)k->max)
+                break;
+            r[n] = (int)x;
+            c = end + strspn(end, " \t");
+            if (n < 3 && *c++ != ',')
+                break;
+        }
+        if (n < 4 || *c || ((r[2] || r[3]) && (r[2] <= r[0] || r[3] <= r[1])))
             break;
         memcpy(base, r, sizeof r);
         return RPIV_OK;
@@ -404,7 +417,9 @@ static rpiv_status set_value(rpiv_experiment *e, const key_spec *k, const char *
             *(double *)base = v * k->scale;
         return RPIV_OK;
     }
-    return rpiv_fail(RPIV_ECONFIG, "%s: bad value '%s' for %s.%s (accepted: %s)", where, value,
+    /* a long value is cut in the message so that the accepted range stays visible */
+    return rpiv_fail(RPIV_ECONFIG, "%s: bad value '%.*s%s' for %s.%s (accepted: %s)", where,
+                     strlen(value) > 80 ? 72 : 80, value, strlen(value) > 80 ? "..." : "",
                      k->section, k->key, range);
 }
 
@@ -421,61 +436,125 @@ rpiv_status rpiv_config_set(rpiv_experiment *e, const char *section, const char 
     return set_value(e, k, value, origin);
 }
 
-/* Debian's libinih is built without INI_HANDLER_LINENO: the reader counts lines itself and
- * the handler, called right after its line is read, reports that count. */
-typedef struct load_ctx {
-    const char *path;
-    rpiv_experiment *e;
-    rpiv_status st;
-    FILE *fp;
-    int lineno;
-} load_ctx;
-
-static char *read_line(char *str, int num, void *stream)
+/* The INI reader: our own, over text_getline, so that a line has no length limit (Debian's
+ * libinih cut lines at 199 characters and read the rest as a new line). The syntax is the
+ * subset libinih read: a UTF-8 BOM is skipped; blank lines and lines whose first non-blank
+ * character is ';' or '#' are comments; "[section]"; "key = value" or "key : value", blanks
+ * around both trimmed, and a ';' preceded by a blank starts a comment in the value. Anything
+ * else is a syntax error naming file:line. */
+static char *trim(char *s)
 {
-    load_ctx *c = stream;
-    char *r = fgets(str, num, c->fp);
-    if (r)
-        c->lineno++;
-    return r;
+    s += strspn(s, " \t\r\n");
+    size_t n = strlen(s);
+    while (n > 0 && strchr(" \t\r\n", s[n - 1]))
+        s[--n] = '\0';
+    return s;
 }
 
-static int on_ini(void *user, const char *section, const char *name, const char *value)
+static rpiv_status parse_line(char *line, char *section, size_t section_size, rpiv_experiment *e,
+                              const char *where)
 {
-    load_ctx *c = user;
-    int lineno = c->lineno;
-    char where[RPIV_PATH_MAX + 32];
-    if (c->st)
-        return 0;
-    snprintf(where, sizeof where, "%s:%d", c->path, lineno);
-    if (!name) /* a section header with no key yet: checked when its keys come */
-        return 1;
-    c->st = rpiv_config_set(c->e, section, name, value, where);
-    return c->st == RPIV_OK;
+    char *s = trim(line);
+    if (*s == '\0' || *s == ';' || *s == '#')
+        return RPIV_OK;
+    if (*s == '[') {
+        char *close = strchr(s, ']');
+        char *rest = close ? trim(close + 1) : NULL;
+        if (!close || (*rest && *rest != ';' && *rest != '#'))
+            return rpiv_fail(RPIV_ECONFIG, "%s: syntax error: a section header is [name]", where);
+        *close = '\0';
+        char *name = trim(s + 1);
+        int known = 0;
+        (void)find_key(name, "", &known);
+        if (!known)
+            return rpiv_fail(RPIV_ECONFIG, "%s: unknown section [%.64s]", where, name);
+        snprintf(section, section_size, "%s", name);
+        return RPIV_OK;
+    }
+    size_t k = strcspn(s, "=:");
+    if (s[k] == '\0' || k == 0)
+        return rpiv_fail(RPIV_ECONFIG, "%s: syntax error (expected [section] or key = value)",
+                         where);
+    if (!*section)
+        return rpiv_fail(RPIV_ECONFIG, "%s: key outside a section (a [section] line first)", where);
+    s[k] = '\0';
+    char *value = s + k + 1;
+    for (char *c = value; *c; c++)
+        if (*c == ';' && c > value && (c[-1] == ' ' || c[-1] == '\t')) {
+            *c = '\0';
+            break;
+        }
+    return rpiv_config_set(e, section, trim(s), trim(value), where);
+}
+
+/* Open a regular file for reading without blocking on a FIFO or a device first. */
+static FILE *open_regular(const char *path, rpiv_status *st)
+{
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    struct stat sb;
+    if (fd < 0) {
+        *st = rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+        return NULL;
+    }
+    if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        close(fd);
+        *st = rpiv_fail(RPIV_EIO, "%s: not a regular file (%s)", path,
+                        S_ISDIR(sb.st_mode) ? "a directory" : "a FIFO, device or socket");
+        return NULL;
+    }
+    FILE *fp = fdopen(fd, "r");
+    if (!fp) {
+        *st = rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+        close(fd);
+    }
+    return fp;
 }
 
 rpiv_status rpiv_config_load(const char *path, rpiv_experiment *e)
 {
-    FILE *fp = fopen(path, "r");
+    rpiv_status st = RPIV_OK;
+    FILE *fp = open_regular(path, &st);
     if (!fp)
-        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
-    load_ctx c = {path, e, RPIV_OK, fp, 0};
-    int r = ini_parse_stream(read_line, &c, on_ini, &c);
+        return st;
+    char *line = NULL, section[64] = "", where[RPIV_PATH_MAX + 32];
+    size_t cap = 0;
+    long lineno = 0;
+    ssize_t len;
+    while (!st && (len = text_getline(fp, &line, &cap, path, &lineno, &st)) >= 0) {
+        char *s = line;
+        if (lineno == 1 && !strncmp(s, "\xef\xbb\xbf", 3))
+            s += 3;
+        snprintf(where, sizeof where, "%s:%ld", path, lineno);
+        st = parse_line(s, section, sizeof section, e, where);
+    }
+    if (!st && ferror(fp))
+        st = rpiv_fail(RPIV_EIO, "%s: cannot read: %s", path, strerror(errno));
+    free(line);
     fclose(fp);
-    if (c.st)
-        return c.st;
-    if (r > 0)
-        return rpiv_fail(RPIV_ECONFIG, "%s:%d: syntax error (expected [section] or key = value)",
-                         path, r);
-    if (r < 0)
-        return rpiv_fail(RPIV_EIO, "%s: cannot read", path);
-    rpiv_status st = rpiv_experiment_check(e);
+    if (st)
+        return st;
+    st = rpiv_experiment_check(e);
     if (st) { /* the message buffer is both source and destination: copy it first */
         char msg[768];
         snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
         return rpiv_fail(st, "%s: %s", path, msg);
     }
     return RPIV_OK;
+}
+
+/* 1 if the reader gives the string back as written: one line, no blanks at either end, no
+ * ';' after a blank (an inline comment). */
+static int reads_back(const char *v)
+{
+    if (strpbrk(v, "\r\n"))
+        return 0;
+    size_t n = strlen(v);
+    if (n && (strchr(" \t", v[0]) || strchr(" \t", v[n - 1])))
+        return 0;
+    for (const char *c = v; (c = strchr(c, ';')); c++)
+        if (c > v && (c[-1] == ' ' || c[-1] == '\t'))
+            return 0;
+    return 1;
 }
 
 static void write_value(const rpiv_experiment *e, const key_spec *k, FILE *fp)
@@ -531,6 +610,12 @@ static void write_value(const rpiv_experiment *e, const key_spec *k, FILE *fp)
 rpiv_status rpiv_config_write(const rpiv_experiment *e, FILE *fp)
 {
     const char *sec = "";
+    for (size_t i = 0; i < nkeys; i++)
+        if (keys[i].type == KEY_STRING && !reads_back((const char *)e + keys[i].off))
+            return rpiv_fail(RPIV_ECONFIG,
+                             "%s.%s: a value with a line break, blanks at an end or ' ;' "
+                             "cannot be written to an INI file and read back",
+                             keys[i].section, keys[i].key);
     fprintf(fp, "# rpiv configuration (complete; feed back with --config)\n");
     for (size_t i = 0; i < nkeys; i++) {
         const key_spec *k = &keys[i];

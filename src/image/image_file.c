@@ -5,11 +5,13 @@
 #include "image_impl.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 /* ---- format detection ------------------------------------------------------------------ */
 
@@ -34,13 +36,21 @@ static rpiv_status read_magic(const char *path, rpiv_image_format *fmt, FILE **f
 {
     unsigned char m[8];
     *fmt = RPIV_IMAGE_UNKNOWN;
-    FILE *f = fopen(path, "rb");
-    if (!f)
+    /* O_NONBLOCK: a FIFO blocks in a plain open() until a writer comes (forever); it is
+     * refused by the check that follows instead. A regular file ignores the flag. */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
         return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
     struct stat sb;
-    if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
-        fclose(f);
+    if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        close(fd);
         return rpiv_fail(RPIV_EIO, "%s: cannot read: not a regular file", path);
+    }
+    FILE *f = fdopen(fd, "rb");
+    if (!f) {
+        int err = errno;
+        close(fd);
+        return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(err));
     }
     if (sb.st_size == 0) {
         fclose(f);
@@ -161,12 +171,20 @@ static int has_ext(const char *path, const char *ext)
     return n > e && strcasecmp(path + n - e, ext) == 0;
 }
 
-rpiv_status rpiv_image_save(const rpiv_image *im, const char *path)
+rpiv_status rpiv_image_save_check(const char *path)
 {
-    if (has_ext(path, ".tif") || has_ext(path, ".tiff"))
-        return rpiv_image_save_tiff16(im, path);
-    if (has_ext(path, ".png"))
-        return rpiv_image_save_png16(im, path);
+    if (has_ext(path, ".tif") || has_ext(path, ".tiff") || has_ext(path, ".png"))
+        return RPIV_OK;
     return rpiv_fail(RPIV_EINVAL, "%s: cannot choose an image writer: use .tif, .tiff or .png",
                      path);
+}
+
+rpiv_status rpiv_image_save(const rpiv_image *im, const char *path)
+{
+    rpiv_status st = rpiv_image_save_check(path);
+    if (st)
+        return st;
+    if (has_ext(path, ".png"))
+        return rpiv_image_save_png16(im, path);
+    return rpiv_image_save_tiff16(im, path);
 }

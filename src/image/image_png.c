@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/image/image_png.c - PNG through libpng: reading 1..16-bit grey, palette, grey+alpha and RGB(A)
- * (colour converted to luminance); writing 16-bit grey. libpng errors come back through
+/* src/image/image_png.c - PNG through libpng: reading 1..16-bit grey, palette, grey+alpha and
+ * RGB(A) (colour converted to luminance); writing 16-bit grey. libpng errors come back through
  * png_set_error_fn + setjmp; a bad CRC in any chunk is an error. */
 #include "image_impl.h"
 
@@ -12,6 +12,10 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+/* The largest ancillary chunk libpng may allocate (image data is read row by row, outside
+ * this limit): text, a colour profile, a palette are far smaller. */
+#define IMG_PNG_CHUNK_MAX (4u << 20)
 
 typedef struct pctx {
     const char *path;
@@ -57,6 +61,20 @@ static int png_decode(pctx *c)
     if (setjmp(png_jmpbuf(c->png)))
         return -1;
     png_init_io(c->png, c->f);
+    /* Issue 20 item 4: a tEXt chunk declaring 0x7ffffff0 bytes in a 4 KB file made libpng
+     * 1.6 allocate (and touch) 2 GB: its text handlers allocate the declared length without
+     * looking at the chunk_malloc_max limit. The reader needs no ancillary chunk (only IHDR,
+     * PLTE, IDAT: no gamma, no transparency, no text), so every one of them is discarded
+     * unread (skipped through a small buffer, its CRC still checked) and never allocated.
+     * The limits are set too, for whatever libpng still allocates per chunk. */
+    static const png_byte ancillary[] = "bKGD\0cHRM\0eXIf\0gAMA\0hIST\0iCCP\0iTXt\0oFFs\0pCAL\0"
+                                        "pHYs\0sBIT\0sCAL\0sPLT\0sRGB\0tEXt\0tIME\0tRNS\0zTXt";
+    png_set_keep_unknown_chunks(c->png, PNG_HANDLE_CHUNK_NEVER, NULL, 0);
+    png_set_keep_unknown_chunks(c->png, PNG_HANDLE_CHUNK_NEVER, ancillary,
+                                (int)(sizeof ancillary / 5));
+    png_set_chunk_malloc_max(c->png, IMG_PNG_CHUNK_MAX);
+    png_set_chunk_cache_max(c->png, 1000);
+    png_set_user_limits(c->png, 1000000, 1000000);
     /* A CRC error in a critical or ancillary chunk stops the read (libpng only warns about
      * ancillary ones by default). */
     png_set_crc_action(c->png, PNG_CRC_ERROR_QUIT, PNG_CRC_ERROR_QUIT);

@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <tiffio.h>
 #include <unistd.h>
 
@@ -49,6 +50,9 @@ static int on_warning(TIFF *t, void *user, const char *module, const char *fmt, 
     return 1; /* the others are silenced (unknown tags and the like) */
 }
 
+/* The smallest bound on libtiff's single allocations when reading (bytes). */
+#define IMG_TIFF_ALLOC_MIN ((tmsize_t)64 << 20)
+
 static TIFF *topen(const char *path, const char *mode, int fd, tctx *c)
 {
     memset(c, 0, sizeof *c);
@@ -57,6 +61,13 @@ static TIFF *topen(const char *path, const char *mode, int fd, tctx *c)
         snprintf(c->msg, sizeof c->msg, "out of memory");
         return NULL;
     }
+    /* Bound every single allocation libtiff makes while reading (tag arrays, raw strips): a
+     * little more than the file could hold, never the 4 GB a hostile count may declare
+     * (issue 20 item 4). Strips are decoded into buffers rpiv allocates after its own
+     * checks, outside this limit. */
+    struct stat sb;
+    if (mode[0] == 'r' && (fd >= 0 ? fstat(fd, &sb) : stat(path, &sb)) == 0)
+        TIFFOpenOptionsSetMaxSingleMemAlloc(o, (tmsize_t)(IMG_TIFF_ALLOC_MIN + 2 * sb.st_size));
     TIFFOpenOptionsSetErrorHandlerExtR(o, on_error, c);
     TIFFOpenOptionsSetWarningHandlerExtR(o, on_warning, c);
     TIFF *t = fd >= 0 ? TIFFFdOpenExt(fd, path, mode, o) : TIFFOpenExt(path, mode, o);

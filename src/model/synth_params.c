@@ -7,6 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* the largest displacement amplitude a flow spec takes, px over dt */
+#define RPIV_FLOW_MAX_PX 10000.0
+
 rpiv_synth_params rpiv_synth_params_default(void)
 {
     return (rpiv_synth_params){.width_px = 0,
@@ -139,6 +142,24 @@ rpiv_status rpiv_synth_flow_parse(const char *spec, rpiv_flow *flow, int *has_am
     if (n < flows[k].nmin || n > flows[k].nmax || (flows[k].kind == RPIV_FLOW_OSEEN && n == 3))
         return rpiv_fail(RPIV_EINVAL, "flow '%s': %s takes %d to %d numbers, got %d (expected %s)",
                          spec, flows[k].name, flows[k].nmin, flows[k].nmax, n, usage);
+    /* finite is not enough: oseen:1e300,1 gave inf displacements (issue 20 item 9) */
+    int has_len = flows[k].kind == RPIV_FLOW_OSEEN || flows[k].kind == RPIV_FLOW_SINE;
+    for (int i = 0; i < n; i++) {
+        double lo = -RPIV_FLOW_MAX_PX, hi = RPIV_FLOW_MAX_PX;
+        const char *what = "a displacement";
+        if (i == 1 && has_len) {
+            lo = 1e-3;
+            hi = 1e6;
+            what = flows[k].kind == RPIV_FLOW_OSEEN ? "the core radius" : "the wavelength";
+        } else if (i >= 2) {
+            lo = -1e6;
+            hi = 1e6;
+            what = "a centre coordinate";
+        }
+        if (!(v[i] >= lo && v[i] <= hi))
+            return rpiv_fail(RPIV_EINVAL, "flow '%s': number %d (%s, px) %g outside %g..%g", spec,
+                             i + 1, what, v[i], lo, hi);
+    }
     memset(flow, 0, sizeof *flow);
     flow->kind = flows[k].kind;
     flow->a = v[0];

@@ -240,9 +240,9 @@ static rpiv_status from_glob(const char *pattern, rpiv_pairing rule, rpiv_pairs 
 
 /* ---- list files ------------------------------------------------------------------------ */
 
-/* Next whitespace-separated token of line (double quotes allow spaces); NULL at the end or at
- * a '#' comment. */
-static char *token(char **s)
+/* Next whitespace-separated token of line (double quotes allow spaces); NULL at the end, at
+ * a '#' comment, or at a quote that is not closed on its line (*unterminated set). */
+static char *token(char **s, int *unterminated)
 {
     char *p = *s;
     while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n')
@@ -254,6 +254,10 @@ static char *token(char **s)
         t = ++p;
         while (*p && *p != '"')
             p++;
+        if (*p != '"') { /* the rest of the line (its newline too) is no path */
+            *unterminated = 1;
+            return NULL;
+        }
     } else {
         t = p;
         while (*p && *p != ' ' && *p != '\t' && *p != '\r' && *p != '\n')
@@ -293,9 +297,15 @@ static rpiv_status from_list(const char *list, rpiv_pairs *p, size_t *cap)
     while (!st && text_getline(f, &line, &lcap, list, &lineno, &st) >= 0) {
         snprintf(where, sizeof where, "%s:%ld", list, lineno);
         char *s = line, *t[3];
-        int nt = 0;
-        while (nt < 3 && (t[nt] = token(&s)) != NULL)
+        int nt = 0, open_quote = 0;
+        if (lineno == 1 && !strncmp(s, "\xef\xbb\xbf", 3)) /* a UTF-8 byte order mark */
+            s += 3;
+        while (nt < 3 && (t[nt] = token(&s, &open_quote)) != NULL)
             nt++;
+        if (open_quote) {
+            st = rpiv_fail(RPIV_EFORMAT, "%s: a double quote is not closed on its line", where);
+            break;
+        }
         if (nt == 0)
             continue;
         if (nt == 3) {

@@ -45,6 +45,11 @@ check_bad "$tmp/cut.tif" truncated
 check_bad "$tmp/missing.tif" "cannot open"
 : >"$tmp/empty.png"
 check_bad "$tmp/empty.png" "0 bytes"
+# issue 20 item 8: a FIFO hung in a blocking open() (timeout: exit 124 before the fix)
+mkfifo "$tmp/fifo.png"
+timeout 10 "$bin" info "$tmp/fifo.png" >/dev/null 2>&1
+[ $? -eq 1 ] || fail "info on a FIFO did not fail at once"
+check_bad "$tmp/fifo.png" "not a regular file"
 
 # good, bad, good, bad: both good files described, one stderr line per bad file
 "$bin" info "$a" "$tmp/cut.tif" "$b" "$tmp/missing.tif" >"$tmp/out" 2>"$tmp/err"

@@ -38,6 +38,16 @@ check 2 "larger than the image" "$a" "$b" --window 512 -o "$tmp/x.txt"
 check 2 "larger than the image" "$a" "$b" --window 64x320,32 -o "$tmp/x.txt"
 check 2 "larger than the ROI" "$a" "$b" --roi 10,10,50,290 -o "$tmp/x.txt"
 check 2 "piv.roi" "$a" "$b" --roi 10,10,500,290 -o "$tmp/x.txt"
+# issue 20 item 7: integers past 2^32 wrapped into range (used as 0,0,400,200)
+check 2 "piv.roi" "$a" "$b" --roi 0,0,4294967696,4294967496 -o "$tmp/x.txt"
+check 2 "checkpoint-every" "$a" "$b" --ensemble --checkpoint "$tmp/c" --checkpoint-every -1 -o "$tmp/x.txt"
+check 2 "checkpoint-every" "$a" "$b" --ensemble --checkpoint "$tmp/c" --checkpoint-every 18446744073709551617 -o "$tmp/x.txt"
+# issue 20 item 8: a FIFO given as an image hung in open()
+mkfifo "$tmp/fifo.tif"
+timeout 10 "$bin" piv --quiet "$tmp/fifo.tif" "$b" -o "$tmp/x.txt" >/dev/null 2>"$tmp/err"
+rc=$?
+if [ "$rc" -eq 1 ] && grep -q "not a regular file" "$tmp/err"; then pass=$((pass + 1))
+else echo "FAIL: piv on a FIFO: exit $rc: $(cat "$tmp/err")" >&2; fail=$((fail + 1)); fi
 # unknown option, bad values
 check 2 "unknown option '--bogus'" "$a" "$b" --bogus -o "$tmp/x.txt"
 check 2 "overlap" "$a" "$b" --overlap 0.99 -o "$tmp/x.txt"

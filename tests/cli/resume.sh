@@ -62,6 +62,13 @@ grep -Eq '^rpiv: error: ensemble: interrupted in pass [0-9] after [0-9]+ of 8 pa
 "$bin" piv --ensemble -q "$pairs" -o term.txt --checkpoint ck --resume && cmp -s ref.txt term.txt \
     && ok || ko "resumed after SIGTERM: differs"
 
+# issue 20 item 13: SIGHUP killed the run (no checkpoint); now handled as SIGTERM
+run_until err4h 2 HUP "$bin" piv --ensemble "$pairs" -o hup.txt --checkpoint ckh --checkpoint-every 1000
+[ $? -eq 1 ] && [ -s ckh ] && ok || ko "SIGHUP: not stopped as SIGTERM: $(grep error err4h)"
+ls | grep -q 'ckh\.tmp' && ko "SIGHUP left a temporary file: $(ls | tr '\n' ' ')"
+"$bin" piv --ensemble -q "$pairs" -o hup.txt --checkpoint ckh --resume && cmp -s ref.txt hup.txt \
+    && ok || ko "resumed after SIGHUP: differs"
+
 # ---- checkpoints that do not belong to the run -------------------------------------------------
 run_until err5 1 TERM "$bin" piv --ensemble "$pairs" -o x.txt --checkpoint ck --checkpoint-every 1000
 [ -s ck ] || ko "no checkpoint for the refusal tests"

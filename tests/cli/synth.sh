@@ -65,6 +65,12 @@ err2 "--pairs: 'x' is not an integer" --pairs x
 err2 "--seed: -1 outside" --seed -1
 err2 "--size: '7x300'" --size 7x300
 err2 "--size: 'abc'" --size abc
+# issue 20 item 7: 4294967360x64 wrapped to 64x64
+err2 "--size: '4294967360x64' outside" --size 4294967360x64
+err2 "--size: '64x-4294967232' outside" --size 64x-4294967232
+# issue 20 item 9: oseen:1e300,1 wrote inf into truth.txt
+err2 "number 1 (a displacement" --flow oseen:1e300,1
+err2 "number 2 (the wavelength" --flow sine:1,1e300
 err2 "--flow: flow 'vortex'" --flow vortex
 err2 "uniform takes 2 to 2 numbers" --flow uniform:1
 err2 "core radius" --flow oseen:6,0
@@ -84,6 +90,14 @@ err1() { # expected-substring args...: exit 1 and one stderr line
 err1 "no-such.ini" --config "$tmp/no-such.ini"
 err1 "no-such-pz.txt" --size 64x64 --set "synth.pz_profile=$tmp/no-such-pz.txt"
 err1 "is larger than the image" --size 16x16
+# issue 20 item 13: synth into a used folder left the earlier run's extra pairs
+"$bin" synth --size 64x64 --pairs 3 --out "$tmp/used" -q && ok || ko "used folder run 1"
+"$bin" synth --size 64x64 --pairs 1 --out "$tmp/used" -q 2>"$tmp/err"; rc=$?
+[ "$rc" -eq 2 ] && grep -q "not empty" "$tmp/err" && ok || ko "non-empty folder accepted: rc=$rc $(cat "$tmp/err")"
+[ -e "$tmp/used/pair_00003_b.tif" ] && ok || ko "a refused run removed files"
+touch "$tmp/used/notes.txt"
+"$bin" synth --size 64x64 --pairs 1 --out "$tmp/used" --overwrite -q && ok || ko "--overwrite"
+[ "$(ls "$tmp/used" | sort | tr '\n' ' ')" = "notes.txt pair_00001_a.tif pair_00001_b.tif synth.ini truth.txt " ] && ok || ko "--overwrite left: $(ls "$tmp/used")"
 "$bin" synth --help | grep -q '^usage: rpiv synth' && ok || ko "synth --help"
 
 echo "synth.sh: $pass passed, $fail failed"
