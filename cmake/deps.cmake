@@ -5,7 +5,6 @@ pkg_check_modules(FFTW3F REQUIRED IMPORTED_TARGET fftw3f)
 pkg_check_modules(GSL REQUIRED IMPORTED_TARGET gsl)
 pkg_check_modules(TIFF REQUIRED IMPORTED_TARGET libtiff-4)
 pkg_check_modules(PNG REQUIRED IMPORTED_TARGET libpng)
-pkg_check_modules(INIH REQUIRED IMPORTED_TARGET inih)
 pkg_check_modules(NETCDF REQUIRED IMPORTED_TARGET netcdf)
 pkg_check_modules(PLPLOT REQUIRED IMPORTED_TARGET plplot)
 pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb)
@@ -23,7 +22,7 @@ endif()
 
 add_library(rpiv_deps INTERFACE)
 target_link_libraries(rpiv_deps INTERFACE PkgConfig::FFTW3F PkgConfig::GSL PkgConfig::TIFF
-  PkgConfig::PNG PkgConfig::INIH PkgConfig::NETCDF PkgConfig::PLPLOT PkgConfig::STB PkgConfig::JPEG
+  PkgConfig::PNG PkgConfig::NETCDF PkgConfig::PLPLOT PkgConfig::STB PkgConfig::JPEG
   OpenMP::OpenMP_C ${MATH_LIB})
 if(RPIV_MPI)
   target_link_libraries(rpiv_deps INTERFACE MPI::MPI_C)

@@ -728,7 +728,7 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
     rpiv_field *prev = NULL, *f = NULL;
     rpiv_status st = RPIV_OK;
     const int last = pv->npass - 1;
-    double change = INFINITY;
+    double change = (double)INFINITY;
     int it = 0;
     *out = NULL;
     if (nrefine)
