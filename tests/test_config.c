@@ -205,6 +205,14 @@ static void bom_and_syntax(void)
     p = write_file("open.ini", "[camera\nfnumber = 8\n");
     CHECK_FAILS(rpiv_config_load(p, &e), RPIV_ECONFIG);
     CHECK(strstr(rpiv_errmsg(), "open.ini:1:") != NULL);
+    /* a lone CR inside a value (found by fuzz_config: loaded, then refused by the writer) is
+     * refused with its line; CRLF line ends are fine */
+    p = write_file("cr.ini", "[output]\ndir = a\rb\n");
+    CHECK_FAILS(rpiv_config_load(p, &e), RPIV_ECONFIG);
+    CHECK(strstr(rpiv_errmsg(), "cr.ini:2:") != NULL);
+    p = write_file("crlf.ini", "[output]\r\ndir = ab\r\n");
+    CHECK_OK(rpiv_config_load(p, &e));
+    CHECK(!strcmp(e.output.dir, "ab"));
 }
 
 static void integers_past_2_to_the_32_do_not_wrap(void)

@@ -484,7 +484,11 @@ static rpiv_status parse_line(char *line, char *section, size_t section_size, rp
             *c = '\0';
             break;
         }
-    return rpiv_config_set(e, section, trim(s), trim(value), where);
+    value = trim(value);
+    if (strchr(value, '\r')) /* a lone CR inside a line: a line break to some editors */
+        return rpiv_fail(RPIV_ECONFIG, "%s: a carriage return inside the value of '%.64s'", where,
+                         trim(s));
+    return rpiv_config_set(e, section, trim(s), value, where);
 }
 
 /* Open a regular file for reading without blocking on a FIFO or a device first. */
