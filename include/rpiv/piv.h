@@ -50,8 +50,10 @@ typedef struct rpiv_piv_params {
      * the RMS change of the field falls below refine_tol_px or refine_max repeats are done. */
     int refine_max;       /* repeats of the last pass, 0..20 (0; 6 suggested) */
     double refine_tol_px; /* convergence: RMS change between iterations, px (0.02) */
-    double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.2
-                             suggested) */
+    double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.1
+                             suggested with refine_defer) */
+    int refine_defer;     /* 1: no median test between repeats of the final size, only on the
+                             field they converge to (0; experimental, docs/piv.md) */
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
-/* src/piv/piv.c - the PIV plan: grids, buffers, loading, deformation, one pass, a whole run. */
+/* src/piv/piv.c - the PIV plan: grids, buffers, loading, deformation, one pass (the passes of a
+ * whole run: src/piv/refine.c). */
 #include "piv_impl.h"
 
 #include "rpiv/validate.h"
@@ -673,7 +674,19 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
     piv_vector(c->pv, c->ps, plane, colmax, ea, eb, pu, pv_, c->f, win);
 }
 
+int piv_repeats(const rpiv_piv *pv, int pass)
+{
+    return pass > 0 && pv->deforms && pv->pass[pass].ww == pv->pass[pass - 1].ww &&
+           pv->pass[pass].wh == pv->pass[pass - 1].wh;
+}
+
 rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, rpiv_field **out)
+{
+    return piv_step(pv, pass, predictor, 0, out);
+}
+
+rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int defer,
+                     rpiv_field **out)
 {
     *out = NULL;
     if (pass < 0 || pass >= pv->npass)
@@ -685,8 +698,7 @@ rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, r
     rpiv_field *f = NULL;
     rpiv_status st;
     /* a repeat of the window size before it (a refinement): its predictor low-passed */
-    const int refines = pass > 0 && pv->deforms && ps->ww == pv->pass[pass - 1].ww &&
-                        ps->wh == pv->pass[pass - 1].wh;
+    const int refines = piv_repeats(pv, pass);
     if (predictor && (st = piv_pred_new(pv, predictor, piv_shift(pv, pass),
                                         refines ? pv->p.refine_filter : 0, &pred)))
         return st;
@@ -698,7 +710,15 @@ rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, r
     step_ctx c = {pv, ps, f};
     if ((st = piv_pass_run(pv, pass, pred, step_vector, &c)))
         goto out_free;
-    if ((st = piv_validate(pv, f)))
+    if (defer && refines && predictor && predictor->nx == f->nx && predictor->ny == f->ny) {
+        /* validation deferred to the converged field: a window without a peak keeps the
+         * predictor's vector (flagged replaced) */
+        for (size_t win = 0; win < ps->nwin; win++)
+            if (f->flag[win] == RPIV_FLAG_REPLACED) {
+                f->u[win] = predictor->u[win];
+                f->v[win] = predictor->v[win];
+            }
+    } else if ((st = piv_validate(pv, f)))
         goto out_free;
     *out = f;
     f = NULL;
@@ -706,68 +726,4 @@ out_free:
     rpiv_field_free(f);
     rpiv_deform_pred_free(pred);
     return st;
-}
-
-/* RMS difference of the vectors of two fields on the same grid (masked ones left out). */
-static double field_change(const rpiv_field *a, const rpiv_field *b)
-{
-    size_t n = (size_t)a->nx * (size_t)a->ny, m = 0;
-    double s = 0;
-    for (size_t k = 0; k < n; k++) {
-        if (a->flag[k] == RPIV_FLAG_MASKED)
-            continue;
-        double du = (double)a->u[k] - (double)b->u[k], dv = (double)a->v[k] - (double)b->v[k];
-        s += du * du + dv * dv;
-        m++;
-    }
-    return m ? sqrt(s / (double)m) : 0;
-}
-
-rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
-{
-    rpiv_field *prev = NULL, *f = NULL;
-    rpiv_status st = RPIV_OK;
-    const int last = pv->npass - 1;
-    double change = (double)INFINITY;
-    int it = 0;
-    *out = NULL;
-    if (nrefine)
-        *nrefine = 0;
-    for (int k = 0; k < pv->npass; k++) {
-        if ((st = rpiv_piv_step(pv, k, prev, &f)))
-            goto out_free;
-        /* the listed passes may already end with a repeat of the final size */
-        if (k == last && k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
-            pv->pass[k].wh == pv->pass[k - 1].wh)
-            change = field_change(f, prev);
-        rpiv_field_free(prev);
-        prev = f;
-        f = NULL;
-    }
-    if (!pv->deforms)
-        it = pv->p.refine_max; /* window offsets do not iterate */
-    for (; it < pv->p.refine_max && !(change < pv->p.refine_tol_px); it++) {
-        if ((st = rpiv_piv_step(pv, last, prev, &f)))
-            goto out_free;
-        change = field_change(f, prev);
-        rpiv_field_free(prev);
-        prev = f;
-        f = NULL;
-        if (nrefine)
-            *nrefine = it + 1;
-    }
-    *out = prev;
-    prev = NULL;
-out_free:
-    rpiv_field_free(prev);
-    return st;
-}
-
-rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b, rpiv_field **out)
-{
-    rpiv_status st;
-    *out = NULL;
-    if ((st = rpiv_piv_load(pv, a, b)))
-        return st;
-    return rpiv_piv_passes(pv, out, NULL);
 }

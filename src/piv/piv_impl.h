@@ -102,4 +102,13 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, cons
 /* Validate (median test if enabled) and replace rejected vectors. */
 RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);
 
+/* Is pass `pass` a repeat of the window size before it (deforming): a refinement pass? */
+int piv_repeats(const rpiv_piv *pv, int pass);
+
+/* rpiv_piv_step; defer = 1 on a refinement pass: no validation (rpiv_piv_passes validates the
+ * field it ends with), a window without a peak keeps the predictor's vector, flagged
+ * replaced. */
+RPIV_NODISCARD rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int defer,
+                                    rpiv_field **out);
+
 #endif /* RPIV_SRC_PIV_IMPL_H */

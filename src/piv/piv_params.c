@@ -29,6 +29,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_max = 0,
                              .refine_tol_px = 0.02,
                              .refine_filter = 0,
+                             .refine_defer = 0,
                              .prep = rpiv_preprocess_params_default()};
 }
 
@@ -63,6 +64,8 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_max: %d outside 0..20", p->refine_max);
     if (!(p->refine_tol_px >= 0 && p->refine_tol_px <= 10))
         return rpiv_fail(RPIV_EINVAL, "piv.refine_tol_px: %g outside 0..10", p->refine_tol_px);
+    if (p->refine_defer != 0 && p->refine_defer != 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
     if (!(p->refine_filter >= 0 && p->refine_filter <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "piv.refine_filter: %g outside 0..0.5", p->refine_filter);
     if (!(p->max_mem_mb > 0))

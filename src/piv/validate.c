@@ -160,11 +160,27 @@ static double residual(double c0, const float *nb, int n, double eps)
     return residual_rm(c0, nb, n, eps, &rm);
 }
 
+/* The mean absolute deviation of nb[0..n-1] from their median. */
+static double spread_of(const float *nb, int n)
+{
+    float tmp[8];
+    memcpy(tmp, nb, (size_t)n * sizeof *tmp);
+    const double um = median(tmp, n);
+    double s = 0;
+    for (int i = 0; i < n; i++)
+        s += fabs((double)nb[i] - um);
+    return s / n;
+}
+
 /* Does the vector (i, j) agree with its neighbours along the grid line (a row, a column or a
  * diagonal) on which the field varies least? A line's neighbourhood is the usable vectors 1
- * and 2 steps either way (at least 3 of them); the line chosen is the one whose neighbours
- * scatter least about their median (rm of u plus rm of v; the first in the order row, column,
- * diagonals on a tie), and the vector is tested against it as against the block. A vector
+ * and 2 steps either way (at least 2 of them: a line cut by the grid's edge keeps 2); the line
+ * chosen is the one whose neighbours scatter least about their median (mean absolute
+ * deviation of u plus that of v; the first in the order row, column, diagonals on a tie), and
+ * the vector is tested against it as against the block. (The median deviation rm chose
+ * badly: a diagonal of 3 across a shear layer, two of them on its zero crossings, has a small
+ * rm and a large mean deviation; at the grid's edges, where rows had only 2 members, the
+ * extrema of a shear were rejected and replaced by such a diagonal's median, 0.) A vector
  * that fails the block's test but agrees with the most uniform line sits on a ridge or a
  * trough of the flow, not off it: a shear layer sampled with only a few vectors per
  * wavelength, whose extrema the block's median (taken across the layer) calls outliers. An
@@ -191,12 +207,13 @@ static int best_line(const rpiv_field *f, const unsigned char *ok, int i, int j,
             nv[m] = f->v[q];
             m++;
         }
-        if (m < 3)
+        if (m < 2)
             continue;
         double rmu, rmv, r_u = residual_rm((double)f->u[k], nu, m, eps, &rmu),
                          r_v = residual_rm((double)f->v[k], nv, m, eps, &rmv);
-        if (rmu + rmv < best) {
-            best = rmu + rmv;
+        const double spread = spread_of(nu, m) + spread_of(nv, m);
+        if (spread < best) {
+            best = spread;
             *ru = r_u;
             *rv = r_v;
             *mu = (float)median(nu, m);

@@ -14,7 +14,7 @@ RPIV_NODISCARD rpiv_status validate_median_nt(rpiv_field *f, double threshold, d
                                               int lines, size_t *nrejected, int nthreads);
 
 /* rpiv_validate_replace; lines = 1: a vector is replaced by the medians of the grid line
- * (row, column or diagonal, 1 and 2 steps either way, at least 3 usable) along which the
+ * (row, column or diagonal, 1 and 2 steps either way, at least 2 usable) along which the
  * field varies least, where there is one, else by the 3 x 3 block's. */
 RPIV_NODISCARD rpiv_status validate_replace_lines(rpiv_field *f, int fill_masked, int lines,
                                                   size_t *nfilled);
