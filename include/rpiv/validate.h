@@ -51,7 +51,7 @@ RPIV_NODISCARD rpiv_status rpiv_validate_std(rpiv_field *f, double k, size_t *nr
  * its flag) by inpainting: the discrete Laplace equation (4-neighbour mean) is solved over
  * them with the valid vectors as boundary values and zero normal gradient at the grid's
  * edge and at masked vectors not filled (successive over-relaxation, started from the
- * median replacement, to a change below 1e-6 px). Gaps of many vectors are filled smoothly;
+ * median replacement, to a change below 1e-5 px). Gaps of many vectors are filled smoothly;
  * in a gap enclosed by valid vectors a linear field is reproduced exactly (not at the edge,
  * where the zero normal gradient holds). *nfilled as rpiv_validate_replace. */
 RPIV_NODISCARD rpiv_status rpiv_validate_inpaint(rpiv_field *f, int fill_masked, size_t *nfilled);

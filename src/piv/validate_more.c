@@ -89,7 +89,7 @@ rpiv_status rpiv_validate_std(rpiv_field *f, double k_std, size_t *nrejected)
 
 /* ---- inpainting ------------------------------------------------------------------------ */
 
-#define INPAINT_TOL   1e-6
+#define INPAINT_TOL   1e-5
 #define INPAINT_SWEEP 20000
 #define INPAINT_OMEGA 1.7
 
