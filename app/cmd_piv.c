@@ -8,11 +8,13 @@
 #include "rpiv/field.h"
 #include "rpiv/image.h"
 #include "rpiv/mpi.h"
+#include "rpiv/pairs.h"
 #include "rpiv/piv.h"
 #include "rpiv/plot.h"
 #include "rpiv/report.h"
 #include "rpiv/version.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,22 +56,33 @@ typedef struct run_ctx {
     size_t first_index;
     size_t nvec, nreplaced;
     int y_up, height; /* --y-up: files turned y-up for images `height` px high */
+    unsigned derived; /* --derived: RPIV_DERIVE_* added to every field written     */
 } run_ctx;
 
-/* f as written: itself, or with --y-up a turned copy in *tmp (freed by the caller). */
-static rpiv_status oriented(const run_ctx *r, const rpiv_field *f, rpiv_field **tmp,
-                            const rpiv_field **out)
+/* f as written: itself, or with --y-up or --derived (unless `plain`) a copy in *tmp, turned
+ * and with the derived quantities (freed by the caller). */
+static rpiv_status oriented_as(const run_ctx *r, const rpiv_field *f, int plain, rpiv_field **tmp,
+                               const rpiv_field **out)
 {
     *tmp = NULL;
     *out = f;
-    if (!r->y_up)
+    const unsigned derived = plain ? 0 : r->derived;
+    if (!r->y_up && !derived)
         return RPIV_OK;
     rpiv_status st = rpiv_field_copy(f, tmp);
-    if (!st)
+    if (!st && derived) /* the physical sign: the same before or after turning */
+        st = rpiv_field_derive(*tmp, derived);
+    if (!st && r->y_up)
         st = rpiv_field_y_up(*tmp, r->height);
     if (!st)
         *out = *tmp;
     return st;
+}
+
+static rpiv_status oriented(const run_ctx *r, const rpiv_field *f, rpiv_field **tmp,
+                            const rpiv_field **out)
+{
+    return oriented_as(r, f, 0, tmp, out);
 }
 
 /* Save f as oriented; rms: f holds standard deviations, which keep their sign y-up. */
@@ -78,7 +91,7 @@ static rpiv_status save_as(const run_ctx *r, const rpiv_field *f, const rpiv_met
 {
     rpiv_field *tmp;
     const rpiv_field *g;
-    rpiv_status st = oriented(r, f, &tmp, &g);
+    rpiv_status st = oriented_as(r, f, rms, &tmp, &g);
     for (size_t k = 0; !st && rms && tmp && k < (size_t)tmp->nx * (size_t)tmp->ny; k++)
         tmp->v[k] = tmp->v[k] == 0 ? 0.0f : -tmp->v[k];
     if (!st)
@@ -237,10 +250,80 @@ static rpiv_status set_validate(cli_ctx *c, const char *v)
 
 /* Options of a long run, besides the [piv] keys. */
 typedef struct run_opts {
-    const char *out, *plot, *checkpoint, *every;
+    const char *out, *plot, *checkpoint, *every, *derived;
     int meanrms, resume, skip_bad;
     rpiv_pairing pairing;
+    unsigned derived_mask; /* --derived parsed */
 } run_opts;
+
+/* The median peak ratio of f's unmasked vectors (0 if none). */
+static double median_peak_ratio(const rpiv_field *f)
+{
+    size_t n = (size_t)f->nx * (size_t)f->ny, m = 0;
+    float *pr = malloc(n * sizeof *pr);
+    if (!pr)
+        return 0;
+    for (size_t k = 0; k < n; k++)
+        if (f->flag[k] != RPIV_FLAG_MASKED)
+            pr[m++] = f->peak_ratio[k];
+    for (size_t i = 1; i < m; i++) /* insertion sort: fields are small, and this runs once */
+        for (size_t j = i; j > 0 && pr[j - 1] > pr[j]; j--) {
+            float t = pr[j];
+            pr[j] = pr[j - 1];
+            pr[j - 1] = t;
+        }
+    double med = m ? (double)pr[m / 2] : 0;
+    free(pr);
+    return med;
+}
+
+/* Honest warnings on stderr after a run that succeeded (rank 0): the traps the results
+ * alone do not show. f: the ensemble field or the first pair's (may be NULL). */
+static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const run_ctx *r,
+                     const rpiv_field *f)
+{
+    const rpiv_pair_src *q0 = &pairs->pair[0];
+    int pages = 1;
+    if (!q0->path_b && !rpiv_image_count_pages(q0->path_a, &pages) && pages < 2)
+        fprintf(stderr,
+                "rpiv piv: warning: %s is one image, read as a double frame: its top half is "
+                "frame A and its bottom half frame B; to correlate two frames, give both "
+                "files (rpiv piv A B -o OUT)\n",
+                q0->path_a);
+    if (p->dt_s > 0 && !(p->scale_mm_per_px > 0))
+        fprintf(stderr,
+                "rpiv piv: warning: --dt without --scale: dt is recorded in the header, but "
+                "the columns stay in px per pair interval (no m/s, 1/s); add --scale "
+                "MM_PER_PX for physical units\n");
+    rpiv_image *a = NULL, *b = NULL;
+    if (!rpiv_pairs_load(pairs, 0, &a, &b)) {
+        rpiv_image_stats sa = rpiv_image_stats_of(a), sb = rpiv_image_stats_of(b);
+        if (sa.min == sa.max || sb.min == sb.max)
+            fprintf(stderr,
+                    "rpiv piv: warning: frame %s of the first pair (%s) is %s (grey %g "
+                    "everywhere): there are no particles to correlate\n",
+                    sa.min == sa.max ? "A" : "B",
+                    sa.min == sa.max || !q0->path_b ? q0->path_a : q0->path_b,
+                    (sa.min == sa.max ? sa.max : sb.max) == 0 ? "empty" : "constant",
+                    sa.min == sa.max ? sa.max : sb.max);
+    }
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+    if (!r->nvec || (double)r->nreplaced <= 0.10 * (double)r->nvec)
+        return;
+    double med = f ? median_peak_ratio(f) : 0;
+    fprintf(stderr,
+            "rpiv piv: warning: %.1f %% of the vectors were replaced (median peak ratio "
+            "%.2f): ",
+            100.0 * (double)r->nreplaced / (double)r->nvec, med);
+    if (med < 1.5)
+        fprintf(stderr, "the correlation peaks are weak (peak ratio below 1.5): dark, sparse or "
+                        "uneven images; try --preprocess clahe,highpass (docs/preprocess.md)\n");
+    else
+        fprintf(stderr, "the peaks are clear, so the flow likely varies too much within a "
+                        "window (strong gradients): try smaller windows (--window 64,32,16) or "
+                        "check frame order and --dt\n");
+}
 
 /* The work after option parsing, on every rank of the team. */
 static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi);
@@ -255,6 +338,25 @@ typedef struct piv_opts {
 static rpiv_status set_validate_opt(void *obj, const char *arg)
 {
     return set_validate(&((piv_opts *)obj)->c, arg);
+}
+
+/* --limits UMIN,UMAX,VMIN,VMAX (px): the four [piv] keys. */
+static rpiv_status set_limits(void *obj, const char *arg)
+{
+    rpiv_piv_params *p = &((piv_opts *)obj)->c.exp.piv;
+    double l[4];
+    char end;
+    if (sscanf(arg, "%lf,%lf,%lf,%lf%c", &l[0], &l[1], &l[2], &l[3], &end) != 4 ||
+        !isfinite(l[0]) || !isfinite(l[1]) || !isfinite(l[2]) || !isfinite(l[3]))
+        return cli_usage_error("piv", "--limits: '%s' is not UMIN,UMAX,VMIN,VMAX (4 numbers, px)",
+                               arg);
+    if (!(l[0] < l[1]) && !(l[2] < l[3]))
+        return cli_usage_error("piv", "--limits %s: neither UMIN < UMAX nor VMIN < VMAX", arg);
+    p->u_min_px = l[0];
+    p->u_max_px = l[1];
+    p->v_min_px = l[2];
+    p->v_max_px = l[3];
+    return RPIV_OK;
 }
 
 static rpiv_status set_pairing(void *obj, const char *arg)
@@ -293,6 +395,25 @@ static const cli_opt options[] = {
      .arg = "V",
      .fn = set_validate_opt,
      .help = "median:T (threshold T, default 2) or none [median_threshold]"},
+    PIV_KEY("peak-ratio", "R", "peak_ratio_min",
+            "also reject vectors whose correlation peak ratio is below R\n"
+            "(off; 1.2 to 1.5 usual) [peak_ratio_min]"),
+    {.name = "limits",
+     .kind = CLI_FN,
+     .arg = "UMIN,UMAX,VMIN,VMAX",
+     .fn = set_limits,
+     .help = "also reject u or v outside these limits, px per pair, image\n"
+             "coordinates (v down); MIN >= MAX: that component not tested\n"
+             "[u_min_px, u_max_px, v_min_px, v_max_px]"},
+    PIV_KEY("std", "K", "std_k",
+            "also reject vectors farther than K standard deviations from the\n"
+            "mean of the field (off; 3 to 5 usual) [std_k]"),
+    PIV_KEY("replace", "M", "replace",
+            "rejected vectors replaced by the 3x3 median or by inpaint\n"
+            "(Laplace: fills gaps of several vectors smoothly) (median) [replace]"),
+    PIV_KEY("smooth", "S", "smooth",
+            "smooth the final field by penalised least squares, S in grid\n"
+            "steps^4 (off; 0.5 to 5 usual; docs/postprocess.md) [smooth]"),
     PIV_KEY("mask", "FILE", "mask", "mask image, 0 = masked pixel [mask]"),
     PIV_KEY("roi", "X0,Y0,X1,Y1", "roi", "region of interest, px (X1, Y1 excluded) [roi]"),
     PIV_KEY("background", "B", "background",
@@ -313,6 +434,12 @@ static const cli_opt options[] = {
      .help = "output files with the origin at the bottom-left pixel, y and v\n"
              "upward (default: image coordinates, y and v down) [y_up]"},
     {.kind = CLI_HEAD, .help = "other options:"},
+    {.name = "derived",
+     .kind = CLI_STR,
+     .arg = "LIST",
+     .off = offsetof(piv_opts, ro.derived),
+     .help = "add derived quantities to the output: vorticity, divergence,\n"
+             "strain, swirl, q, or all (physical sign; docs/postprocess.md)"},
     {.name = "output",
      .letter = 'o',
      .kind = CLI_STR,
@@ -442,6 +569,8 @@ rpiv_status cmd_piv(int argc, char **argv)
     }
     if ((st = rpiv_piv_params_check(p)))
         return st;
+    if (ro.derived && rpiv_field_derive_parse(ro.derived, &ro.derived_mask))
+        return cli_usage_error("piv", "--%s", rpiv_errmsg());
 
     rpiv_mpi *mpi = NULL;
     if ((st = rpiv_mpi_new(NULL, NULL, &mpi)))
@@ -509,6 +638,7 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
     r.out = out;
     r.y_up = p->y_up;
     r.height = h;
+    r.derived = o->derived_mask;
     r.npairs = pairs ? pairs->n : 0;
     r.meta = &meta;
     r.digits = 4;
@@ -598,6 +728,7 @@ out_agree:
                     "header)\n",
                     nskip, nskip == 1 ? "" : "s");
     }
+    warn_run(p, pairs, &r, field ? field : r.first);
 out_free:
     if (r.series && rpiv_field_series_close(r.series, 1))
         st = st ? st : RPIV_EIO; /* not reached: abort only removes a temporary file */

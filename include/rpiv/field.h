@@ -35,7 +35,8 @@ typedef enum rpiv_unit {
     RPIV_UNIT_ONE = 0,       /* dimensionless: "1"                                 */
     RPIV_UNIT_PX = 1,        /* a length: px, or mm (x scale)                      */
     RPIV_UNIT_PX_PER_DT = 2, /* a displacement per pair: px/dt, or m/s             */
-    RPIV_UNIT_PER_DT = 3     /* a rate (vorticity, strain): 1/dt, or 1/s           */
+    RPIV_UNIT_PER_DT = 3,    /* a rate (vorticity, strain): 1/dt, or 1/s           */
+    RPIV_UNIT_PER_DT2 = 4    /* a rate squared (Q criterion): 1/dt^2, or 1/s^2     */
 } rpiv_unit;
 /* Or'ed into a unit: the quantity changes sign when y is reversed (v, vorticity, bias_v). */
 #define RPIV_UNIT_ODD_Y        0x100
@@ -91,6 +92,39 @@ double rpiv_unit_factor(const rpiv_field *f, int unit);
  * j, v and every RPIV_UNIT_ODD_Y quantity negated; y_up set. RPIV_EINVAL if it already is
  * or height < 1. */
 RPIV_NODISCARD rpiv_status rpiv_field_y_up(rpiv_field *f, int height);
+
+/* ---- derived quantities (src/field/field_derive.c, docs/postprocess.md) ----------------
+ *
+ * Velocity gradients by the least-squares stencil along each grid line,
+ *     du/dx = (2 u[i+2] + u[i+1] - u[i-1] - 2 u[i-2]) / (10 dx),
+ * where the four neighbours are unmasked (exact for polynomials up to degree 2); else the
+ * central difference (u[i+1] - u[i-1]) / (2 dx); else a one-sided difference; else 0.
+ * Derivatives are taken in the field's own coordinates, then turned into the PHYSICAL frame
+ * (x right, y up as seen on the image): a field in image coordinates (y_up = 0, y and v down)
+ * has its y-derivatives of u and v sign-reversed, so counter-clockwise rotation on the
+ * image is positive vorticity whatever the orientation; the quantities do not change sign
+ * when the field is turned y-up afterwards. Masked vectors get 0.
+ *   vorticity          dv/dx - du/dy                      (1/dt)
+ *   divergence         du/dx + dv/dy                      (1/dt)
+ *   shear_strain       du/dy + dv/dx                      (1/dt)
+ *   normal_strain      du/dx - dv/dy                      (1/dt)
+ *   swirling_strength  imaginary part of the complex eigenvalues of the velocity gradient
+ *                      tensor, sqrt(det - tr^2/4) where positive, else 0 (1/dt)
+ *   q_criterion        (|Omega|^2 - |S|^2) / 2 = -(ux^2 + vy^2)/2 - uy vx  (1/dt^2)
+ * Units are per pair interval (u, v in px per pair, x, y in px); with scale and dt set the
+ * writers add the values per second. */
+enum {
+    RPIV_DERIVE_VORTICITY = 1,
+    RPIV_DERIVE_DIVERGENCE = 2,
+    RPIV_DERIVE_STRAIN = 4, /* shear_strain and normal_strain */
+    RPIV_DERIVE_SWIRL = 8,
+    RPIV_DERIVE_Q = 16
+};
+/* Parse a comma-separated list of vorticity, divergence, strain, swirl, q (or "all", or
+ * "none"/"" for 0) into a RPIV_DERIVE_* mask. RPIV_EINVAL naming the unknown item. */
+RPIV_NODISCARD rpiv_status rpiv_field_derive_parse(const char *list, unsigned *what);
+/* Add (or overwrite) the quantities of `what` to f. RPIV_EINVAL for an unknown bit. */
+RPIV_NODISCARD rpiv_status rpiv_field_derive(rpiv_field *f, unsigned what);
 
 /* The number of vectors of f flagged `flag` (RPIV_FLAG_VALID, _REPLACED or _MASKED). */
 size_t rpiv_field_count(const rpiv_field *f, int flag);

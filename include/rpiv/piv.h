@@ -24,6 +24,8 @@ typedef enum rpiv_background {
 
 /* The kinds' names in enum order (NULL-terminated): "none", "min", "mean". */
 extern const char *const rpiv_background_names[];
+/* The replacement methods (params replace) in order: "median", "inpaint". */
+extern const char *const rpiv_replace_names[];
 
 typedef struct rpiv_piv_params {
     int npass;                      /* number of passes, 1..8 (3)                  */
@@ -57,7 +59,16 @@ typedef struct rpiv_piv_params {
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;
-    int y_up; /* output files: 1 origin bottom-left, y and v up; 0 image coordinates (0) */
+    /* Validation beyond the median test, every pass, before it (rpiv/validate.h; all off by
+     * default): peak ratio below peak_ratio_min; u outside [u_min_px, u_max_px] or v outside
+     * [v_min_px, v_max_px] (px per pair, image coordinates, each pair off while min >= max);
+     * farther than std_k standard deviations from the mean of the valid vectors. */
+    double peak_ratio_min;                         /* 0 = off (0)                     */
+    double u_min_px, u_max_px, v_min_px, v_max_px; /* off while min >= max (0, 0)     */
+    double std_k;                                  /* 0 = off (0)                     */
+    int replace;   /* rejected vectors: 0 local median, 1 inpainting (Laplace) (0)        */
+    double smooth; /* final field: penalised least-squares smoothing parameter, 0 = off (0) */
+    int y_up;      /* output files: 1 origin bottom-left, y and v up; 0 image coordinates (0) */
 } rpiv_piv_params;
 
 rpiv_piv_params rpiv_piv_params_default(void);

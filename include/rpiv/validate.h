@@ -31,4 +31,36 @@ RPIV_NODISCARD rpiv_status rpiv_validate_median(rpiv_field *f, double threshold,
  * they become 0. *nfilled (may be NULL) gets the number of vectors written. */
 RPIV_NODISCARD rpiv_status rpiv_validate_replace(rpiv_field *f, int fill_masked, size_t *nfilled);
 
+/* ---- more tests, inpainting, smoothing (src/piv/validate_more.c, docs/postprocess.md) ----
+ * The tests flag RPIV_FLAG_VALID vectors RPIV_FLAG_REPLACED (values left for a replacement)
+ * and count them in *nrejected (may be NULL). */
+
+/* Peak ratio (highest / second correlation peak) below min_ratio; a ratio of 0 (unknown)
+ * is kept. RPIV_EINVAL for min_ratio < 0. */
+RPIV_NODISCARD rpiv_status rpiv_validate_peak_ratio(rpiv_field *f, double min_ratio,
+                                                    size_t *nrejected);
+/* Global limits, px: u outside [umin, umax] or v outside [vmin, vmax]; a component whose
+ * min >= max is not tested. */
+RPIV_NODISCARD rpiv_status rpiv_validate_limits(rpiv_field *f, double umin, double umax,
+                                                double vmin, double vmax, size_t *nrejected);
+/* Global mean +- k std: u or v farther than k standard deviations (of the valid vectors)
+ * from their mean. RPIV_EINVAL for k <= 0. */
+RPIV_NODISCARD rpiv_status rpiv_validate_std(rpiv_field *f, double k, size_t *nrejected);
+
+/* Replace every RPIV_FLAG_REPLACED vector (and, if fill_masked, every masked one, keeping
+ * its flag) by inpainting: the discrete Laplace equation (4-neighbour mean) is solved over
+ * them with the valid vectors as boundary values and zero normal gradient at the grid's
+ * edge and at masked vectors not filled (successive over-relaxation, started from the
+ * median replacement, to a change below 1e-5 px). Gaps of many vectors are filled smoothly;
+ * in a gap enclosed by valid vectors a linear field is reproduced exactly (not at the edge,
+ * where the zero normal gradient holds). *nfilled as rpiv_validate_replace. */
+RPIV_NODISCARD rpiv_status rpiv_validate_inpaint(rpiv_field *f, int fill_masked, size_t *nfilled);
+
+/* Smooth u and v by penalised least squares (Garcia, Comput. Stat. Data Anal. 54:1167,
+ * 2010): minimise |W^(1/2) (y_hat - y)|^2 + s |D y_hat|^2 with D the discrete Laplacian
+ * (reflective edges), solved with the DCT-II; weight 0 for masked vectors (which keep their
+ * values), 1 for the others; with weights 0 the solution is iterated (at most 200 times).
+ * s in grid steps^4; 0 leaves f unchanged. RPIV_EINVAL for s < 0. */
+RPIV_NODISCARD rpiv_status rpiv_validate_smooth(rpiv_field *f, double s);
+
 #endif /* RPIV_VALIDATE_H */

@@ -123,7 +123,7 @@ static int name_reserved(const char *name)
         if (strcmp(name, taken[k]) == 0)
             return 1;
     return ends_with(name, "_mm") || ends_with(name, "_ms") || ends_with(name, "_per_s") ||
-           ends_with(name, "_px");
+           ends_with(name, "_per_s2") || ends_with(name, "_px");
 }
 
 rpiv_status rpiv_field_add_quantity(rpiv_field *f, const char *name, int unit, float **data)
@@ -142,7 +142,7 @@ rpiv_status rpiv_field_add_quantity(rpiv_field *f, const char *name, int unit, f
                          name, RPIV_QUANTITY_NAME_MAX);
     if (name_reserved(name) || rpiv_field_quantity(f, name))
         return rpiv_fail(RPIV_EINVAL, "field: quantity name '%s' is already used", name);
-    if (kind < RPIV_UNIT_ONE || kind > RPIV_UNIT_PER_DT || (unit & ~(RPIV_UNIT_ODD_Y | 0xff)))
+    if (kind < RPIV_UNIT_ONE || kind > RPIV_UNIT_PER_DT2 || (unit & ~(RPIV_UNIT_ODD_Y | 0xff)))
         return rpiv_fail(RPIV_EINVAL, "field: quantity '%s': unknown unit kind %d", name, unit);
     size_t n = (size_t)f->nx * (size_t)f->ny;
     float *d = calloc(n, sizeof *d);
@@ -171,10 +171,10 @@ const rpiv_quantity *rpiv_field_quantity(const rpiv_field *f, const char *name)
 
 const char *rpiv_unit_name(int unit, int physical)
 {
-    static const char *const px[] = {"1", "pix", "pix/dt", "1/dt"};
-    static const char *const si[] = {"1", "mm", "m/s", "1/s"};
+    static const char *const px[] = {"1", "pix", "pix/dt", "1/dt", "1/dt^2"};
+    static const char *const si[] = {"1", "mm", "m/s", "1/s", "1/s^2"};
     int k = unit & ~RPIV_UNIT_ODD_Y;
-    if (k < 0 || k > RPIV_UNIT_PER_DT)
+    if (k < 0 || k > RPIV_UNIT_PER_DT2)
         return "?";
     return physical ? si[k] : px[k];
 }
@@ -190,6 +190,8 @@ double rpiv_unit_factor(const rpiv_field *f, int unit)
         return f->scale_mm_per_px;
     if (k == RPIV_UNIT_PX_PER_DT)
         return f->scale_mm_per_px * 1e-3 / f->dt_s;
+    if (k == RPIV_UNIT_PER_DT2)
+        return 1.0 / (f->dt_s * f->dt_s);
     return 1.0 / f->dt_s; /* (px/dt) / px */
 }
 
@@ -324,9 +326,9 @@ size_t rpiv_field_count(const rpiv_field *f, int flag)
 
 const char *field_phys_suffix(int unit)
 {
-    static const char *const sfx[] = {"", "_mm", "_ms", "_per_s"};
+    static const char *const sfx[] = {"", "_mm", "_ms", "_per_s", "_per_s2"};
     int k = unit & ~RPIV_UNIT_ODD_Y;
-    return k >= 0 && k <= RPIV_UNIT_PER_DT ? sfx[k] : "";
+    return k >= 0 && k <= RPIV_UNIT_PER_DT2 ? sfx[k] : "";
 }
 
 const char *field_orientation(const rpiv_field *f)
@@ -336,7 +338,7 @@ const char *field_orientation(const rpiv_field *f)
 
 int field_unit_of_name(const char *name)
 {
-    for (int k = RPIV_UNIT_ONE; k <= RPIV_UNIT_PER_DT; k++)
+    for (int k = RPIV_UNIT_ONE; k <= RPIV_UNIT_PER_DT2; k++)
         if (strcmp(name, rpiv_unit_name(k, 0)) == 0)
             return k;
     return -1;

@@ -654,10 +654,14 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, cons
 
 rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f)
 {
-    rpiv_status st;
+    rpiv_status st = validate_more(f, &pv->p);
+    if (st)
+        return st;
     if (pv->p.median_thr > 0 && (st = validate_median_nt(f, pv->p.median_thr, pv->p.median_eps,
                                                          pv->p.median_lines, NULL, pv->nthreads)))
         return st;
+    if (pv->p.replace == 1)
+        return rpiv_validate_inpaint(f, 0, NULL);
     return validate_replace_lines(f, 0, pv->p.median_lines, NULL);
 }
 

@@ -5,6 +5,7 @@
 
 const char *const rpiv_subpixel_names[] = {"gauss", "parabola", "centroid", NULL};
 const char *const rpiv_background_names[] = {"none", "min", "mean", NULL};
+const char *const rpiv_replace_names[] = {"median", "inpaint", NULL};
 
 rpiv_piv_params rpiv_piv_params_default(void)
 {
@@ -68,6 +69,18 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
     if (!(p->refine_filter >= 0 && p->refine_filter <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "piv.refine_filter: %g outside 0..0.5", p->refine_filter);
+    if (!(p->peak_ratio_min >= 0 && p->peak_ratio_min <= 100))
+        return rpiv_fail(RPIV_EINVAL, "piv.peak_ratio_min: %g outside 0..100", p->peak_ratio_min);
+    if (!isfinite(p->u_min_px) || !isfinite(p->u_max_px) || !isfinite(p->v_min_px) ||
+        !isfinite(p->v_max_px))
+        return rpiv_fail(RPIV_EINVAL, "piv: velocity limits must be finite");
+    if (!(p->std_k >= 0 && p->std_k <= 100))
+        return rpiv_fail(RPIV_EINVAL, "piv.std_k: %g outside 0..100", p->std_k);
+    if (p->replace != 0 && p->replace != 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.replace: %d is not 0 (median) or 1 (inpaint)",
+                         p->replace);
+    if (!(p->smooth >= 0 && p->smooth <= 1e6))
+        return rpiv_fail(RPIV_EINVAL, "piv.smooth: %g outside 0..1e6", p->smooth);
     if (!(p->max_mem_mb > 0))
         return rpiv_fail(RPIV_EINVAL, "piv.max_mem_mb: %g must be > 0", p->max_mem_mb);
     return RPIV_OK;

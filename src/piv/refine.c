@@ -3,6 +3,8 @@
  * size (docs/piv.md, "Refinement at the final size"). */
 #include "piv_impl.h"
 
+#include "rpiv/validate.h"
+
 #include <math.h>
 
 /* RMS difference of the vectors of two fields on the same grid (masked ones left out). */
@@ -67,6 +69,9 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
     }
     /* the median test and replacement on the field the iteration converged to */
     if (deferred && (st = piv_validate(pv, prev)))
+        goto out_free;
+    /* optional smoothing of the final field (off by default) */
+    if (pv->p.smooth > 0 && (st = rpiv_validate_smooth(prev, pv->p.smooth)))
         goto out_free;
     *out = prev;
     prev = NULL;

@@ -4,6 +4,7 @@
 #ifndef RPIV_VALIDATE_IMPL_H
 #define RPIV_VALIDATE_IMPL_H
 
+#include "rpiv/piv.h"
 #include "rpiv/validate.h"
 
 /* rpiv_validate_median on nthreads threads (<= 0: OpenMP's default); the same result for any
@@ -18,5 +19,8 @@ RPIV_NODISCARD rpiv_status validate_median_nt(rpiv_field *f, double threshold, d
  * field varies least, where there is one, else by the 3 x 3 block's. */
 RPIV_NODISCARD rpiv_status validate_replace_lines(rpiv_field *f, int fill_masked, int lines,
                                                   size_t *nfilled);
+
+/* The tests of p beyond the median (peak ratio, limits, std; validate_more.c), each if on. */
+RPIV_NODISCARD rpiv_status validate_more(rpiv_field *f, const rpiv_piv_params *p);
 
 #endif /* RPIV_VALIDATE_IMPL_H */
