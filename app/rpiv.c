@@ -19,6 +19,7 @@ rpiv_status cmd_compare(int argc, char **argv);
 rpiv_status cmd_demo(int argc, char **argv);
 rpiv_status cmd_config(int argc, char **argv);
 rpiv_status cmd_info(int argc, char **argv);
+rpiv_status cmd_plot(int argc, char **argv);
 
 const cli_cmd cli_commands[] = {
     {"piv", cmd_piv, "image pairs -> displacement fields (multi-pass, ensemble)", &cmd_piv_spec},
@@ -29,6 +30,7 @@ const cli_cmd cli_commands[] = {
     {"calib", cmd_calib, "light-sheet profile and depth of focus from target images",
      &cmd_calib_spec},
     {"duct", cmd_duct, "analytic square-duct velocity profile", &cmd_duct_spec},
+    {"plot", cmd_plot, "the figure of a vector file: colour map, arrows, key", &cmd_plot_spec},
     {"compare", cmd_compare, "E1 error between two profiles or vector files", &cmd_compare_spec},
     {"demo", cmd_demo, "the paper's study end to end, with report and plots", &cmd_demo_spec},
     {"config", cmd_config, "print the effective configuration as an INI file", &cmd_config_spec},
