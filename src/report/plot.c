@@ -307,7 +307,9 @@ rpiv_status plot_draw_cells(const double *z, int nx, int ny, double x0, double x
     double blank = zlo - (zhi - zlo) - 1;
     for (size_t k = 0; k < (size_t)mx * (size_t)my; k++)
         buf[k] = isnan(buf[k]) ? blank : fmin(fmax(buf[k], zlo), zhi);
-    plimage(cols, mx, my, x0, ex1, y0, ey1, zlo, zhi, x0, ex1, y0, ey1);
+    /* plimagefr, not plimage: plimage stretches the colours over the data's own range, so a
+     * map narrower than [zlo, zhi] (a flat field) came out in the wrong colours */
+    plimagefr(cols, mx, my, x0, ex1, y0, ey1, zlo, zhi, zlo, zhi, NULL, NULL);
     free(cols);
     free(buf);
     return RPIV_OK;
