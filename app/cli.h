@@ -138,7 +138,7 @@ RPIV_NODISCARD rpiv_status cli_mkdirs(const char *path);
 
 /* The options of each command (app/cmd_<name>.c). */
 extern const cli_spec cmd_piv_spec, cmd_synth_spec, cmd_raytrace_spec, cmd_ccm_spec, cmd_calib_spec,
-    cmd_duct_spec, cmd_compare_spec, cmd_demo_spec, cmd_config_spec, cmd_info_spec;
+    cmd_duct_spec, cmd_compare_spec, cmd_demo_spec, cmd_config_spec, cmd_info_spec, cmd_plot_spec;
 
 /* The command table (app/rpiv.c). */
 extern const cli_cmd cli_commands[];

@@ -460,8 +460,8 @@ static const cli_opt options[] = {
      .kind = CLI_STR,
      .arg = "FILE.png",
      .off = offsetof(piv_opts, ro.plot),
-     .help = "quiver plot of the ensemble field, the mean field\n"
-             "(--mean-rms) or the first pair's field"},
+     .help = "figure (PNG, as 'rpiv plot' draws it) of the ensemble field, the\n"
+             "mean field (--mean-rms) or the first pair's field"},
     {.name = "pairing",
      .kind = CLI_FN,
      .arg = "P",
@@ -584,6 +584,11 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
 {
     rpiv_piv_params *p = &c->exp.piv;
     const char *out = o->out;
+    if (o->plot) { /* before any work: a figure is a .png */
+        rpiv_status pst = rpiv_plot_path_check(o->plot);
+        if (pst)
+            return pst;
+    }
     int root = rpiv_mpi_rank(mpi) == 0, w = 0, h = 0;
     rpiv_pairs *pairs = NULL;
     rpiv_batch *batch = NULL;
@@ -695,13 +700,30 @@ out_agree:
     }
     if (!root)
         goto out_free;
-    if (o->plot) {
+    if (o->plot) { /* the figure of the file it shows, as written (y-up with --y-up) */
         const rpiv_field *pf = field ? field : (mean ? mean : r.first);
-        char title[128], what[48];
-        snprintf(what, sizeof what, "pair %zu", r.first_index + 1);
-        snprintf(title, sizeof title, "%s, %zu pair%s", field ? "ensemble" : (mean ? "mean" : what),
-                 pairs->n, pairs->n == 1 ? "" : "s");
-        if ((st = rpiv_plot_quiver(pf, o->plot, title, NULL)))
+        char shown[RPIV_PATH_MAX + 32], title[RPIV_PATH_MAX + 64], tag[32];
+        snprintf(shown, sizeof shown, "%s", out);
+        if (!field && mean)
+            st = out_name(out, "_mean", shown, sizeof shown);
+        else if (!field && pairs->n > 1 && !r.nc_series) {
+            snprintf(tag, sizeof tag, "_%0*zu", r.digits, r.first_index + 1);
+            st = out_name(out, tag, shown, sizeof shown);
+        }
+        const char *slash = strrchr(shown, '/');
+        snprintf(title, sizeof title, "%s", slash ? slash + 1 : shown);
+        if (!field && !mean && r.nc_series)
+            snprintf(title + strlen(title), sizeof title - strlen(title), ", t = %zu",
+                     r.first_index);
+        rpiv_field *tmp = NULL;
+        const rpiv_field *g = pf;
+        rpiv_plot_field_params pp = rpiv_plot_field_params_default();
+        if (!st)
+            st = oriented(&r, pf, &tmp, &g);
+        if (!st)
+            st = rpiv_plot_field(g, o->plot, title, &pp, NULL);
+        rpiv_field_free(tmp);
+        if (st)
             goto out_free;
     }
     if (!c->quiet) {

@@ -21,6 +21,7 @@ rpiv_status cmd_config(int argc, char **argv);
 rpiv_status cmd_info(int argc, char **argv);
 rpiv_status cmd_derive(int argc, char **argv);
 extern const cli_spec cmd_derive_spec;
+rpiv_status cmd_plot(int argc, char **argv);
 
 const cli_cmd cli_commands[] = {
     {"piv", cmd_piv, "image pairs -> displacement fields (multi-pass, ensemble)", &cmd_piv_spec},
@@ -33,6 +34,7 @@ const cli_cmd cli_commands[] = {
     {"duct", cmd_duct, "analytic square-duct velocity profile", &cmd_duct_spec},
     {"derive", cmd_derive, "vorticity, divergence, strain, swirl, Q of a vector file",
      &cmd_derive_spec},
+    {"plot", cmd_plot, "the figure of a vector file: colour map, arrows, key", &cmd_plot_spec},
     {"compare", cmd_compare, "E1 error between two profiles or vector files", &cmd_compare_spec},
     {"demo", cmd_demo, "the paper's study end to end, with report and plots", &cmd_demo_spec},
     {"config", cmd_config, "print the effective configuration as an INI file", &cmd_config_spec},

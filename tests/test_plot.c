@@ -3,6 +3,7 @@
  * libpng reads width and height), writes nothing else, and rejects bad arguments. */
 #include "check.h"
 #include "rpiv/field.h"
+#include "rpiv/image.h"
 #include "rpiv/plot.h"
 #include "rpiv/report.h"
 
@@ -263,6 +264,88 @@ static void report_writes_tables_and_profiles(void)
     CHECK(rpiv_report_pick(0, 1, 5) == 0 && rpiv_report_pick(2, 3, 3) == 2);
 }
 
+/* rpiv_plot_field: the numbers it draws follow from the field. A uniform flow (3, +-0.5) px/dt
+ * on 56 x 30 points, step 16 px: every = ceil(56 / 28) = 2, arrow length 0.9 * 2 * 16 / 3.04
+ * px per px/dt, reference 2 px/dt; with scale 0.05 mm/px and dt 1 ms the speed is 0.152 m/s,
+ * reference 0.1 m/s and the same length in mm per m/s. A masked point's huge
+ * value stays out of the colour range; a signed quantity gets a range symmetric about 0. */
+static void field_figure_numbers(void)
+{
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_field_new(56, 30, 8, 8, 16, 16, &f));
+    if (!f)
+        return;
+    for (int k = 0; k < 56 * 30; k++) {
+        f->u[k] = 3.0f;
+        f->v[k] = k % 2 ? 0.5f : -0.5f;
+    }
+    f->flag[3] = RPIV_FLAG_MASKED;
+    f->u[3] = 1e6f;
+    f->flag[4] = RPIV_FLAG_REPLACED;
+    rpiv_plot_field_params p = rpiv_plot_field_params_default();
+    rpiv_plot_field_info info;
+    p.quantity = "u";
+    CHECK_OK(rpiv_plot_field(f, tpath("field.png"), "uniform.txt", &p, &info));
+    unsigned w, h;
+    size_t ink;
+    CHECK(png_size(tpath("field.png"), &w, &h, &ink) && w == 1000 && h == 800);
+    CHECK(ink > 1000 * 800 / 10);
+    CHECK(info.every == 2);
+    CHECK(fabs(info.arrow_len - 0.9 * 2 * 16 / hypot(3, 0.5)) < 1e-9);
+    CHECK(info.ref_value == 2);
+    CHECK(info.physical == 0);
+    CHECK(info.nvalid == 1678 && info.nreplaced == 1 && info.nmasked == 1);
+    CHECK(info.zmin < 3 && info.zmax > 3 && info.zmax < 4); /* flat 3, widened by 0.5 */
+    p.quantity = "v";
+    p.every = 1;
+    p.width_px = 500;
+    p.height_px = 300;
+    CHECK_OK(rpiv_plot_field(f, tpath("field_v.png"), "uniform.txt", &p, &info));
+    CHECK(png_size(tpath("field_v.png"), &w, &h, &ink) && w == 500 && h == 300);
+    CHECK(info.every == 1 && info.zmin == -0.5 && info.zmax == 0.5);
+    f->scale_mm_per_px = 0.05;
+    f->dt_s = 0.001;
+    p = rpiv_plot_field_params_default();
+    CHECK_OK(rpiv_plot_field(f, tpath("field_mm.png"), NULL, &p, &info));
+    CHECK(info.physical == 1 && info.every == 2);
+    double speed = hypot(3, 0.5) * 0.05e-3 / 0.001;
+    CHECK(fabs(info.arrow_len - 0.9 * 2 * 16 * 0.05 / speed) < 1e-9);
+    CHECK(fabs(info.ref_value - 0.1) < 1e-12);
+    CHECK(fabs(info.zmax - info.zmin - 2 * fmax(0.5, 0.05 * speed)) < 1e-9);
+    /* errors: a quantity the field lacks (listed), a bad member, not .png; nothing written */
+    float *vort = NULL;
+    CHECK_OK(rpiv_field_add_quantity(f, "vorticity", RPIV_UNIT_PER_DT | RPIV_UNIT_ODD_Y, &vort));
+    p.quantity = "sigma_u";
+    CHECK_FAILS(rpiv_plot_field(f, tpath("bad.png"), NULL, &p, NULL), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "'sigma_u'") && strstr(rpiv_errmsg(), "correlation, vorticity"));
+    p.quantity = "vorticity";
+    p.arrow_scale = 0;
+    CHECK_FAILS(rpiv_plot_field(f, tpath("bad.png"), NULL, &p, NULL), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "arrow scale") != NULL);
+    p.arrow_scale = 1;
+    CHECK_FAILS(rpiv_plot_field(f, tpath("bad.jpg"), NULL, &p, NULL), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "bad.jpg: figures are written as PNG only") != NULL);
+    CHECK_OK(rpiv_plot_path_check("a/B.PNG"));
+    CHECK_FAILS(rpiv_plot_path_check("a.png/b"), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_plot_path_check("png"), RPIV_EINVAL);
+    CHECK(access(tpath("bad.png"), F_OK) != 0 && access(tpath("bad.jpg"), F_OK) != 0);
+    /* a zero field: no arrows, no reference; the image underneath, flipped for y-up */
+    rpiv_image *im = NULL;
+    CHECK_OK(rpiv_image_new(900, 500, &im));
+    for (int k = 0; im && k < 900 * 500; k++)
+        im->px[k] = (float)(k % 900 + k / 900);
+    for (int k = 0; k < 56 * 30; k++)
+        f->u[k] = f->v[k] = 0;
+    CHECK_OK(rpiv_field_y_up(f, 500));
+    p.background = im;
+    p.quantity = "none";
+    CHECK_OK(rpiv_plot_field(f, tpath("field_bg.png"), "zero", &p, &info));
+    CHECK(png_size(tpath("field_bg.png"), &w, &h, &ink) && w == 1000 && h == 800);
+    CHECK(info.ref_value == 0 && info.arrow_len == 0);
+    rpiv_image_free(im);
+    rpiv_field_free(f);
+}
+
 int main(void)
 {
     const char *tmp = getenv("TMPDIR");
@@ -276,14 +359,16 @@ int main(void)
     RUN_TEST(map_writes_png_for_image_and_scalar);
     RUN_TEST(plot_into_missing_folder_fails_with_path);
     RUN_TEST(report_writes_tables_and_profiles);
+    RUN_TEST(field_figure_numbers);
     /* exactly the PNGs asked for, no temporary files left behind */
-    CHECK(nfiles() == 7);
+    CHECK(nfiles() == 11);
     int keep = getenv("RPIV_KEEP_PLOTS") != NULL;
     if (keep) {
         printf("plots kept in %s\n", dir);
     } else {
-        const char *names[] = {"quiver.png", "quiver2.png", "quiver3.png", "lines.png",
-                               "lines2.png", "image.png",   "map.png"};
+        const char *names[] = {"quiver.png",  "quiver2.png",  "quiver3.png", "lines.png",
+                               "lines2.png",  "image.png",    "map.png",     "field.png",
+                               "field_v.png", "field_mm.png", "field_bg.png"};
         for (size_t k = 0; k < sizeof names / sizeof names[0]; k++)
             unlink(tpath(names[k]));
         rmdir(dir);

@@ -16,6 +16,7 @@
 
 #include "rpiv/error.h"
 #include "rpiv/field.h"
+#include "rpiv/image.h"
 
 #include <stddef.h>
 
@@ -65,6 +66,52 @@ rpiv_plot_opts rpiv_plot_opts_default(void);
  * colour bar (label opts->zlabel, default "|u| (px)"). opts may be NULL (defaults). */
 RPIV_NODISCARD rpiv_status rpiv_plot_quiver(const rpiv_field *f, const char *path,
                                             const char *title, const rpiv_plot_opts *opts);
+
+/* ---- the figure of a vector field (rpiv plot, rpiv piv --plot) ---------------------------- */
+
+typedef struct rpiv_plot_field_params {
+    int width_px, height_px;      /* image size (1000 x 800), 100..10000                       */
+    const char *quantity;         /* the colour map: "magnitude" (default), "u", "v",
+                                     "peak_ratio", "correlation", any quantity of the field
+                                     (rpiv_field_add_quantity), or "none" (no colour map)      */
+    int every;                    /* an arrow at every N-th point along x and y; 0: auto, at
+                                     most 28 arrows along the longer side (0)                  */
+    double arrow_scale;           /* factor on the automatic arrow length, > 0 (1)             */
+    const rpiv_image *background; /* image A in grey underneath (NULL: none); the colour
+                                map is then drawn half transparent over it                */
+} rpiv_plot_field_params;
+
+rpiv_plot_field_params rpiv_plot_field_params_default(void);
+/* RPIV_EINVAL unless path ends in .png (any case): "p.jpg: figures are written as PNG only
+ * (name it .png)". Every figure function applies it. */
+RPIV_NODISCARD rpiv_status rpiv_plot_path_check(const char *path);
+/* RPIV_EINVAL naming the bad member; with f (may be NULL), also a quantity f does not have
+ * (the message lists those it has). */
+RPIV_NODISCARD rpiv_status rpiv_plot_field_params_check(const rpiv_plot_field_params *p,
+                                                        const rpiv_field *f);
+
+/* What a field figure shows (for the caller's message and the tests). */
+typedef struct rpiv_plot_field_info {
+    int every;         /* the arrow stride used                                        */
+    double arrow_len;  /* axis units per velocity unit (an arrow's length / its speed) */
+    double ref_value;  /* the reference arrow's value, velocity unit (0: no arrows)    */
+    double zmin, zmax; /* the colour bar's range, quantity unit                        */
+    int physical;      /* 1: mm and m/s (the field has scale and dt), 0: px and px/dt  */
+    size_t nvalid, nreplaced, nmasked;
+} rpiv_plot_field_info;
+
+/* The figure of f: a colour map of p->quantity (masked points blank; range the 0.5 %..99.5 %
+ * quantiles of the unmasked values; a diverging map symmetric about 0 when the range spans
+ * 0) with a colour bar labelled with its name and unit; arrows of (u, v) at every p->every
+ * point, scaled so that the 95 % quantile of the drawn speeds spans 0.9 arrow step (times
+ * p->arrow_scale), valid ones black, replaced ones red, masked points marked by a grey x; a
+ * key under the plot with a reference arrow and its value, and the counts of valid,
+ * replaced and masked vectors. Axes in px, or mm with u, v in m/s when f has scale and dt;
+ * y downward for image coordinates, upward for a y-up field (f->y_up; the background image
+ * is flipped to match). title (e.g. the file name) on top. info may be NULL. */
+RPIV_NODISCARD rpiv_status rpiv_plot_field(const rpiv_field *f, const char *path, const char *title,
+                                           const rpiv_plot_field_params *p,
+                                           rpiv_plot_field_info *info);
 
 typedef enum rpiv_plot_style {
     RPIV_PLOT_LINE = 0,   /* a solid line through the points      */

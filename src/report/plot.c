@@ -5,6 +5,8 @@
  * go into a buffer (plsError) rather than to stderr. */
 #include "rpiv/plot.h"
 
+#include "plot_impl.h"
+
 #include "base/atomic.h"
 
 #include <errno.h>
@@ -43,7 +45,7 @@ rpiv_plot_opts rpiv_plot_opts_default(void)
                             .stride = 1};
 }
 
-static rpiv_status opts_check(const rpiv_plot_opts *o, const char *path)
+rpiv_status plot_opts_check(const rpiv_plot_opts *o, const char *path)
 {
     if (o->width_px < 100 || o->width_px > 10000 || o->height_px < 100 || o->height_px > 10000)
         return rpiv_fail(RPIV_EINVAL, "%s: plot size %d x %d px outside 100..10000", path,
@@ -61,7 +63,7 @@ static rpiv_status opts_check(const rpiv_plot_opts *o, const char *path)
 }
 
 /* Replace RPIV_PLOT_AUTO by what suits the kind of plot. */
-static void resolve_auto(rpiv_plot_opts *o, int y_axis, int aspect)
+void plot_resolve_auto(rpiv_plot_opts *o, int y_axis, int aspect)
 {
     if (o->y_axis == RPIV_PLOT_AUTO)
         o->y_axis = y_axis;
@@ -70,8 +72,6 @@ static void resolve_auto(rpiv_plot_opts *o, int y_axis, int aspect)
 }
 
 /* ---- colours ---------------------------------------------------------------- */
-
-enum { COL_BG = 0, COL_FG = 1, COL_SERIES = 2, NSERIES_COL = 10, COL_REPLACED = 12, NCOL0 = 16 };
 
 static void set_cmap0(void)
 {
@@ -87,7 +87,7 @@ static void set_cmap0(void)
     plscol0(COL_REPLACED, 220, 20, 20);
 }
 
-static void set_cmap1(rpiv_plot_cmap cm)
+void plot_set_cmap1(rpiv_plot_cmap cm, double alpha)
 {
     /* viridis sampled at five points; linear RGB interpolation between them */
     static const PLFLT vi[5] = {0, 0.25, 0.5, 0.75, 1};
@@ -97,18 +97,17 @@ static void set_cmap1(rpiv_plot_cmap cm)
     static const PLFLT gi[2] = {0, 1}, gv0[2] = {0, 1};
     static const PLFLT di[3] = {0, 0.5, 1};
     static const PLFLT dr[3] = {0.23, 1, 0.71}, dg[3] = {0.30, 1, 0.02}, db[3] = {0.75, 1, 0.15};
+    const PLFLT al[5] = {alpha, alpha, alpha, alpha, alpha};
     plscmap1n(256);
     if (cm == RPIV_PLOT_CMAP_GRAY)
-        plscmap1l(1, 2, gi, gv0, gv0, gv0, NULL);
+        plscmap1la(1, 2, gi, gv0, gv0, gv0, al, NULL);
     else if (cm == RPIV_PLOT_CMAP_DIVERGING)
-        plscmap1l(1, 3, di, dr, dg, db, NULL);
+        plscmap1la(1, 3, di, dr, dg, db, al, NULL);
     else
-        plscmap1l(1, 5, vi, vr, vg, vb, NULL);
+        plscmap1la(1, 5, vi, vr, vg, vb, al, NULL);
 }
 
 /* ---- the frame around every plot ------------------------------------------- */
-
-typedef rpiv_status (*draw_fn)(const void *ctx, const rpiv_plot_opts *o);
 
 /* 1 if path holds a whole PNG: the signature, then chunks whose lengths walk exactly to the
  * end of the file, the last one IEND. cairo does not report a failed write (a full disk), so
@@ -150,8 +149,7 @@ static rpiv_status png_incomplete(const char *path, const char *tmp)
 }
 
 /* Open a pngcairo stream on a temporary file next to path, run draw, close, check, publish. */
-static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn draw,
-                            const void *ctx)
+rpiv_status plot_run(const char *path, const rpiv_plot_opts *o, draw_fn draw, const void *ctx)
 {
     atomic_file af;
     rpiv_status st = atomic_begin(&af, path, 0);
@@ -176,7 +174,7 @@ static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn d
     set_cmap0();
     plinit();
     plsError(&call.err_code, call.err_msg);
-    set_cmap1(o->cmap);
+    plot_set_cmap1(o->cmap, 1.0);
     pladv(0);
     plschr(0, 0.9);
     plcol0(COL_FG);
@@ -208,8 +206,8 @@ static rpiv_status run_plot(const char *path, const rpiv_plot_opts *o, draw_fn d
 }
 
 /* The viewport (leaving room for a colour bar on the right when cbar) and world window. */
-static void frame(const rpiv_plot_opts *o, double x0, double x1, double y0, double y1, int cbar,
-                  const char *xl, const char *yl, const char *title)
+void plot_frame(const rpiv_plot_opts *o, double x0, double x1, double y0, double y1, int cbar,
+                const char *xl, const char *yl, const char *title)
 {
     double right = cbar ? 0.80 : 0.95;
     if (o->aspect == RPIV_PLOT_EQUAL)
@@ -225,7 +223,7 @@ static void frame(const rpiv_plot_opts *o, double x0, double x1, double y0, doub
     pllab(xl ? xl : "", yl ? yl : "", title ? title : "");
 }
 
-static void colour_bar(double zmin, double zmax, const char *label)
+void plot_colour_bar(double zmin, double zmax, const char *label)
 {
     PLFLT w, h;
     PLINT label_opts[1] = {PL_COLORBAR_LABEL_RIGHT};
@@ -246,7 +244,7 @@ static void colour_bar(double zmin, double zmax, const char *label)
                sub_ticks, n_values, values);
 }
 
-static void zrange(const double *z, size_t n, const rpiv_plot_opts *o, double *lo, double *hi)
+void plot_zrange(const double *z, size_t n, const rpiv_plot_opts *o, double *lo, double *hi)
 {
     if (o->zmin < o->zmax) {
         *lo = o->zmin;
@@ -273,8 +271,8 @@ static void zrange(const double *z, size_t n, const rpiv_plot_opts *o, double *l
 
 /* Draw z (nx x ny, row-major) as cells over [x0,x1] x [y0,y1]; reduce by block averages to
  * at most max_cells per axis first (PLplot fills one polygon per cell). */
-static rpiv_status draw_cells(const double *z, int nx, int ny, double x0, double x1, double y0,
-                              double y1, double zlo, double zhi, int max_x, int max_y)
+rpiv_status plot_draw_cells(const double *z, int nx, int ny, double x0, double x1, double y0,
+                            double y1, double zlo, double zhi, int max_x, int max_y)
 {
     int bx = (nx + max_x - 1) / max_x, by = (ny + max_y - 1) / max_y;
     int mx = (nx + bx - 1) / bx, my = (ny + by - 1) / by;
@@ -309,7 +307,9 @@ static rpiv_status draw_cells(const double *z, int nx, int ny, double x0, double
     double blank = zlo - (zhi - zlo) - 1;
     for (size_t k = 0; k < (size_t)mx * (size_t)my; k++)
         buf[k] = isnan(buf[k]) ? blank : fmin(fmax(buf[k], zlo), zhi);
-    plimage(cols, mx, my, x0, ex1, y0, ey1, zlo, zhi, x0, ex1, y0, ey1);
+    /* plimagefr, not plimage: plimage stretches the colours over the data's own range, so a
+     * map narrower than [zlo, zhi] (a flat field) came out in the wrong colours */
+    plimagefr(cols, mx, my, x0, ex1, y0, ey1, zlo, zhi, zlo, zhi, NULL, NULL);
     free(cols);
     free(buf);
     return RPIV_OK;
@@ -328,7 +328,7 @@ static rpiv_status draw_map(const void *vctx, const rpiv_plot_opts *o)
 {
     const map_ctx *c = vctx;
     double zlo, zhi;
-    zrange(c->z, (size_t)c->nx * (size_t)c->ny, o, &zlo, &zhi);
+    plot_zrange(c->z, (size_t)c->nx * (size_t)c->ny, o, &zlo, &zhi);
     double x0 = c->ext[0], x1 = c->ext[1], y0 = c->ext[2], y1 = c->ext[3];
     if (o->xmin < o->xmax) {
         x0 = o->xmin;
@@ -338,14 +338,14 @@ static rpiv_status draw_map(const void *vctx, const rpiv_plot_opts *o)
         y0 = o->ymin;
         y1 = o->ymax;
     }
-    frame(o, x0, x1, y0, y1, 1, o->xlabel, o->ylabel, c->title);
-    rpiv_status st = draw_cells(c->z, c->nx, c->ny, c->ext[0], c->ext[1], c->ext[2], c->ext[3], zlo,
-                                zhi, o->width_px, o->height_px);
+    plot_frame(o, x0, x1, y0, y1, 1, o->xlabel, o->ylabel, c->title);
+    rpiv_status st = plot_draw_cells(c->z, c->nx, c->ny, c->ext[0], c->ext[1], c->ext[2], c->ext[3],
+                                     zlo, zhi, o->width_px, o->height_px);
     if (st)
         return st;
     plcol0(COL_FG);
     plbox("bc", 0, 0, "bc", 0, 0); /* the image covers the frame: redraw it */
-    colour_bar(zlo, zhi, o->zlabel);
+    plot_colour_bar(zlo, zhi, o->zlabel);
     return RPIV_OK;
 }
 
@@ -353,10 +353,10 @@ rpiv_status rpiv_plot_map(const char *path, const char *title, const double *z, 
                           const double *extent, const rpiv_plot_opts *opts)
 {
     rpiv_plot_opts o = opts ? *opts : rpiv_plot_opts_default();
-    rpiv_status st = opts_check(&o, path);
+    rpiv_status st = plot_opts_check(&o, path);
     if (st)
         return st;
-    resolve_auto(&o, RPIV_PLOT_DOWN, RPIV_PLOT_EQUAL);
+    plot_resolve_auto(&o, RPIV_PLOT_DOWN, RPIV_PLOT_EQUAL);
     if (nx < 1 || ny < 1)
         return rpiv_fail(RPIV_EINVAL, "%s: map size %d x %d is empty", path, nx, ny);
     map_ctx c = {z, nx, ny, {-0.5, nx - 0.5, -0.5, ny - 0.5}, title};
@@ -367,114 +367,7 @@ rpiv_status rpiv_plot_map(const char *path, const char *title, const double *z, 
                              extent[0], extent[1], extent[2], extent[3]);
         memcpy(c.ext, extent, sizeof c.ext);
     }
-    return run_plot(path, &o, draw_map, &c);
-}
-
-/* ---- quiver -------------------------------------------------------------------- */
-
-typedef struct quiver_ctx {
-    const rpiv_field *f;
-    const char *title;
-} quiver_ctx;
-
-typedef struct grid_map {
-    double x0, y0, dx, dy;
-} grid_map;
-
-static void grid_xform(PLFLT i, PLFLT j, PLFLT *x, PLFLT *y, PLPointer data)
-{
-    const grid_map *g = data;
-    *x = g->x0 + i * g->dx;
-    *y = g->y0 + j * g->dy;
-}
-
-static rpiv_status draw_quiver(const void *vctx, const rpiv_plot_opts *o)
-{
-    const quiver_ctx *c = vctx;
-    const rpiv_field *f = c->f;
-    int nx = f->nx, ny = f->ny, s = o->stride;
-    size_t n = (size_t)nx * (size_t)ny;
-    double x0 = f->x0 - 0.5 * f->dx, x1 = f->x0 + (nx - 0.5) * f->dx;
-    double y0 = f->y0 - 0.5 * f->dy, y1 = f->y0 + (ny - 0.5) * f->dy;
-    double *mag = malloc(n * sizeof *mag);
-    int mx = (nx + s - 1) / s, my = (ny + s - 1) / s;
-    PLFLT *ub = calloc(4 * (size_t)mx * (size_t)my, sizeof *ub);
-    const PLFLT **cols = malloc(4 * (size_t)mx * sizeof *cols);
-    if (!mag || !ub || !cols) {
-        free(mag);
-        free(ub);
-        free(cols);
-        return rpiv_fail(RPIV_ENOMEM, "plot: out of memory for a %d x %d quiver", nx, ny);
-    }
-    double umax = 0;
-    for (size_t k = 0; k < n; k++) {
-        mag[k] =
-            f->flag[k] == RPIV_FLAG_MASKED ? (double)NAN : hypot((double)f->u[k], (double)f->v[k]);
-        if (isfinite(mag[k]))
-            umax = fmax(umax, mag[k]);
-    }
-    if (o->xmin < o->xmax) {
-        x0 = o->xmin;
-        x1 = o->xmax;
-    }
-    if (o->ymin < o->ymax) {
-        y0 = o->ymin;
-        y1 = o->ymax;
-    }
-    frame(o, x0, x1, y0, y1, o->background, o->xlabel, o->ylabel, c->title);
-    rpiv_status st = RPIV_OK;
-    if (o->background) {
-        double zlo, zhi;
-        zrange(mag, n, o, &zlo, &zhi);
-        st = draw_cells(mag, nx, ny, f->x0 - 0.5 * f->dx, f->x0 + (nx - 0.5) * f->dx,
-                        f->y0 - 0.5 * f->dy, f->y0 + (ny - 0.5) * f->dy, zlo, zhi, o->width_px,
-                        o->height_px);
-        plcol0(COL_FG);
-        plbox("bc", 0, 0, "bc", 0, 0);
-        colour_bar(zlo, zhi, o->zlabel ? o->zlabel : "|u| (px)");
-    }
-    /* two layers: valid vectors (black) and replaced ones (red); zero arrows are not drawn */
-    size_t m = (size_t)mx * (size_t)my;
-    PLFLT *uv[4] = {ub, ub + m, ub + 2 * m, ub + 3 * m}; /* u valid, v valid, u repl, v repl */
-    for (int l = 0; l < 4; l++)
-        for (int i = 0; i < mx; i++)
-            cols[(size_t)l * (size_t)mx + (size_t)i] = uv[l] + (size_t)i * (size_t)my;
-    for (int i = 0; i < mx; i++)
-        for (int j = 0; j < my; j++) {
-            size_t k = (size_t)(j * s) * (size_t)nx + (size_t)(i * s),
-                   q = (size_t)i * (size_t)my + (size_t)j;
-            int layer = f->flag[k] == RPIV_FLAG_REPLACED ? 2 : 0;
-            if (f->flag[k] == RPIV_FLAG_MASKED)
-                continue;
-            uv[layer][q] = (double)f->u[k];
-            uv[layer + 1][q] = (double)f->v[k];
-        }
-    double scale = o->arrow_scale;
-    if (scale <= 0)
-        scale = umax > 0 ? 0.9 * s * fmin(f->dx, f->dy) / umax : 1.0;
-    grid_map g = {f->x0, f->y0, f->dx * s, f->dy * s};
-    if (st == RPIV_OK && umax > 0) {
-        plcol0(COL_FG);
-        plvect(cols, cols + mx, mx, my, scale, grid_xform, &g);
-        plcol0(COL_REPLACED);
-        plvect(cols + 2 * mx, cols + 3 * mx, mx, my, scale, grid_xform, &g);
-    }
-    free(mag);
-    free(ub);
-    free(cols);
-    return st;
-}
-
-rpiv_status rpiv_plot_quiver(const rpiv_field *f, const char *path, const char *title,
-                             const rpiv_plot_opts *opts)
-{
-    rpiv_plot_opts o = opts ? *opts : rpiv_plot_opts_default();
-    rpiv_status st = opts_check(&o, path);
-    if (st)
-        return st;
-    resolve_auto(&o, RPIV_PLOT_DOWN, RPIV_PLOT_EQUAL);
-    quiver_ctx c = {f, title};
-    return run_plot(path, &o, draw_quiver, &c);
+    return plot_run(path, &o, draw_map, &c);
 }
 
 /* ---- lines --------------------------------------------------------------------- */
@@ -493,7 +386,7 @@ static const char *const marker[] = {"●", "■", "▲", "◆", "▼", "✚", "
 static rpiv_status draw_lines(const void *vctx, const rpiv_plot_opts *o)
 {
     const lines_ctx *c = vctx;
-    frame(o, c->x0, c->x1, c->y0, c->y1, 0, c->xl, c->yl, c->title);
+    plot_frame(o, c->x0, c->x1, c->y0, c->y1, 0, c->xl, c->yl, c->title);
     size_t nleg = 0;
     for (size_t k = 0; k < c->ns; k++) {
         const rpiv_plot_series *s = &c->s[k];
@@ -569,10 +462,10 @@ rpiv_status rpiv_plot_lines(const char *path, const char *title, const char *xla
                             const rpiv_plot_opts *opts)
 {
     rpiv_plot_opts o = opts ? *opts : rpiv_plot_opts_default();
-    rpiv_status st = opts_check(&o, path);
+    rpiv_status st = plot_opts_check(&o, path);
     if (st)
         return st;
-    resolve_auto(&o, RPIV_PLOT_UP, RPIV_PLOT_FREE);
+    plot_resolve_auto(&o, RPIV_PLOT_UP, RPIV_PLOT_FREE);
     if (nseries == 0)
         return rpiv_fail(RPIV_EINVAL, "%s: no series to plot", path);
     double x0 = (double)INFINITY, x1 = -(double)INFINITY, y0 = (double)INFINITY,
@@ -605,5 +498,5 @@ rpiv_status rpiv_plot_lines(const char *path, const char *title, const char *xla
         c.y0 = o.ymin;
         c.y1 = o.ymax;
     }
-    return run_plot(path, &o, draw_lines, &c);
+    return plot_run(path, &o, draw_lines, &c);
 }

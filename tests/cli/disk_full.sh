@@ -2,14 +2,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 # Issue #20 items 1 and 2: a figure (--plot) or a NetCDF file written to a full disk exits 1
 # with one line naming the file and "No space left on device", no crash, and the old file
-# left intact. Needs a small tmpfs: mounted when run as root, skipped (77) otherwise.
+# left intact. Needs a small tmpfs (256 kB: room for the 1000 x 800 figure of rpiv plot):
+# mounted when run as root, skipped (77) otherwise.
 set -u
 bin=${RPIV_BIN:?RPIV_BIN not set}
 data=${RPIV_TEST_DATA:?RPIV_TEST_DATA not set}
 tmp=$(mktemp -d)
 full="$tmp/full"
 mkdir "$full"
-if ! mount -t tmpfs -o size=64k tmpfs "$full" 2>/dev/null; then
+if ! mount -t tmpfs -o size=256k tmpfs "$full" 2>/dev/null; then
     rm -rf "$tmp"
     echo "disk_full: skipped: cannot mount a tmpfs (needs root)"
     exit 77
@@ -24,7 +25,7 @@ a="$data/Oseen_center_01.tif"
 b="$data/Oseen_center_02.tif"
 
 # the disk filled to several levels: nothing left, a few kB left (a truncated write)
-for kb in 62 52 40; do
+for kb in 254 244 232; do # 2, 12, 24 kB left
     rm -f "$full"/*
     echo old >"$full/p.png"
     echo old >"$full/o.nc"
