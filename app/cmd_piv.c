@@ -251,7 +251,7 @@ static rpiv_status set_validate(cli_ctx *c, const char *v)
 /* Options of a long run, besides the [piv] keys. */
 typedef struct run_opts {
     const char *out, *plot, *checkpoint, *every, *derived;
-    int meanrms, resume, skip_bad;
+    int meanrms, resume, skip_bad, sheet_bias;
     rpiv_pairing pairing;
     unsigned derived_mask; /* --derived parsed */
 } run_opts;
@@ -440,6 +440,12 @@ static const cli_opt options[] = {
      .off = offsetof(piv_opts, ro.derived),
      .help = "add derived quantities to the output: vorticity, divergence,\n"
              "strain, swirl, q, or all (physical sign; docs/postprocess.md)"},
+    {.name = "sheet-bias",
+     .kind = CLI_FLAG,
+     .off = offsetof(piv_opts, ro.sheet_bias),
+     .help = "add the refracted sheet's bias by the CCM to the ensemble or mean\n"
+             "field: bias_u, bias_v, u_corrected, v_corrected, bias_u_std,\n"
+             "bias_v_std, z_ref ([sheet] and [bias] keys; docs/bias.md)"},
     {.name = "output",
      .letter = 'o',
      .kind = CLI_STR,
@@ -567,7 +573,12 @@ rpiv_status cmd_piv(int argc, char **argv)
         if ((st = cli_parse_int("--checkpoint-every", ro.every, 1, 1000000000L, &v)))
             return st;
     }
+    if (ro.sheet_bias && !p->ensemble && !ro.meanrms)
+        return cli_usage_error("piv", "--sheet-bias applies to a converged field: give it "
+                                      "with --ensemble or --mean-rms");
     if ((st = rpiv_piv_params_check(p)))
+        return st;
+    if (ro.sheet_bias && (st = rpiv_experiment_check(&c.exp)))
         return st;
     if (ro.derived && rpiv_field_derive_parse(ro.derived, &ro.derived_mask))
         return cli_usage_error("piv", "--%s", rpiv_errmsg());
@@ -578,6 +589,15 @@ rpiv_status cmd_piv(int argc, char **argv)
     st = run(&c, &ro, argc - optind, argv + optind, mpi);
     rpiv_mpi_free(mpi);
     return st;
+}
+
+/* --sheet-bias: the CCM's bias of every vector of f, added as quantities (docs/bias.md). */
+static rpiv_status sheet_bias(const cli_ctx *c, rpiv_field *f)
+{
+    cli_progress prog;
+    rpiv_progress pr = cli_progress_of(&prog);
+    cli_progress_init(&prog, "sheet bias", c->quiet);
+    return rpiv_config_sheet_bias(&c->exp, f, c->threads, &pr);
 }
 
 static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi)
@@ -640,6 +660,14 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
         st = add_meta(&meta, p, pairs, pv);
     if (!st && rpiv_mpi_size(mpi) > 1)
         st = rpiv_meta_add(&meta, "mpi_ranks", "%d", rpiv_mpi_size(mpi));
+    if (!st && o->sheet_bias) {
+        const rpiv_ccm_bias_params *sb = &c->exp.bias;
+        st = rpiv_meta_add(
+            &meta, "sheet_bias", "depth %s, variation %s%s%s, rel_thickness %g, dz %g",
+            rpiv_ccm_depth_names[sb->depth], rpiv_ccm_vary_names[sb->vary],
+            sb->vary == RPIV_CCM_VARY_PROFILE ? " " : "",
+            sb->vary == RPIV_CCM_VARY_PROFILE ? sb->profile : "", sb->rel_thickness, sb->dz);
+    }
     r.out = out;
     r.y_up = p->y_up;
     r.height = h;
@@ -673,6 +701,8 @@ out_agree:
     if (p->ensemble) {
         if ((st = rpiv_batch_ensemble(batch, pv, &pr, &field)))
             goto out_free;
+        if (root && o->sheet_bias && (st = sheet_bias(c, field)))
+            goto out_free;
         if (root && ((st = add_skipped(&meta, batch, pairs)) || (st = save(&r, field, &meta, out))))
             goto out_free;
         r.nvec = (size_t)field->nx * (size_t)field->ny;
@@ -691,6 +721,7 @@ out_agree:
             char path[RPIV_PATH_MAX + 32];
             if ((st = add_skipped(&meta, batch, pairs)) ||
                 (st = rpiv_series_stats_finish(r.stats, &mean, &rms)) ||
+                (o->sheet_bias && (st = sheet_bias(c, mean))) ||
                 (st = out_name(out, "_mean", path, sizeof path)) ||
                 (st = save(&r, mean, &meta, path)) ||
                 (st = out_name(out, "_rms", path, sizeof path)) ||

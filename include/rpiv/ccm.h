@@ -390,4 +390,54 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_invert_e1(const rpiv_ccm_invert_result *r, r
 RPIV_NODISCARD rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hdr,
                                                 const char *path);
 
+/* ---- the sheet's bias for every vector of a field (src/ccm/ccm_bias.c, docs/bias.md) ----- */
+
+/* The depth a measured vector is referred to: the sheet's peak z*_max(x*) at the vector's
+ * section, or the object plane z*_OP. */
+typedef enum rpiv_ccm_depth { RPIV_CCM_DEPTH_ZMAX = 0, RPIV_CCM_DEPTH_ZOP = 1 } rpiv_ccm_depth;
+extern const char *const rpiv_ccm_depth_names[]; /* "zmax", "zop", NULL */
+
+/* Where the velocity's variation across the depth comes from:
+ *  - DUCT: the square duct's U*(y*, z*) at each vector's y* (the model's scale_px);
+ *  - PROFILE: one profile U*(z*) for every vector (two columns, rpiv_ccm_curve_load);
+ *  - FIELD: the measured field, locally linear in z*: the sheet's peak moves along x* (R-PIV),
+ *    so du/dz* = (du/dx*) / (dz*_max/dx*), likewise v; needs a sheet whose peak moves. */
+typedef enum rpiv_ccm_vary {
+    RPIV_CCM_VARY_DUCT = 0,
+    RPIV_CCM_VARY_PROFILE = 1,
+    RPIV_CCM_VARY_FIELD = 2
+} rpiv_ccm_vary;
+extern const char *const rpiv_ccm_vary_names[]; /* "duct", "profile", "field", NULL */
+
+typedef struct rpiv_ccm_bias_params {
+    int depth;                   /* rpiv_ccm_depth (zmax)                                   */
+    int vary;                    /* rpiv_ccm_vary (duct)                                    */
+    char profile[RPIV_PATH_MAX]; /* PROFILE: the U*(z*) file ("")                         */
+    double rel_thickness;        /* uncertainty: relative change of the sheet's thickness
+                                    about its peak (0.1)                                    */
+    double dz;                   /* uncertainty: shift of the sheet, z* (0.01)              */
+    int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
+} rpiv_ccm_bias_params;
+
+rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void);
+RPIV_NODISCARD rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params *bp);
+
+/* For every unmasked vector of f (image coordinates, not y-up), placed in the channel by g:
+ * the displacement Eq. "statform" predicts through the sheet at the vector's x* (its
+ * continuous peak), D_pred, for the velocity's variation across the depth of bp->vary, against
+ * the displacement D_ref at the depth of bp->depth: bias = D_pred - D_ref (px), and the
+ * corrected field u - bias_u. The uncertainty of the bias is the half-difference of the bias
+ * with the sheet's thickness scaled by 1 +- rel_thickness and, in quadrature, with the sheet
+ * shifted by +- dz. Adds (or overwrites) the quantities bias_u, bias_v, u_corrected,
+ * v_corrected, bias_u_std, bias_v_std (px/dt) and z_ref (the depth, z*). Masked vectors get 0.
+ * base gives the camera (object plane), h, d_p, scale_px and P; its illum, u, v are ignored.
+ * Deterministic for any thread count. Errors: RPIV_EINVAL (parameters, a y-up field, FIELD
+ * with a sheet whose peak does not move along x*), those of the profile reader and
+ * rpiv_ccm_predict, RPIV_EINTR if progress asks to stop (rows done / rows). */
+RPIV_NODISCARD rpiv_status rpiv_ccm_bias_field(rpiv_field *f, const rpiv_ccm_model *base,
+                                               const rpiv_sheet *sheet, const rpiv_ccm_geometry *g,
+                                               const rpiv_ccm_bias_params *bp,
+                                               const rpiv_ccm_params *p,
+                                               const rpiv_progress *progress);
+
 #endif /* RPIV_CCM_H */

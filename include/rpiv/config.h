@@ -35,6 +35,7 @@ typedef struct rpiv_experiment {
     rpiv_piv_params piv;
     rpiv_synth_params synth;
     rpiv_output_params output;
+    rpiv_ccm_bias_params bias; /* [bias]: rpiv piv --sheet-bias */
 } rpiv_experiment;
 
 /* The embedded default: the paper's channel experiment (docs/config.md). */
@@ -86,6 +87,14 @@ rpiv_ccm_model rpiv_config_ccm_model(const rpiv_experiment *e, double dt_s);
 RPIV_NODISCARD rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e, const char *path,
                                                         double scale_px, double ystar,
                                                         rpiv_ccm_curve **out);
+
+/* The sheet's bias for every vector of f (rpiv_ccm_bias_field, docs/bias.md), with the
+ * experiment's camera, particles, channel, [sheet] and [bias], f placed in the channel as
+ * rpiv synth places its images, P(z*) from [synth] pz_profile, the displacement scale of
+ * [piv] dt_s (unset: [synth] dt_s). f in image coordinates. Errors: those of the checks, the
+ * file readers and rpiv_ccm_bias_field. */
+RPIV_NODISCARD rpiv_status rpiv_config_sheet_bias(const rpiv_experiment *e, rpiv_field *f,
+                                                  int threads, const rpiv_progress *progress);
 
 /* ---- flat entry points for bindings (the Python package, ctypes) --------------------------- */
 

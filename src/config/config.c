@@ -246,6 +246,18 @@ static const key_spec keys[] = {
     {"synth", "rk_steps", KEY_INT, OFF(synth.rk_steps), 1, 1000, 1, "-",
      "RK4 steps over dt/2 for flows varying along the path", 0},
     /* [output] */
+    /* [bias] (rpiv piv --sheet-bias, docs/bias.md) */
+    {"bias", "depth", KEY_ENUM, OFF(bias.depth), 0, 0, 1, "-",
+     "depth the bias is referred to: zmax (the sheet's peak) or zop (the object plane)",
+     rpiv_ccm_depth_names},
+    {"bias", "variation", KEY_ENUM, OFF(bias.vary), 0, 0, 1, "-",
+     "velocity across the depth: duct, profile (file) or field (measured gradient)",
+     rpiv_ccm_vary_names},
+    {"bias", "profile", KEY_STRING, OFF(bias.profile), 0, 0, 1, "path",
+     "variation = profile: U*(z*) as two columns", 0},
+    {"bias", "rel_thickness", KEY_DOUBLE, OFF(bias.rel_thickness), 0, 0.9, 1, "-",
+     "uncertainty: relative change of the sheet's thickness", 0},
+    {"bias", "dz", KEY_DOUBLE, OFF(bias.dz), 0, 0.5, 1, "h", "uncertainty: shift of the sheet", 0},
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
 };
@@ -263,6 +275,7 @@ rpiv_experiment rpiv_experiment_default(void)
     e.sheet = rpiv_sheet_params_default();
     e.piv = rpiv_piv_params_default();
     e.synth = rpiv_synth_params_default();
+    e.bias = rpiv_ccm_bias_params_default();
     strcpy(e.output.dir, "rpiv-out");
     e.output.plots = 1;
     return e;
@@ -274,7 +287,8 @@ rpiv_status rpiv_experiment_check(const rpiv_experiment *e)
     if ((st = rpiv_camera_check(&e->camera)) || (st = rpiv_particles_check(&e->particles)) ||
         (st = rpiv_channel_check(&e->channel)) || (st = rpiv_laser_check(&e->laser)) ||
         (st = rpiv_prism_check(&e->prism)) || (st = rpiv_sheet_params_check(&e->sheet)) ||
-        (st = rpiv_piv_params_check(&e->piv)) || (st = rpiv_synth_params_check(&e->synth)))
+        (st = rpiv_piv_params_check(&e->piv)) || (st = rpiv_synth_params_check(&e->synth)) ||
+        (st = rpiv_ccm_bias_params_check(&e->bias)))
         return st;
     return RPIV_OK;
 }

@@ -102,3 +102,35 @@ rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e, const char *p
     rpiv_field_free(f);
     return st;
 }
+
+rpiv_status rpiv_config_sheet_bias(const rpiv_experiment *e, rpiv_field *f, int threads,
+                                   const rpiv_progress *progress)
+{
+    rpiv_sheet *sheet = NULL;
+    rpiv_ccm_curve *presence = NULL;
+    rpiv_synth *s = NULL;
+    rpiv_status st = rpiv_experiment_check(e);
+    if (st)
+        return st;
+    rpiv_ccm_model m = rpiv_config_ccm_model(e, e->piv.dt_s > 0 ? e->piv.dt_s : e->synth.dt_s);
+    rpiv_ccm_params p = rpiv_ccm_params_default();
+    p.subpixel = e->piv.subpixel;
+    rpiv_ccm_bias_params bp = e->bias;
+    bp.threads = threads;
+    if (e->synth.pz_profile[0]) {
+        if ((st = rpiv_ccm_curve_load(e->synth.pz_profile, &presence)))
+            goto out_free;
+        m.presence = (rpiv_ccm_func){rpiv_ccm_curve_fn, presence};
+    }
+    if ((st = rpiv_sheet_new(&e->sheet, &sheet)) || (st = rpiv_config_synth_new(e, NULL, &s)))
+        goto out_free;
+    rpiv_synth_info in;
+    rpiv_synth_get_info(s, &in);
+    rpiv_ccm_geometry g = {in.x0_star, in.y0_star, in.star_per_px};
+    st = rpiv_ccm_bias_field(f, &m, sheet, &g, &bp, &p, progress);
+out_free:
+    rpiv_synth_free(s);
+    rpiv_sheet_free(sheet);
+    rpiv_ccm_curve_free(presence);
+    return st;
+}

@@ -1,0 +1,309 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* The refracted sheet's bias for every vector of a field (docs/bias.md): at each vector's
+ * section x* the displacement Eq. "statform" predicts through the sheet there, for the
+ * velocity's variation across the depth (the duct, a profile, or the measured field's
+ * gradient along x* mapped onto z* by the sheet's inclination), against the displacement at a
+ * named depth (z*_max or z*_OP). The uncertainty is the bias's sensitivity to the sheet's
+ * thickness and position. */
+#include "ccm_impl.h"
+#include "rpiv/flow.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *const rpiv_ccm_depth_names[] = {"zmax", "zop", NULL};
+const char *const rpiv_ccm_vary_names[] = {"duct", "profile", "field", NULL};
+
+rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void)
+{
+    rpiv_ccm_bias_params bp;
+    memset(&bp, 0, sizeof bp);
+    bp.depth = RPIV_CCM_DEPTH_ZMAX;
+    bp.vary = RPIV_CCM_VARY_DUCT;
+    bp.rel_thickness = 0.1;
+    bp.dz = 0.01;
+    bp.threads = 0;
+    return bp;
+}
+
+rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params *bp)
+{
+    if (bp->depth != RPIV_CCM_DEPTH_ZMAX && bp->depth != RPIV_CCM_DEPTH_ZOP)
+        return rpiv_fail(RPIV_EINVAL, "bias: depth %d is neither zmax (0) nor zop (1)", bp->depth);
+    if (bp->vary < RPIV_CCM_VARY_DUCT || bp->vary > RPIV_CCM_VARY_FIELD)
+        return rpiv_fail(RPIV_EINVAL, "bias: variation %d is not duct, profile or field", bp->vary);
+    if (bp->vary == RPIV_CCM_VARY_PROFILE && !bp->profile[0])
+        return rpiv_fail(RPIV_EINVAL, "bias: the profile variation needs a profile file");
+    if (memchr(bp->profile, 0, sizeof bp->profile) == NULL)
+        return rpiv_fail(RPIV_EINVAL, "bias: profile path not terminated");
+    if (!(bp->rel_thickness >= 0 && bp->rel_thickness <= 0.9))
+        return rpiv_fail(RPIV_EINVAL, "bias: rel_thickness %g outside 0..0.9", bp->rel_thickness);
+    if (!(bp->dz >= 0 && bp->dz <= 0.5))
+        return rpiv_fail(RPIV_EINVAL, "bias: dz %g outside 0..0.5", bp->dz);
+    if (bp->threads < 0 || bp->threads > 1024)
+        return rpiv_fail(RPIV_EINVAL, "bias: %d threads outside 0..1024", bp->threads);
+    return RPIV_OK;
+}
+
+/* The sheet at one section, stretched by `stretch` about zc and shifted by `shift`. */
+typedef struct pert_sheet {
+    const rpiv_sheet *s;
+    double xstar, zc, stretch, shift;
+} pert_sheet;
+
+static double pert_fn(const void *user, double z)
+{
+    const pert_sheet *p = user;
+    return rpiv_sheet_eval(p->s, p->xstar, p->zc + (z - p->shift - p->zc) / p->stretch);
+}
+
+/* A linear profile a (z - z0). */
+typedef struct lin_profile {
+    double a, z0;
+} lin_profile;
+
+static double lin_fn(const void *user, double z)
+{
+    const lin_profile *l = user;
+    return l->a * (z - l->z0);
+}
+
+/* The bias of one vector through one variant of the sheet: the predicted peak minus the
+ * displacement at the reference depth (dref_u, dref_v), px. */
+static rpiv_status bias_one(const rpiv_ccm_model *m0, rpiv_ccm_work *w, pert_sheet *ps,
+                            double stretch, double shift, double dref_u, double dref_v, double *bu,
+                            double *bv)
+{
+    rpiv_ccm_model m = *m0;
+    ps->stretch = stretch;
+    ps->shift = shift;
+    m.illum = (rpiv_ccm_func){pert_fn, ps};
+    if (m.nbreaks < RPIV_CCM_MAX_BREAKS && ps->zc + shift > m.zlo && ps->zc + shift < m.zhi)
+        m.breaks[m.nbreaks++] = ps->zc + shift; /* the sheet's peak */
+    rpiv_ccm_peak pk;
+    rpiv_status st = rpiv_ccm_predict(&m, w, &pk);
+    if (st)
+        return st;
+    *bu = pk.dx - dref_u;
+    *bv = pk.dy - dref_v;
+    return RPIV_OK;
+}
+
+/* The quantities written, in this order. */
+enum { Q_BU, Q_BV, Q_UC, Q_VC, Q_SU, Q_SV, Q_Z, NQ };
+static const char *const qname[NQ] = {"bias_u",     "bias_v",     "u_corrected", "v_corrected",
+                                      "bias_u_std", "bias_v_std", "z_ref"};
+static const int qunit[NQ] = {RPIV_UNIT_PX_PER_DT, RPIV_UNIT_PX_PER_DT | RPIV_UNIT_ODD_Y,
+                              RPIV_UNIT_PX_PER_DT, RPIV_UNIT_PX_PER_DT | RPIV_UNIT_ODD_Y,
+                              RPIV_UNIT_PX_PER_DT, RPIV_UNIT_PX_PER_DT,
+                              RPIV_UNIT_ONE};
+
+/* The derivative of a along x at (i, j) of f, px per px: central over unmasked neighbours,
+ * else one-sided, else 0. */
+static double ddx(const rpiv_field *f, const float *a, int i, int j)
+{
+    size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+    int l = i > 0 && f->flag[k - 1] != RPIV_FLAG_MASKED;
+    int r = i + 1 < f->nx && f->flag[k + 1] != RPIV_FLAG_MASKED;
+    if (l && r)
+        return ((double)a[k + 1] - (double)a[k - 1]) / (2 * f->dx);
+    if (r)
+        return ((double)a[k + 1] - (double)a[k]) / f->dx;
+    if (l)
+        return ((double)a[k] - (double)a[k - 1]) / f->dx;
+    return 0;
+}
+
+/* Everything one row shares. */
+typedef struct bias_job {
+    rpiv_field *f;
+    const rpiv_ccm_model *base;
+    const rpiv_sheet *sheet;
+    const rpiv_ccm_geometry *g;
+    const rpiv_ccm_bias_params *bp;
+    const rpiv_ccm_params *p;
+    const rpiv_ccm_curve *profile;
+    float *q[NQ];
+} bias_job;
+
+/* One vector (i, j); m has the row's velocity (DUCT, PROFILE) and uref its untabulated U*. */
+static rpiv_status vector(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_model *mrow,
+                          const rpiv_ccm_func *uref, int i, int j)
+{
+    const rpiv_field *f = jb->f;
+    const rpiv_ccm_bias_params *bp = jb->bp;
+    size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+    double xstar = jb->g->x0_star + (f->x0 + i * f->dx + 0.5) * jb->g->star_per_px, zmax;
+    rpiv_status st = rpiv_ccm_sheet_zmax(jb->sheet, xstar, jb->p, &zmax);
+    if (st)
+        return st;
+    double zref = bp->depth == RPIV_CCM_DEPTH_ZMAX ? zmax : mrow->camera.zop_star;
+    rpiv_ccm_model m = *mrow;
+    double dref_u = 0, dref_v = 0;
+    lin_profile lu = {0, zref}, lv = {0, zref};
+    if (bp->vary == RPIV_CCM_VARY_FIELD) {
+        /* the sheet's peak moves along x*: the field's gradient along x* is one across z* */
+        double hx = f->dx * jb->g->star_per_px, z1, z0;
+        if ((st = rpiv_ccm_sheet_zmax(jb->sheet, xstar + hx, jb->p, &z1)) ||
+            (st = rpiv_ccm_sheet_zmax(jb->sheet, xstar - hx, jb->p, &z0)))
+            return st;
+        double dzdx = (z1 - z0) / (2 * hx);
+        if (!(fabs(dzdx) > 1e-9))
+            return rpiv_fail(RPIV_EINVAL,
+                             "bias: the sheet's peak does not move along x* at x* = %g: the "
+                             "measured field says nothing of the velocity across the depth",
+                             xstar);
+        double per_xstar = 1.0 / (jb->g->star_per_px * m.scale_px); /* px/px -> U* per x* */
+        lu.a = ddx(f, f->u, i, j) * per_xstar / dzdx;
+        lv.a = ddx(f, f->v, i, j) * per_xstar / dzdx;
+        m.u = (rpiv_ccm_func){lin_fn, &lu};
+        m.v = lv.a != 0 ? (rpiv_ccm_func){lin_fn, &lv} : (rpiv_ccm_func){NULL, NULL};
+    } else {
+        dref_u = m.scale_px * uref->fn(uref->user, zref);
+    }
+    pert_sheet ps = {jb->sheet, xstar, zmax, 1, 0};
+    double bu, bv;
+    if ((st = bias_one(&m, w, &ps, 1, 0, dref_u, dref_v, &bu, &bv)))
+        return st;
+    double su = 0, sv = 0;
+    if (bp->rel_thickness > 0) {
+        double pu, pv, nu, nv;
+        if ((st = bias_one(&m, w, &ps, 1 + bp->rel_thickness, 0, dref_u, dref_v, &pu, &pv)) ||
+            (st = bias_one(&m, w, &ps, 1 - bp->rel_thickness, 0, dref_u, dref_v, &nu, &nv)))
+            return st;
+        su += 0.25 * (pu - nu) * (pu - nu);
+        sv += 0.25 * (pv - nv) * (pv - nv);
+    }
+    if (bp->dz > 0) {
+        double pu, pv, nu, nv;
+        if ((st = bias_one(&m, w, &ps, 1, bp->dz, dref_u, dref_v, &pu, &pv)) ||
+            (st = bias_one(&m, w, &ps, 1, -bp->dz, dref_u, dref_v, &nu, &nv)))
+            return st;
+        su += 0.25 * (pu - nu) * (pu - nu);
+        sv += 0.25 * (pv - nv) * (pv - nv);
+    }
+    jb->q[Q_BU][k] = (float)bu;
+    jb->q[Q_BV][k] = (float)bv;
+    jb->q[Q_UC][k] = (float)((double)f->u[k] - bu);
+    jb->q[Q_VC][k] = (float)((double)f->v[k] - bv);
+    jb->q[Q_SU][k] = (float)sqrt(su);
+    jb->q[Q_SV][k] = (float)sqrt(sv);
+    jb->q[Q_Z][k] = (float)zref;
+    return RPIV_OK;
+}
+
+/* One row j of the field. */
+static rpiv_status row(const bias_job *jb, rpiv_ccm_work *w, int j)
+{
+    const rpiv_field *f = jb->f;
+    double ystar = jb->g->y0_star + (f->y0 + j * f->dy + 0.5) * jb->g->star_per_px;
+    rpiv_ccm_model m = *jb->base, tm;
+    m.v = (rpiv_ccm_func){NULL, NULL};
+    ccm_utab tab = {0};
+    if (jb->bp->vary == RPIV_CCM_VARY_DUCT)
+        m.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &ystar};
+    else if (jb->bp->vary == RPIV_CCM_VARY_PROFILE)
+        m.u = (rpiv_ccm_func){rpiv_ccm_curve_fn, jb->profile};
+    else
+        m.u = (rpiv_ccm_func){rpiv_ccm_const_fn, &ystar}; /* replaced per vector */
+    rpiv_status st = RPIV_OK;
+    tm = m;
+    if (jb->bp->vary == RPIV_CCM_VARY_DUCT && (st = ccm_utab_init(&tab, &m, jb->p, &tm)))
+        return st;
+    for (int i = 0; i < f->nx && !st; i++) {
+        size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+        if (f->flag[k] == RPIV_FLAG_MASKED) {
+            for (int q = 0; q < NQ; q++)
+                jb->q[q][k] = 0;
+            continue;
+        }
+        st = vector(jb, w, &tm, &m.u, i, j);
+    }
+    ccm_utab_free(&tab);
+    return st;
+}
+
+/* The quantity `name` of f: the existing one (overwritten) or a new one. */
+static rpiv_status quantity(rpiv_field *f, const char *name, int unit, float **data)
+{
+    const rpiv_quantity *q = rpiv_field_quantity(f, name);
+    if (q) {
+        *data = q->data;
+        return RPIV_OK;
+    }
+    return rpiv_field_add_quantity(f, name, unit, data);
+}
+
+rpiv_status rpiv_ccm_bias_field(rpiv_field *f, const rpiv_ccm_model *base, const rpiv_sheet *sheet,
+                                const rpiv_ccm_geometry *g, const rpiv_ccm_bias_params *bp,
+                                const rpiv_ccm_params *p, const rpiv_progress *progress)
+{
+    rpiv_status st;
+    if (!f || !base || !sheet || !g || !bp || !p)
+        return rpiv_fail(RPIV_EINVAL, "bias: a required argument is NULL");
+    if ((st = rpiv_ccm_bias_params_check(bp)) || (st = rpiv_ccm_params_check(p)) ||
+        (st = rpiv_ccm_model_check(base)))
+        return st;
+    if (f->y_up)
+        return rpiv_fail(RPIV_EINVAL, "bias: the field is turned y-up; give it in image "
+                                      "coordinates (the bias is computed before turning)");
+    if (!(g->star_per_px > 0) || !isfinite(g->x0_star) || !isfinite(g->y0_star))
+        return rpiv_fail(RPIV_EINVAL, "bias: the geometry needs star_per_px > 0 and finite edges");
+    bias_job jb = {f, base, sheet, g, bp, p, NULL, {0}};
+    rpiv_ccm_curve *profile = NULL;
+    if (bp->vary == RPIV_CCM_VARY_PROFILE) {
+        if ((st = rpiv_ccm_curve_load(bp->profile, &profile)))
+            return st;
+        jb.profile = profile;
+    }
+    for (int q = 0; q < NQ; q++)
+        if ((st = quantity(f, qname[q], qunit[q], &jb.q[q]))) {
+            rpiv_ccm_curve_free(profile);
+            return st;
+        }
+    const int ny = f->ny;
+    int nth = bp->threads > 0 ? bp->threads : omp_get_max_threads();
+    if (nth > ny)
+        nth = ny;
+    rpiv_ccm_work **w = calloc((size_t)nth, sizeof *w);
+    rpiv_status *sts = calloc((size_t)ny, sizeof *sts);
+    char(*msg)[256] = calloc((size_t)ny, sizeof *msg);
+    if (!w || !sts || !msg) {
+        st = rpiv_fail(RPIV_ENOMEM, "bias: out of memory for %d rows", ny);
+        goto out_free;
+    }
+    for (int t = 0; t < nth; t++)
+        if ((st = rpiv_ccm_work_new(p, &w[t])))
+            goto out_free;
+    /* batches of rows, so that progress is reported from the calling thread; every vector
+     * depends only on its own inputs: the same result for any thread count */
+    int batch = 2 * nth;
+    for (int b = 0; b < ny && !st; b += batch) {
+        int e = b + batch < ny ? b + batch : ny;
+#pragma omp parallel for num_threads(nth) schedule(dynamic, 1)
+        for (int j = b; j < e; j++) {
+            sts[j] = row(&jb, w[omp_get_thread_num()], j);
+            if (sts[j])
+                snprintf(msg[j], sizeof msg[j], "%s", rpiv_errmsg());
+        }
+        for (int j = b; j < e; j++)
+            if (sts[j]) {
+                st = rpiv_fail(sts[j], "%s", msg[j]);
+                break;
+            }
+        if (!st && rpiv_progress_report(progress, (size_t)e, (size_t)ny))
+            st = rpiv_fail(RPIV_EINTR, "bias: interrupted after %d of %d rows", e, ny);
+    }
+out_free:
+    if (w)
+        for (int t = 0; t < nth; t++)
+            rpiv_ccm_work_free(w[t]);
+    free(w);
+    free(sts);
+    free(msg);
+    rpiv_ccm_curve_free(profile);
+    return st;
+}

@@ -1,0 +1,285 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* The sheet's bias for every vector (rpiv_ccm_bias_field, docs/bias.md) against analytic
+ * values: a uniform velocity has no bias; a linear profile through a symmetric sheet is
+ * measured at the sheet's centre; one vector checked against rpiv_ccm_predict directly. */
+#include "check.h"
+#include "rpiv/ccm.h"
+#include "rpiv/flow.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static rpiv_ccm_params P;
+
+static rpiv_sheet *make_sheet(rpiv_sheet_params sp)
+{
+    rpiv_sheet *s = NULL;
+    CHECK_OK(rpiv_sheet_new(&sp, &s));
+    return s;
+}
+
+static rpiv_sheet *make_gauss(double zb, double e)
+{
+    rpiv_sheet_params sp = rpiv_sheet_params_default();
+    sp.kind = RPIV_SHEET_GAUSS;
+    sp.zb_star = zb;
+    sp.e_star = e;
+    return make_sheet(sp);
+}
+
+static const char *tmp_path(const char *name)
+{
+    static char buf[512];
+    const char *d = getenv("TMPDIR");
+    snprintf(buf, sizeof buf, "%s/rpiv_test_bias_%ld_%s", d ? d : "/tmp", (long)getpid(), name);
+    return buf;
+}
+
+/* A profile file U* = a + b z* on [0, 1]. */
+static void write_linear(const char *path, double a, double b)
+{
+    FILE *fp = fopen(path, "w");
+    CHECK(fp != NULL);
+    if (!fp)
+        return;
+    fprintf(fp, "# linear profile\n0 %.17g\n1 %.17g\n", a, a + b);
+    fclose(fp);
+}
+
+/* A field of nx x ny vectors on a grid of step 32 px, u = u0 + gx x (px). */
+static rpiv_field *make_field(int nx, int ny, double u0, double gx)
+{
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_field_new(nx, ny, 16, 16, 32, 32, &f));
+    if (!f)
+        return NULL;
+    for (int j = 0; j < ny; j++)
+        for (int i = 0; i < nx; i++)
+            f->u[j * nx + i] = (float)(u0 + gx * (f->x0 + i * f->dx));
+    return f;
+}
+
+static float qv(const rpiv_field *f, const char *name, int k)
+{
+    const rpiv_quantity *q = rpiv_field_quantity(f, name);
+    CHECK(q != NULL);
+    return q ? q->data[k] : NAN;
+}
+
+static void uniform_velocity_gives_zero_bias(void)
+{
+    const char *path = tmp_path("const.txt");
+    write_linear(path, 1.3, 0);
+    rpiv_sheet_params sp = rpiv_sheet_params_default(); /* the skewed R-PIV sheet */
+    rpiv_sheet *s = make_sheet(sp);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.camera.zop_star = 0.45;
+    rpiv_ccm_geometry g = {3.0, 0.2, 0.002};
+    rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.vary = RPIV_CCM_VARY_PROFILE;
+    snprintf(bp.profile, sizeof bp.profile, "%s", path);
+    for (int depth = 0; depth < 2; depth++) {
+        bp.depth = depth;
+        rpiv_field *f = make_field(4, 2, 1.3 * m.scale_px, 0);
+        CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
+        for (int k = 0; k < 8; k++) {
+            CHECK_NEAR(qv(f, "bias_u", k), 0, 1e-5);
+            CHECK_NEAR(qv(f, "bias_v", k), 0, 1e-9);
+            CHECK_NEAR(qv(f, "u_corrected", k), f->u[k], 1e-5);
+            CHECK_NEAR(qv(f, "bias_u_std", k), 0, 1e-5);
+        }
+        rpiv_field_free(f);
+    }
+    /* the measured field's own variation: a uniform field has none */
+    bp.vary = RPIV_CCM_VARY_FIELD;
+    rpiv_field *f = make_field(4, 2, 4.2, 0);
+    CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
+    for (int k = 0; k < 8; k++) {
+        CHECK_NEAR(qv(f, "bias_u", k), 0, 1e-9);
+        CHECK_NEAR(qv(f, "u_corrected", k), 4.2, 1e-6);
+    }
+    rpiv_field_free(f);
+    rpiv_sheet_free(s);
+    remove(path);
+}
+
+/* U* = a + b z* through a Gaussian sheet at zb with the object plane there: every weight is
+ * symmetric about zb, so the peak is U*(zb): no bias against z*_max = zb; against an object
+ * plane elsewhere the bias is U*(zb) - U*(zop). */
+static void linear_profile_through_a_symmetric_sheet(void)
+{
+    const double a = 0.4, b = 1.5, zb = 0.5;
+    const char *path = tmp_path("linear.txt");
+    write_linear(path, a, b);
+    rpiv_sheet *s = make_gauss(zb, 0.05);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    rpiv_ccm_geometry g = {3.0, 0.2, 0.002};
+    rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.vary = RPIV_CCM_VARY_PROFILE;
+    snprintf(bp.profile, sizeof bp.profile, "%s", path);
+    m.camera.zop_star = zb;
+    rpiv_field *f = make_field(2, 1, (a + b * zb) * m.scale_px, 0);
+    CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
+    for (int k = 0; k < 2; k++) {
+        CHECK_NEAR(qv(f, "z_ref", k), zb, 1e-6);
+        CHECK_NEAR(qv(f, "bias_u", k), 0, 2e-6);
+        /* the stretched sheet stays symmetric (no change); the sheet shifted by dz moves the
+         * measurement by b dz, a little less as the focus pulls it back towards z*_OP */
+        double r = (double)qv(f, "bias_u_std", k) / (b * bp.dz * m.scale_px);
+        printf("  bias_u_std / (b dz scale_px) = %.4f\n", r);
+        CHECK(r > 0.9 && r <= 1.0);
+    }
+    rpiv_field_free(f);
+    /* off-centre references: the bias is b (zb - zop) scale_px, sign included; the thin sheet
+     * (e* = 0.05) is nearly symmetric still when the object plane is 0.2 h away */
+    bp.depth = RPIV_CCM_DEPTH_ZOP;
+    for (int side = -1; side <= 1; side += 2) {
+        m.camera.zop_star = zb + 0.2 * side;
+        f = make_field(2, 1, 0, 0);
+        CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
+        double want = b * (zb - m.camera.zop_star) * m.scale_px;
+        printf("  zop %.2f: bias_u %.6f px, analytic %.6f px\n", m.camera.zop_star,
+               (double)qv(f, "bias_u", 0), want);
+        /* the focus pulls the measurement towards z*_OP: a little less bias, same sign */
+        double r = (double)qv(f, "bias_u", 0) / want;
+        CHECK(r > 0.97 && r <= 1.0);
+        CHECK_NEAR(qv(f, "z_ref", 0), m.camera.zop_star, 1e-6);
+        CHECK_NEAR(qv(f, "u_corrected", 0), -qv(f, "bias_u", 0), 1e-6);
+        rpiv_field_free(f);
+    }
+    rpiv_sheet_free(s);
+    remove(path);
+}
+
+/* The R-PIV sheet moves with x*: the field's gradient along x* is a linear profile in z*; the
+ * FIELD variation agrees with the same linear profile given as a file. A symmetric shape
+ * (skew 1) and the object plane at z*_max of the vector: no bias there. */
+static void field_gradient_is_a_linear_profile(void)
+{
+    rpiv_sheet_params sp = rpiv_sheet_params_default();
+    sp.skew = 1;
+    sp.e0 = 0.05;
+    sp.e1 = 0;
+    rpiv_sheet *s = make_sheet(sp);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    rpiv_ccm_geometry g = {4.0, 0.2, 0.002};
+    /* vector 1 sits at x = 48 px: x* = 4 + 48.5 * 0.002 */
+    double x1 = g.x0_star + 48.5 * g.star_per_px, zm = sp.zm0 + sp.zm1 * x1;
+    m.camera.zop_star = zm;
+    double gx = 0.01; /* px of u per px of x */
+    /* the slope in z*: (du/dx*) / (dz*_max/dx*) / scale_px, U* per unit z* */
+    double b = gx / g.star_per_px / sp.zm1 / m.scale_px;
+    rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.vary = RPIV_CCM_VARY_FIELD;
+    rpiv_field *f = make_field(3, 1, 2.0, gx);
+    CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
+    CHECK_NEAR(qv(f, "bias_u", 1), 0, 1e-5);
+    /* the same profile from a file, at the other vectors too */
+    const char *path = tmp_path("grad.txt");
+    write_linear(path, 0.7 - b * zm, b);
+    bp.vary = RPIV_CCM_VARY_PROFILE;
+    snprintf(bp.profile, sizeof bp.profile, "%s", path);
+    rpiv_field *h = make_field(3, 1, 2.0, gx);
+    CHECK_OK(rpiv_ccm_bias_field(h, &m, s, &g, &bp, &P, NULL));
+    for (int k = 0; k < 3; k++) {
+        printf("  vector %d: field %.6f px, profile %.6f px\n", k, (double)qv(f, "bias_u", k),
+               (double)qv(h, "bias_u", k));
+        CHECK_NEAR(qv(f, "bias_u", k), qv(h, "bias_u", k), 1e-5);
+    }
+    rpiv_field_free(f);
+    rpiv_field_free(h);
+    rpiv_sheet_free(s);
+    remove(path);
+}
+
+/* One vector of the duct through the R-PIV sheet, against rpiv_ccm_predict directly. */
+static void duct_vector_matches_predict(void)
+{
+    rpiv_sheet_params sp = rpiv_sheet_params_default();
+    rpiv_sheet *s = make_sheet(sp);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.camera.zop_star = 0.45;
+    rpiv_ccm_geometry g = {2.0, 0.1, 0.004};
+    rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    rpiv_field *f = make_field(4, 3, 3.0, 0);
+    f->flag[5] = RPIV_FLAG_MASKED;
+    CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    int ks[2] = {2, 11};
+    for (int n = 0; n < 2; n++) {
+        int k = ks[n], i = k % f->nx, j = k / f->nx;
+        double xs = g.x0_star + (f->x0 + i * f->dx + 0.5) * g.star_per_px;
+        double ys = g.y0_star + (f->y0 + j * f->dy + 0.5) * g.star_per_px, zmax;
+        CHECK_OK(rpiv_ccm_sheet_zmax(s, xs, &P, &zmax));
+        rpiv_ccm_sheet_at at = {s, xs};
+        rpiv_ccm_model mm = m;
+        mm.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
+        mm.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &ys};
+        mm.breaks[mm.nbreaks++] = zmax;
+        rpiv_ccm_peak pk;
+        CHECK_OK(rpiv_ccm_predict(&mm, w, &pk));
+        double want = pk.dx - m.scale_px * rpiv_duct_u(ys, zmax);
+        printf("  x* %.3f y* %.3f z*_max %.4f: bias_u %.6f px, predict %.6f px, std %.6f px\n", xs,
+               ys, zmax, (double)qv(f, "bias_u", k), want, (double)qv(f, "bias_u_std", k));
+        CHECK_NEAR(qv(f, "bias_u", k), want, 1e-5);
+        CHECK_NEAR(qv(f, "u_corrected", k), 3.0 - want, 1e-5);
+        CHECK_NEAR(qv(f, "z_ref", k), zmax, 1e-6);
+        CHECK(qv(f, "bias_u_std", k) > 0);
+    }
+    CHECK(qv(f, "bias_u", 5) == 0 && qv(f, "u_corrected", 5) == 0);
+    /* the same for any thread count, bit for bit; a second call overwrites */
+    rpiv_field *h = make_field(4, 3, 3.0, 0);
+    h->flag[5] = RPIV_FLAG_MASKED;
+    bp.threads = 1;
+    CHECK_OK(rpiv_ccm_bias_field(h, &m, s, &g, &bp, &P, NULL));
+    CHECK_OK(rpiv_ccm_bias_field(h, &m, s, &g, &bp, &P, NULL));
+    CHECK(h->nq == f->nq);
+    for (int k = 0; k < 12; k++)
+        CHECK(qv(f, "bias_u", k) == qv(h, "bias_u", k) &&
+              qv(f, "bias_u_std", k) == qv(h, "bias_u_std", k));
+    rpiv_field_free(h);
+    rpiv_ccm_work_free(w);
+    rpiv_field_free(f);
+    rpiv_sheet_free(s);
+}
+
+static void bad_input(void)
+{
+    rpiv_sheet *s = make_gauss(0.5, 0.05);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    rpiv_ccm_geometry g = {3.0, 0.2, 0.002};
+    rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    rpiv_field *f = make_field(2, 2, 1, 0);
+    bp.vary = RPIV_CCM_VARY_FIELD; /* a sheet that does not move along x* */
+    CHECK_FAILS(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL), RPIV_EINVAL);
+    bp.vary = RPIV_CCM_VARY_PROFILE;
+    CHECK_FAILS(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL), RPIV_EINVAL);
+    snprintf(bp.profile, sizeof bp.profile, "%s", tmp_path("absent.txt"));
+    CHECK_FAILS(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL), RPIV_EIO);
+    bp = rpiv_ccm_bias_params_default();
+    bp.dz = -1;
+    CHECK_FAILS(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL), RPIV_EINVAL);
+    bp = rpiv_ccm_bias_params_default();
+    g.star_per_px = 0;
+    CHECK_FAILS(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL), RPIV_EINVAL);
+    g.star_per_px = 0.002;
+    CHECK_OK(rpiv_field_y_up(f, 100));
+    CHECK_FAILS(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL), RPIV_EINVAL);
+    rpiv_field_free(f);
+    rpiv_sheet_free(s);
+}
+
+int main(void)
+{
+    P = rpiv_ccm_params_default();
+    RUN_TEST(uniform_velocity_gives_zero_bias);
+    RUN_TEST(linear_profile_through_a_symmetric_sheet);
+    RUN_TEST(field_gradient_is_a_linear_profile);
+    RUN_TEST(duct_vector_matches_predict);
+    RUN_TEST(bad_input);
+    return check_summary();
+}
