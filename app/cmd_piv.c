@@ -433,6 +433,11 @@ static const cli_opt options[] = {
      .off = offsetof(piv_opts, c.exp.piv.y_up),
      .help = "output files with the origin at the bottom-left pixel, y and v\n"
              "upward (default: image coordinates, y and v down) [y_up]"},
+    {.name = "uncertainty",
+     .kind = CLI_FLAG,
+     .off = offsetof(piv_opts, c.exp.piv.uncertainty),
+     .help = "add sigma_u, sigma_v: the random uncertainty of each vector, 1 sigma\n"
+             "(correlation statistics; experimental, docs/uncertainty.md) [uncertainty]"},
     {.kind = CLI_HEAD, .help = "other options:"},
     {.name = "derived",
      .kind = CLI_STR,

@@ -94,10 +94,11 @@ out_free:
 }
 
 static void add_plane(void *ctx, const float *plane, const float *colmax, size_t win, double ea,
-                      double eb, double pu, double pv_)
+                      double eb, double pu, double pv_, const rpiv_xcorr_src *xs)
 {
     rpiv_ensemble *e = ctx;
     (void)colmax;
+    (void)xs;
     float *sum = e->data + win * e->plane, *energy = e->data + e->nwin * e->plane;
     (void)pu;
     (void)pv_;

@@ -6,6 +6,7 @@
 #include "rpiv/validate.h"
 
 #include "deform_impl.h"
+#include "uncertainty_impl.h"
 #include "validate_impl.h"
 
 #include "base/hash.h"
@@ -555,9 +556,9 @@ void piv_windows(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, 
     if (n > 1)
         window_src(pv, ps, src, win[1], ws->a2, ws->b2, &xs[1], &pu[1], &pv_[1]);
     rpiv_xcorr_run_pairs(ps->xc, ws, xs, n, RPIV_XCORR_RAW, e);
-    fn(ctx, ws->plane, ws->colmax, win[0], e[0], e[1], pu[0], pv_[0]);
+    fn(ctx, ws->plane, ws->colmax, win[0], e[0], e[1], pu[0], pv_[0], &xs[0]);
     if (n > 1)
-        fn(ctx, ws->plane2, ws->colmax2, win[1], e[2], e[3], pu[1], pv_[1]);
+        fn(ctx, ws->plane2, ws->colmax2, win[1], e[2], e[3], pu[1], pv_[1], &xs[1]);
 }
 
 rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_win_fn fn,
@@ -669,13 +670,25 @@ typedef struct step_ctx {
     const rpiv_piv *pv;
     const piv_pass *ps;
     rpiv_field *f;
+    float *su, *sv; /* sigma_u, sigma_v of f; NULL: no uncertainty   */
+    float *scratch; /* ww * wh floats per thread for the uncertainty */
 } step_ctx;
 
 static void step_vector(void *ctx, const float *plane, const float *colmax, size_t win, double ea,
-                        double eb, double pu, double pv_)
+                        double eb, double pu, double pv_, const rpiv_xcorr_src *xs)
 {
     step_ctx *c = ctx;
     piv_vector(c->pv, c->ps, plane, colmax, ea, eb, pu, pv_, c->f, win);
+    if (c->su && c->f->flag[win] == RPIV_FLAG_VALID) {
+        const piv_pass *ps = c->ps;
+        double su, sv;
+        float *scr = c->scratch + (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
+        unc_cs(xs->a, xs->stride_a, xs->b, xs->stride_b, ps->ww, ps->wh,
+               (int)lround((double)c->f->u[win] - pu), (int)lround((double)c->f->v[win] - pv_), scr,
+               &su, &sv);
+        c->su[win] = (float)su;
+        c->sv[win] = (float)sv;
+    }
 }
 
 int piv_repeats(const rpiv_piv *pv, int pass)
@@ -700,6 +713,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     const piv_pass *ps = &pv->pass[pass];
     rpiv_deform_pred *pred = NULL;
     rpiv_field *f = NULL;
+    float *scratch = NULL;
     rpiv_status st;
     /* a repeat of the window size before it (a refinement): its predictor low-passed */
     const int refines = piv_repeats(pv, pass);
@@ -711,7 +725,18 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     for (size_t win = 0; ps->masked && win < ps->nwin; win++)
         if (ps->masked[win])
             f->flag[win] = RPIV_FLAG_MASKED;
-    step_ctx c = {pv, ps, f};
+    step_ctx c = {pv, ps, f, NULL, NULL, NULL};
+    if (pv->p.uncertainty && pass == pv->npass - 1) {
+        /* the final window size: sigma_u, sigma_v of every vector (docs/uncertainty.md) */
+        if ((st = unc_add(f, &c.su, &c.sv)))
+            goto out_free;
+        const size_t nscr = (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
+        c.scratch = scratch = malloc(nscr * sizeof *scratch);
+        if (!scratch) {
+            st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+            goto out_free;
+        }
+    }
     if ((st = piv_pass_run(pv, pass, pred, step_vector, &c)))
         goto out_free;
     if (defer && refines && predictor && predictor->nx == f->nx && predictor->ny == f->ny) {
@@ -724,9 +749,11 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
             }
     } else if ((st = piv_validate(pv, f)))
         goto out_free;
+    unc_replaced(f);
     *out = f;
     f = NULL;
 out_free:
+    free(scratch);
     rpiv_field_free(f);
     rpiv_deform_pred_free(pred);
     return st;

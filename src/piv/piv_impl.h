@@ -51,10 +51,10 @@ typedef struct piv_source {
 } piv_source;
 
 /* Called from the worker threads with each correlated window (distinct windows at once):
- * the raw plane and its column maxima (rpiv_peak_find_cm), the energies, and the shift of
- * the window pair. */
+ * the raw plane and its column maxima (rpiv_peak_find_cm), the energies, the shift of the
+ * window pair, and the window pair as correlated (deformed; valid during the call). */
 typedef void (*piv_win_fn)(void *ctx, const float *plane, const float *colmax, size_t win,
-                           double ea, double eb, double pu, double pv_);
+                           double ea, double eb, double pu, double pv_, const rpiv_xcorr_src *xs);
 
 /* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
  * NULL), calling fn for each. A deforming pass works strip by strip: the rows under one row

@@ -5,6 +5,8 @@
 
 #include "rpiv/validate.h"
 
+#include "uncertainty_impl.h"
+
 #include <math.h>
 
 /* RMS difference of the vectors of two fields on the same grid (masked ones left out). */
@@ -68,8 +70,11 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
             *nrefine = it + 1;
     }
     /* the median test and replacement on the field the iteration converged to */
-    if (deferred && (st = piv_validate(pv, prev)))
-        goto out_free;
+    if (deferred) {
+        if ((st = piv_validate(pv, prev)))
+            goto out_free;
+        unc_replaced(prev);
+    }
     /* optional smoothing of the final field (off by default) */
     if (pv->p.smooth > 0 && (st = rpiv_validate_smooth(prev, pv->p.smooth)))
         goto out_free;

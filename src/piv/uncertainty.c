@@ -1,0 +1,144 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/piv/uncertainty.c - random uncertainty of each vector by correlation statistics
+ * (Wieneke 2015): the noise of the correlation values either side of the peak, from the
+ * pixel-wise products of the deformed windows, propagated through the 3-point Gaussian fit.
+ * Equations and their checks: docs/uncertainty.md. */
+#include "uncertainty_impl.h"
+
+#include <math.h>
+#include <string.h>
+
+/* Half-width of the lags over which the products' differences are taken as correlated
+ * (particle images up to ~4 px: their products decorrelate within 2 px). */
+#define UNC_LAG 2
+
+/* One direction (dx, dy = (1, 0) or (0, 1)) of unc_cs. */
+static double cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix,
+                     int iy, double ma, double mb, int dx, int dy, float *dc)
+{
+    double c0 = 0, cp = 0, cm = 0, sum = 0;
+    const size_t n = (size_t)w * (size_t)h;
+    for (int y = 0; y < h; y++) {
+        const int y0 = ((y + iy) % h + h) % h, y1 = ((y0 + dy) % h + h) % h;
+        const int ym = ((y0 - dy) % h + h) % h, ya = (y + dy) % h;
+        for (int x = 0; x < w; x++) {
+            const int x0 = ((x + ix) % w + w) % w, x1 = ((x0 + dx) % w + w) % w;
+            const int xm = ((x0 - dx) % w + w) % w, xa = (x + dx) % w;
+            const double av = (double)a[(size_t)y * sa + (size_t)x] - ma;
+            const double an = (double)a[(size_t)ya * sa + (size_t)xa] - ma;
+            const double b0 = (double)b[(size_t)y0 * sb + (size_t)x0] - mb;
+            const double bp = (double)b[(size_t)y1 * sb + (size_t)x1] - mb;
+            const double bm = (double)b[(size_t)ym * sb + (size_t)xm] - mb;
+            c0 += av * b0;
+            cp += av * bp;
+            cm += av * bm;
+            /* this pixel's share of C(+1) - C(-1): a(x) b(x+s+1) - a(x+1) b(x+s) */
+            const double d = av * bp - an * b0;
+            dc[(size_t)y * (size_t)w + (size_t)x] = (float)d;
+            sum += d;
+        }
+    }
+    const float mean = (float)(sum / (double)n);
+    for (size_t k = 0; k < n; k++)
+        dc[k] -= mean;
+    /* variance of the sum of the differences: their covariance summed over nearby lags */
+    double var = 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const double d0 = dc[(size_t)y * (size_t)w + (size_t)x];
+            double s = 0;
+            for (int l = -UNC_LAG; l <= UNC_LAG; l++) {
+                const float *row = dc + (size_t)(((y + l) % h + h) % h) * (size_t)w;
+                for (int k = -UNC_LAG; k <= UNC_LAG; k++)
+                    s += (double)row[((x + k) % w + w) % w];
+            }
+            var += d0 * s;
+        }
+    if (!(var > 0))
+        return 0;
+    const double sd = sqrt(var), cpm = 0.5 * (cp + cm);
+    const double hi = cpm + 0.5 * sd, lo = cpm - 0.5 * sd;
+    if (!(lo > 0) || !(c0 > hi))
+        return UNC_SIGMA_MAX;
+    const double lhi = log(hi), llo = log(lo);
+    const double s = (lhi - llo) / (4 * log(c0) - 2 * lhi - 2 * llo);
+    return s < UNC_SIGMA_MAX ? s : UNC_SIGMA_MAX;
+}
+
+void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
+            float *scratch, double *su, double *sv)
+{
+    double ma = 0, mb = 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            ma += (double)a[(size_t)y * sa + (size_t)x];
+            mb += (double)b[(size_t)y * sb + (size_t)x];
+        }
+    ma /= (double)w * h;
+    mb /= (double)w * h;
+    *su = cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 1, 0, scratch);
+    *sv = cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 0, 1, scratch);
+}
+
+static float *quantity_data(rpiv_field *f, const char *name)
+{
+    for (size_t k = 0; k < f->nq; k++)
+        if (!strcmp(f->q[k].name, name))
+            return f->q[k].data;
+    return NULL;
+}
+
+rpiv_status unc_add(rpiv_field *f, float **su, float **sv)
+{
+    rpiv_status st;
+    const size_t n = (size_t)f->nx * (size_t)f->ny;
+    const char *names[2] = {"sigma_u", "sigma_v"};
+    float **out[2] = {su, sv};
+    for (int c = 0; c < 2; c++) {
+        *out[c] = quantity_data(f, names[c]);
+        if (*out[c])
+            memset(*out[c], 0, n * sizeof **out[c]);
+        else if ((st = rpiv_field_add_quantity(f, names[c], RPIV_UNIT_PX_PER_DT, out[c])))
+            return st;
+    }
+    return RPIV_OK;
+}
+
+void unc_replaced(rpiv_field *f)
+{
+    float *g[2] = {quantity_data(f, "sigma_u"), quantity_data(f, "sigma_v")};
+    if (!g[0] || !g[1])
+        return;
+    const int nx = f->nx, ny = f->ny;
+    for (int c = 0; c < 2; c++) {
+        float *s = g[c], top = 0;
+        for (size_t k = 0; k < (size_t)nx * (size_t)ny; k++)
+            if (f->flag[k] == RPIV_FLAG_VALID && s[k] > top)
+                top = s[k];
+        /* in raster order reading valid neighbours only: the result does not depend on it */
+        for (int j = 0; j < ny; j++)
+            for (int i = 0; i < nx; i++) {
+                const size_t k = (size_t)j * (size_t)nx + (size_t)i;
+                if (f->flag[k] == RPIV_FLAG_MASKED) {
+                    s[k] = 0;
+                    continue;
+                }
+                if (f->flag[k] != RPIV_FLAG_REPLACED)
+                    continue;
+                double ss = 0;
+                int m = 0;
+                for (int l = -1; l <= 1; l++)
+                    for (int q = -1; q <= 1; q++) {
+                        const int x = i + q, y = j + l;
+                        if (x < 0 || y < 0 || x >= nx || y >= ny)
+                            continue;
+                        const size_t kk = (size_t)y * (size_t)nx + (size_t)x;
+                        if (f->flag[kk] == RPIV_FLAG_VALID) {
+                            ss += (double)s[kk] * (double)s[kk];
+                            m++;
+                        }
+                    }
+                s[k] = m ? (float)sqrt(ss / m) : top;
+            }
+    }
+}

@@ -1,0 +1,308 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* The random uncertainty of each vector (issue 17, docs/uncertainty.md) against synthetic pairs
+ * of known displacement: the share of valid vectors whose error is within sigma (target
+ * 0.68 +- 0.08, u and v), the median sigma against the RMS error (within a factor 1.5), and
+ * sigma growing with the image noise. Uniform, shear and vortex flows; noise 0-10 %; particle
+ * images 1.5-3 px. RPIV_SLOW_TESTS=1 runs the whole sweep of docs/uncertainty.md (a table on
+ * stdout). */
+#include "check.h"
+#include "piv_testimg.h"
+#include "rpiv/piv.h"
+
+#include <stdio.h>
+#include <string.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+/* ---- flows ---------------------------------------------------------------------------------- */
+
+static void shear(void *user, double x, double y, double *u, double *v)
+{
+    (void)user;
+    (void)x;
+    /* a smooth shear layer: 0.05 px/px at most */
+    *u = 2.3 + 2.0 * tanh((y - 128.3) / 40.0);
+    *v = -0.35;
+}
+
+static void vortex(void *user, double x, double y, double *u, double *v)
+{
+    (void)user;
+    /* Lamb-Oseen, 4 px at most, core radius 48 px */
+    const double cx = 128.37, cy = 127.81, a = 4, rc = 48, gmax = 0.6381726863;
+    double dx = x - cx, dy = y - cy, r = sqrt(dx * dx + dy * dy);
+    if (r < 1e-9) {
+        *u = *v = 0;
+        return;
+    }
+    double s = r / rc, ut = a * (1 - exp(-s * s)) / s / gmax;
+    *u = -ut * dy / r + 0.4;
+    *v = ut * dx / r;
+}
+
+typedef struct flow {
+    const char *name;
+    ti_flow_fn fn;
+    void *user;
+} flow;
+
+static double uni[2] = {3.27, -1.61};
+static const flow flows[] = {
+    {"uniform", ti_uniform, uni}, {"shear", shear, NULL}, {"vortex", vortex, NULL}};
+
+/* ---- one case ------------------------------------------------------------------------------- */
+
+typedef struct stats {
+    int n;                 /* valid vectors */
+    double cov_u, cov_v;   /* share with |error| <= sigma */
+    double rms_u, rms_v;   /* RMS error */
+    double med_su, med_sv; /* median sigma */
+    double mean_su, mean_sv;
+} stats;
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(float *x, int n)
+{
+    qsort(x, (size_t)n, sizeof *x, cmp_float);
+    return n ? (n % 2 ? (double)x[n / 2] : 0.5 * ((double)x[n / 2 - 1] + (double)x[n / 2])) : 0;
+}
+
+static stats run_case(const flow *fl, double noise, double d_tau, uint64_t seed, int size)
+{
+    stats s = {0};
+    ti_params tp = {size, size, 0.05, d_tau, 1000, noise, 0, seed};
+    size_t np = (size_t)size * (size_t)size;
+    float *a = malloc(np * sizeof *a), *b = malloc(np * sizeof *b);
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    if (!a || !b) {
+        CHECK(0);
+        goto out_free;
+    }
+    ti_pair(&tp, fl->fn, fl->user, a, b);
+    rpiv_image ia = {size, size, 16, a}, ib = {size, size, 16, b};
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.uncertainty = 1;
+    CHECK_OK(rpiv_piv_new(&prm, size, size, NULL, &pv));
+    if (!pv)
+        goto out_free;
+    CHECK_OK(rpiv_piv_run(pv, &ia, &ib, &f));
+    if (!f)
+        goto out_free;
+    const rpiv_quantity *qu = rpiv_field_quantity(f, "sigma_u");
+    const rpiv_quantity *qv = rpiv_field_quantity(f, "sigma_v");
+    CHECK(qu && qv);
+    if (!qu || !qv)
+        goto out_free;
+    CHECK(qu->unit == RPIV_UNIT_PX_PER_DT && qv->unit == RPIV_UNIT_PX_PER_DT);
+    size_t n = (size_t)f->nx * (size_t)f->ny;
+    float *su = malloc(n * sizeof *su), *sv = malloc(n * sizeof *sv);
+    if (!su || !sv) {
+        free(su);
+        free(sv);
+        CHECK(0);
+        goto out_free;
+    }
+    for (int j = 0; j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+            if (f->flag[k] != RPIV_FLAG_VALID)
+                continue;
+            double u, v;
+            fl->fn(fl->user, f->x0 + i * f->dx, f->y0 + j * f->dy, &u, &v);
+            double eu = (double)f->u[k] - u, ev = (double)f->v[k] - v;
+            s.cov_u += fabs(eu) <= (double)qu->data[k];
+            s.cov_v += fabs(ev) <= (double)qv->data[k];
+            s.rms_u += eu * eu;
+            s.rms_v += ev * ev;
+            s.mean_su += (double)qu->data[k];
+            s.mean_sv += (double)qv->data[k];
+            su[s.n] = qu->data[k];
+            sv[s.n] = qv->data[k];
+            s.n++;
+        }
+    if (s.n) {
+        s.cov_u /= s.n;
+        s.cov_v /= s.n;
+        s.rms_u = sqrt(s.rms_u / s.n);
+        s.rms_v = sqrt(s.rms_v / s.n);
+        s.mean_su /= s.n;
+        s.mean_sv /= s.n;
+        s.med_su = median(su, s.n);
+        s.med_sv = median(sv, s.n);
+    }
+    free(su);
+    free(sv);
+out_free:
+    rpiv_field_free(f);
+    rpiv_piv_free(pv);
+    free(a);
+    free(b);
+    return s;
+}
+
+static void print_case(const char *name, double noise, double d_tau, const stats *s)
+{
+    printf("    %-8s noise %4.1f %% d_tau %.1f: %4d valid, coverage u %.3f v %.3f, RMS error "
+           "%.4f %.4f px, median sigma %.4f %.4f px (ratio %.2f %.2f)\n",
+           name, 100 * noise, d_tau, s->n, s->cov_u, s->cov_v, s->rms_u, s->rms_v, s->med_su,
+           s->med_sv, s->med_su / s->rms_u, s->med_sv / s->rms_v);
+}
+
+/* ---- tests ---------------------------------------------------------------------------------- */
+
+static void unc_sweep(void)
+{
+    const double noises[] = {0, 0.02, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
+    for (size_t q = 0; q < sizeof flows / sizeof *flows; q++)
+        for (size_t t = 0; t < sizeof taus / sizeof *taus; t++)
+            for (size_t k = 0; k < sizeof noises / sizeof *noises; k++) {
+                stats s = run_case(&flows[q], noises[k], taus[t], 1000 + 17 * k + 3 * t, 256);
+                print_case(flows[q].name, noises[k], taus[t], &s);
+            }
+}
+
+/* Default off: no quantity, and the vectors of a run with the uncertainty are bit for bit those
+ * of a run without. */
+static void unc_off_by_default(void)
+{
+    rpiv_piv_params d = rpiv_piv_params_default();
+    CHECK(d.uncertainty == 0);
+    ti_params tp = {128, 128, 0.05, 2.0, 1000, 0.05, 0, 77};
+    float *a = malloc(128 * 128 * sizeof *a), *b = malloc(128 * 128 * sizeof *b);
+    ti_pair(&tp, ti_uniform, uni, a, b);
+    rpiv_image ia = {128, 128, 16, a}, ib = {128, 128, 16, b};
+    rpiv_piv_params on = d;
+    on.uncertainty = 1;
+    rpiv_piv *p0 = NULL, *p1 = NULL;
+    rpiv_field *f0 = NULL, *f1 = NULL;
+    CHECK_OK(rpiv_piv_new(&d, 128, 128, NULL, &p0));
+    CHECK_OK(rpiv_piv_new(&on, 128, 128, NULL, &p1));
+    if (p0 && p1) {
+        CHECK_OK(rpiv_piv_run(p0, &ia, &ib, &f0));
+        CHECK_OK(rpiv_piv_run(p1, &ia, &ib, &f1));
+    }
+    if (f0 && f1) {
+        size_t n = (size_t)f0->nx * (size_t)f0->ny;
+        CHECK(f0->nq == 0 && f1->nq == 2);
+        CHECK(!rpiv_field_quantity(f0, "sigma_u") && rpiv_field_quantity(f1, "sigma_v"));
+        CHECK(!memcmp(f0->u, f1->u, n * sizeof *f0->u) && !memcmp(f0->v, f1->v, n * sizeof *f0->v));
+        CHECK(!memcmp(f0->flag, f1->flag, n));
+    }
+    /* not for ensemble runs: refused with a message */
+    on.ensemble = 1;
+    CHECK_FAILS(rpiv_piv_params_check(&on), RPIV_EINVAL);
+    on.ensemble = 0;
+    on.uncertainty = 2;
+    CHECK_FAILS(rpiv_piv_params_check(&on), RPIV_EINVAL);
+    rpiv_field_free(f0);
+    rpiv_field_free(f1);
+    rpiv_piv_free(p0);
+    rpiv_piv_free(p1);
+    free(a);
+    free(b);
+}
+
+/* The final pass deformed by the exact displacement: what correlation statistics models (the
+ * windows' own noise). Coverage 0.68 +- 0.08 and RMS sigma within 1.5 of the RMS error. */
+static void unc_exact_predictor_is_calibrated(void)
+{
+    const double noises[] = {0.05, 0.10}, taus[] = {2.0, 3.0};
+    const int size = 256;
+    for (int q = 0; q < 2; q++)
+        for (int t = 0; t < 2; t++) {
+            ti_params tp = {size, size, 0.05, taus[t], 1000, noises[q], 0, 1234};
+            float *a = malloc(sizeof *a * size * size), *b = malloc(sizeof *b * size * size);
+            ti_pair(&tp, ti_uniform, uni, a, b);
+            rpiv_image ia = {size, size, 16, a}, ib = {size, size, 16, b};
+            rpiv_piv_params prm = rpiv_piv_params_default();
+            prm.uncertainty = 1;
+            rpiv_piv *pv = NULL;
+            rpiv_field *g = NULL, *f = NULL;
+            CHECK_OK(rpiv_piv_new(&prm, size, size, NULL, &pv));
+            if (pv) {
+                CHECK_OK(rpiv_piv_load(pv, &ia, &ib));
+                CHECK_OK(rpiv_piv_grid(pv, 1, &g));
+            }
+            if (g) {
+                for (size_t k = 0; k < (size_t)g->nx * (size_t)g->ny; k++) {
+                    g->u[k] = (float)uni[0];
+                    g->v[k] = (float)uni[1];
+                }
+                CHECK_OK(rpiv_piv_step(pv, 2, g, &f));
+            }
+            const rpiv_quantity *qs[2] = {f ? rpiv_field_quantity(f, "sigma_u") : NULL,
+                                          f ? rpiv_field_quantity(f, "sigma_v") : NULL};
+            CHECK(qs[0] && qs[1]);
+            for (int c = 0; c < 2 && qs[0] && qs[1]; c++) {
+                const float *x = c ? f->v : f->u;
+                double e2 = 0, s2 = 0;
+                int n = 0, cov = 0;
+                for (size_t k = 0; k < (size_t)f->nx * (size_t)f->ny; k++) {
+                    if (f->flag[k] != RPIV_FLAG_VALID)
+                        continue;
+                    double e = (double)x[k] - uni[c], s = (double)qs[c]->data[k];
+                    e2 += e * e;
+                    s2 += s * s;
+                    cov += fabs(e) <= s;
+                    n++;
+                }
+                double rms_e = sqrt(e2 / n), rms_s = sqrt(s2 / n), share = (double)cov / n;
+                printf("    exact predictor, noise %.0f %%, d_tau %.0f, %s: %d vectors, coverage "
+                       "%.3f, RMS error %.4f px, RMS sigma %.4f px\n",
+                       100 * noises[q], taus[t], c ? "v" : "u", n, share, rms_e, rms_s);
+                CHECK(n > 150);
+                CHECK_NEAR(share, 0.68, 0.08);
+                CHECK(rms_s <= 1.5 * rms_e && rms_s >= rms_e / 1.5);
+            }
+            rpiv_field_free(f);
+            rpiv_field_free(g);
+            rpiv_piv_free(pv);
+            free(a);
+            free(b);
+        }
+}
+
+/* The whole default run (three passes): sigma tracks the error (median sigma within 1.5 of the
+ * RMS error where the images are noisy) and grows with the noise. Its coverage falls short
+ * (0.45-0.6, docs/uncertainty.md): not asserted. */
+static void unc_tracks_the_error(void)
+{
+    stats s[3];
+    const double noises[3] = {0, 0.05, 0.10};
+    for (int k = 0; k < 3; k++) {
+        s[k] = run_case(&flows[0], noises[k], 2.0, 1000 + 17 * (uint64_t)k, 256);
+        print_case(flows[0].name, noises[k], 2.0, &s[k]);
+    }
+    CHECK(s[0].med_su < s[1].med_su && s[1].med_su < s[2].med_su);
+    CHECK(s[0].med_sv < s[1].med_sv && s[1].med_sv < s[2].med_sv);
+    CHECK(s[2].med_su > 3 * s[0].med_su);
+    stats sh = run_case(&flows[1], 0.05, 2.0, 1034, 256);
+    print_case(flows[1].name, 0.05, 2.0, &sh);
+    const stats *cases[3] = {&s[1], &s[2], &sh};
+    for (int k = 0; k < 3; k++) {
+        CHECK(cases[k]->n > 200);
+        CHECK(cases[k]->med_su <= 1.5 * cases[k]->rms_u &&
+              cases[k]->med_su >= cases[k]->rms_u / 1.5);
+        CHECK(cases[k]->med_sv <= 1.5 * cases[k]->rms_v &&
+              cases[k]->med_sv >= cases[k]->rms_v / 1.5);
+    }
+}
+
+int main(void)
+{
+    RUN_TEST(unc_off_by_default);
+    RUN_TEST(unc_exact_predictor_is_calibrated);
+    RUN_TEST(unc_tracks_the_error);
+    const char *slow = getenv("RPIV_SLOW_TESTS");
+    if (slow && slow[0] == '1')
+        RUN_TEST(unc_sweep);
+    return check_summary();
+}
