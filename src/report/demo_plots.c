@@ -53,8 +53,10 @@ static rpiv_status lines(demo_ctx *c, const char *name, const char *title, const
     return done(c, name);
 }
 
-/* Traced profiles I0*(z*) as rpiv raytrace draws them, with room for the legend on the right;
- * nothing if no series has finite points. */
+/* Traced profiles I0*(z*) as rpiv raytrace draws them: I0* runs from 0 to 1 (each profile
+ * divided by its maximum), the axis to 1.05 so that the peaks stay off the frame; the legend
+ * sits in the top right corner, above the profiles' tails. Nothing if no series has finite
+ * points. */
 static rpiv_status profiles(demo_ctx *c, const char *name, const char *title, rpiv_plot_series *s,
                             size_t ns)
 {
@@ -66,7 +68,7 @@ static rpiv_status profiles(demo_ctx *c, const char *name, const char *title, rp
     char path[RPIV_PATH_MAX];
     rpiv_status st;
     if ((st = demo_path(c, name, path, sizeof path)) ||
-        (st = rpiv_report_sheet_profiles(path, title, "I0*", s, m, 1.8)))
+        (st = rpiv_report_sheet_profiles(path, title, "I0*", s, m, 1.05)))
         return st;
     return done(c, name);
 }

@@ -18,6 +18,7 @@
 
 typedef struct rep {
     FILE *md, *html;
+    rpiv_status st; /* the first failure (a plot that cannot be read back) */
 } rep;
 
 /* Text with `code` spans: as is in Markdown, escaped with <code> in HTML. */
@@ -90,12 +91,56 @@ static int has_plot(const demo_ctx *c, const char *name)
     return 0;
 }
 
+/* The bytes of DIR/name as base64 (RFC 4648, with padding, one line) into f. */
+static rpiv_status base64_file(FILE *f, const char *path)
+{
+    static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    FILE *in = fopen(path, "rb");
+    if (!in)
+        return rpiv_fail(RPIV_EIO, "%s: cannot open to embed it in report.html", path);
+    unsigned char b[3 * 1024];
+    size_t n;
+    while ((n = fread(b, 1, sizeof b, in)) > 0) {
+        for (size_t k = 0; k < n; k += 3) {
+            size_t m = n - k < 3 ? n - k : 3;
+            unsigned long v = (unsigned long)b[k] << 16;
+            if (m > 1)
+                v |= (unsigned long)b[k + 1] << 8;
+            if (m > 2)
+                v |= b[k + 2];
+            char q[4] = {abc[(v >> 18) & 63], abc[(v >> 12) & 63], m > 1 ? abc[(v >> 6) & 63] : '=',
+                         m > 2 ? abc[v & 63] : '='};
+            fwrite(q, 1, 4, f);
+        }
+        if (n < sizeof b) /* a short read ends the file (or is an error): stop either way */
+            break;
+    }
+    int bad = ferror(in);
+    fclose(in);
+    if (bad)
+        return rpiv_fail(RPIV_EIO, "%s: read error while embedding it in report.html", path);
+    return RPIV_OK;
+}
+
+/* A plot: a link in report.md (the PNG beside it), embedded as a data URI in report.html so
+ * that the HTML stands alone when copied; data-file names the PNG it holds. */
 static void r_img(rep *r, const demo_ctx *c, const char *name, const char *caption)
 {
-    if (!has_plot(c, name))
+    char path[RPIV_PATH_MAX];
+    rpiv_status st;
+    if (!has_plot(c, name) || r->st)
         return;
+    if ((st = demo_path(c, name, path, sizeof path))) {
+        r->st = st;
+        return;
+    }
     fprintf(r->md, "![%s](%s)\n\n%s\n\n", caption, name, caption);
-    fprintf(r->html, "<figure><img src=\"%s\" alt=\"", name);
+    fprintf(r->html, "<figure><img data-file=\"%s\" src=\"data:image/png;base64,", name);
+    if ((st = base64_file(r->html, path))) {
+        r->st = st;
+        return;
+    }
+    fputs("\" alt=\"", r->html);
     html_text(r->html, caption);
     fputs("\"><figcaption>", r->html);
     html_text(r->html, caption);
@@ -213,6 +258,132 @@ static void key_figures(rep *r, const demo_ctx *c)
     fputs("\n", r->md);
 }
 
+/* The notation and the paper's equations, for a reader without the paper. */
+static void notation(rep *r, const demo_ctx *c)
+{
+    char hline[192];
+    snprintf(hline, sizeof hline,
+             "`h`: the channel height (here %.3g mm), the unit of length; `U_b`: the bulk "
+             "velocity (flow rate / section, from `Re = U_b h / nu`), the unit of velocity",
+             1e3 * c->e.channel.h_m);
+    const char *const q[] = {
+        hline,
+        "`x*`, `y*`, `z*` = x/h, y/h, z/h: streamwise, across the channel (side walls at 0 and "
+        "1), and height above the floor through which the sheet enters (floor 0, top wall 1); "
+        "`x* = 0` where the beam's axis enters the water",
+        "`U*` = U / U_b: the streamwise velocity (V = W = 0 in this flow); `U*max` its value "
+        "on the channel's axis; `U*_ref`, `U*_comp`: the two profiles an E1 compares; "
+        "`U*_model`: the CCM's prediction",
+        "`I0*(z*)`: the laser sheet's intensity across the height at one `x*`, divided by its "
+        "maximum there",
+        "`z*_max`: the height of the sheet's peak (`I0* = 1`); `z*_inf`, `z*_sup`: the heights "
+        "below and above it where `I0* = 0.25` (the sheet's lower and upper edges)",
+        "`e*` = `z*_sup - z*_inf`: the sheet's thickness at a quarter of its maximum; "
+        "`de*/dx*`: its growth along `x*`",
+        "`z+` = (`z* - z*_max`) / `e*`: the coordinate in which the traced profiles collapse "
+        "onto one self-similar shape",
+        "`z*_OP`: the height of the camera's object (in-focus) plane; `z*_B`: the height of a "
+        "horizontal P-PIV sheet (the scan puts `z*_OP = z*_B`)",
+        "`DOF*`: the depth of focus / h (the full width at half maximum of a dot's grey level "
+        "as it leaves focus; the paper measures 0.43, `rpiv calib dof` measures it on images); "
+        "the demo models the focus with Eq. diam instead",
+        "`beta1`: the angle (deg) between the laser's axis and the normal of the prism's "
+        "inclined face; it sets the sheet's angle in the water (fig 11)",
+        "`It/Ig`: the laser power transmitted into the water / the power incident on the prism",
+        "`E1`: the relative RMS difference of two profiles (Eq. E1); `E1` along `y*` at each "
+        "`x*` (figs 24-25), along `x*` at `y* = 0.5` (figs 26-27), along `z*` (P-PIV)",
+        "`N_im`: the number of image pairs summed; sum of correlation: the pairs' correlation "
+        "maps are added before the peak is found (ensemble PIV)",
+        "P-PIV: planar PIV, horizontal thin sheets scanned in height (the reference); R-PIV: "
+        "the sheet refracted through the floor, inclined by a few degrees and thick; CCM: the "
+        "cross-correlation model of R-PIV"};
+    const char *const eq[] = {
+        "Eq. White: the laminar, fully developed velocity in a square duct (White 2006): "
+        "`U*(y*, z*)` = a series over odd i of `cos(i pi (y* - 0.5)) [1 - cosh(i pi (z* - "
+        "0.5)) / cosh(i pi / 2)] / i^3`, scaled so that its mean over the section is 1",
+        "Eq. Desc: each ray's refraction (Snell-Descartes, `theta_t = asin(eta sin theta_i)`, "
+        "`eta` the ratio of refractive indices) and transmitted fraction (Fresnel, `T = 1 - R`) "
+        "at the air/PMMA and PMMA/water interfaces",
+        "Eq. int: a particle's image is a Gaussian spot of energy `I0(z*) d_p^2` (fluorescence) "
+        "divided by `d_e^2 (s_0 + z')^2`, `z' = |z* - z*_OP|` its distance from the object "
+        "plane, `s_0` the working distance",
+        "Eq. diam: the particle image diameter `d_e = sqrt(M^2 d_p^2 + 5.95 (M + 1)^2 "
+        "lambda^2 f#^2 + M^2 z'^2 D_a^2 / (s_0 + z')^2)`: geometric image, diffraction, "
+        "defocus",
+        "Eq. CCM_gen, CCM_simp: the correlation of a window is a sum over its particles of "
+        "Gaussians centred on their displacements, weighted by `I0^2 / d_e^2`; CCM_simp assumes "
+        "the sheet uniform across a window, equal pulses and W = 0 (hypotheses 1-3)",
+        "Eq. statform: the sum of correlation over `N_im` pairs tends, as `N_im` grows, to the "
+        "integral over z of `P(z) R_Dz(z)` (`P` the probability of a particle at height z, "
+        "uniform here); the displacement of its peak is the model's velocity `U*_model`",
+        "Eq. E1: `E1 = sqrt(integral_0^1 (U*_ref - U*_comp)^2 d alpha) / integral_0^1 U*_ref "
+        "d alpha`, `alpha` = `x*`, `y*` or `z*` rescaled to [0, 1]"};
+    r_h(r, 2, "Notation and equations");
+    r_p(r, "Starred quantities are made dimensionless with the channel height and the bulk "
+           "velocity, as in the paper:");
+    r_list(r, q, sizeof q / sizeof q[0]);
+    r_p(r, "The equations, named as in the paper (Cabut et al.):");
+    r_list(r, eq, sizeof eq / sizeof eq[0]);
+}
+
+/* The column of largest E1 at z*_max (fig 25's spike in a default run, at the band's first
+ * column): what the sheet and the R-PIV vectors are there, so that the reader can judge it. */
+static void worst_column(rep *r, const demo_ctx *c)
+{
+    int iw = -1, ncmp = 0;
+    double sum = 0;
+    for (int i = 0; i < c->nx; i++)
+        if (c->col_ok[i] && isfinite(c->e1max[i])) {
+            ncmp++;
+            sum += c->e1max[i];
+            if (iw < 0 || c->e1max[i] > c->e1max[iw])
+                iw = i;
+        }
+    if (iw < 0 || ncmp < 2)
+        return;
+    const rpiv_field *f = c->rfield;
+    /* its fluid vectors: replaced ones, mean peak ratio; and the band's median column's */
+    int nfl = 0, nrep = 0;
+    double pr = 0, dmax = 0, prall = 0;
+    int nall = 0;
+    for (int j = 0; j < c->ny; j++)
+        for (int i = 0; i < c->nx; i++) {
+            size_t k = (size_t)j * (size_t)c->nx + (size_t)i;
+            if (!c->fluid[k] || f->flag[k] == RPIV_FLAG_MASKED)
+                continue;
+            prall += (double)f->peak_ratio[k];
+            nall++;
+            if (i != iw)
+                continue;
+            nfl++;
+            nrep += f->flag[k] == RPIV_FLAG_REPLACED;
+            pr += (double)f->peak_ratio[k];
+            double ur = (double)f->u[k] / c->bulk_px;
+            double up = demo_vol_eval(c, i, j, c->czmax[i]);
+            if (isfinite(up) && fabs(ur - up) > dmax)
+                dmax = fabs(ur - up);
+        }
+    if (!nfl || !nall)
+        return;
+    const char *where = iw == 0           ? "the band's first column (the image's left edge)"
+                        : iw == c->nx - 1 ? "the band's last column (the image's right edge)"
+                                          : "a column inside the band";
+    char a[32], b[32], d[32], m[32], t[32];
+    r_p(r,
+        "The largest E1 at `z*_max` is %s at `x* = %.3f`, %s; there E1 is %s at `z*_inf` and "
+        "%s at `z*_sup`, about the same at the three heights: the error is the R-PIV "
+        "column's own, not the reference's. The sheet there is `e* = %.4f` thick (`z*_max = "
+        "%.4f`), so few particles are lit: the mean peak ratio of its %d fluid vectors is %.2f "
+        "(%.1f over the band), %d of them were replaced by the validation, and the largest "
+        "departure from P-PIV at `z*_max` is %.2f in `U*`. The column is kept in every mean "
+        "(without it the mean E1 at `z*_max` would be %s instead of %s): it is the measurement "
+        "where the sheet is thinnest, not an artefact of the comparison.",
+        pct(a, 32, c->e1max[iw]), c->xs[iw], where, pct(b, 32, c->e1inf[iw]),
+        pct(d, 32, c->e1sup[iw]), c->czsup[iw] - c->czinf[iw], c->czmax[iw], nfl, pr / nfl,
+        prall / nall, nrep, dmax, pct(m, 32, (sum - c->e1max[iw]) / (ncmp - 1)),
+        pct(t, 32, sum / ncmp));
+}
+
 static void write_body(rep *r, const demo_ctx *c)
 {
     const rpiv_demo_result *s = c->res;
@@ -238,6 +409,8 @@ static void write_body(rep *r, const demo_ctx *c)
         e->camera.zop_star, 1e3 * e->synth.dt_s, s->bulk_px, s->width_px, s->height_px, s->x0_star,
         s->x1_star, s->y0_star, s->y1_star, c->p.margin_px, e->piv.npass, e->piv.win_w[0],
         e->piv.win_w[e->piv.npass - 1], e->piv.overlap, s->grid_nx, s->grid_ny);
+
+    notation(r, c);
 
     r_h(r, 2, "Key figures");
     key_figures(r, c);
@@ -302,6 +475,7 @@ static void write_body(rep *r, const demo_ctx *c)
         s->ncols, s->grid_nx);
     r_img(r, c, "fig24_profiles.png", "R-PIV and P-PIV profiles at one x* (paper fig 24)");
     r_img(r, c, "fig25_e1.png", "E1 along y* at every x* (paper fig 25)");
+    worst_column(r, c);
     r_img(r, c, "fig26_model.png", "R-PIV and the CCM prediction at y* = 0.5 (paper fig 26)");
     r_img(r, c, "fig27_convergence.png",
           "Convergence of the sum of correlation towards the model (paper fig 27)");
@@ -340,7 +514,7 @@ static rpiv_status write_report(demo_ctx *c)
         atomic_abort(&md);
         return st;
     }
-    rep r = {md.fp, html.fp};
+    rep r = {md.fp, html.fp, RPIV_OK};
     fputs("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
           "<title>rpiv demo report</title>\n<style>\n"
           "body{font-family:sans-serif;max-width:60em;margin:auto;padding:1em;line-height:1.4}\n"
@@ -350,6 +524,11 @@ static rpiv_status write_report(demo_ctx *c)
           r.html);
     write_body(&r, c);
     fputs("</body></html>\n", r.html);
+    if (r.st) {
+        atomic_abort(&md);
+        atomic_abort(&html);
+        return r.st;
+    }
     if ((st = atomic_commit(&md))) {
         atomic_abort(&html);
         return st;

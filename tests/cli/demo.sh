@@ -67,9 +67,14 @@ for png in "$out"/*.png; do
     name=$(basename "$png")
     is_png "$png" && ok || ko "$name: not a PNG"
     grep -q "($name)" "$out/report.md" && ok || ko "$name not in report.md"
-    grep -q "src=\"$name\"" "$out/report.html" && ok || ko "$name not in report.html"
+    # embedded as a data URI that decodes to the PNG's bytes: report.html stands alone
+    grep -o "<img data-file=\"$name\" src=\"data:image/png;base64,[^\"]*\"" "$out/report.html" |
+        sed 's/.*base64,//; s/"$//' | base64 -d 2>/dev/null | cmp -s - "$png" &&
+        ok || ko "$name not embedded in report.html"
 done
 [ "$n" -ge 14 ] && ok || ko "only $n plots"
+grep -q '<img src=' "$out/report.html" && ko "report.html links an image instead of embedding it" || ok
+grep -q 'Notation and equations' "$out/report.html" && ok || ko "no notation in report.html"
 # the demo composes the commands: the same R-PIV pairs and field through rpiv synth and
 # rpiv piv with the parameter file and the mask the demo wrote
 "$bin" synth --quiet --threads 1 --config "$out/data/rpiv.ini" --out "$tmp/pairs" && ok || ko "rpiv synth --config data/rpiv.ini"
