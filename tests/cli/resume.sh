@@ -83,6 +83,18 @@ cp ck ck.keep
 "$bin" piv --ensemble -q 's/pair_0000[1-7]_[ab].tif' -o x.txt --checkpoint ck --resume 2>err
 [ $? -eq 1 ] && grep -q "^rpiv: error: ck: checkpoint of another series of pairs (8 pairs, .*); this run has 7 pairs" err \
     && ok || ko "another series: $(cat err)"
+# the same count, first and last pair, but two pairs in between swapped: the message must not
+# show two identical descriptions (issue 20 item 14)
+for i in 1 2 4 3 5 6 7 8; do echo "s/pair_0000${i}_a.tif s/pair_0000${i}_b.tif"; done >swapped.txt
+"$bin" piv --ensemble -q swapped.txt -o x.txt --checkpoint ck --resume 2>err
+[ $? -eq 1 ] && grep -q "^rpiv: error: ck: checkpoint of another series of pairs (8 pairs, .*); this run has 8 pairs, .*: the same count, first and last pair, another pair or order in between" err \
+    && ok || ko "another series, same ends: $(cat err)"
+# junk appended to a checkpoint (issue 20 item 13: it was accepted)
+cp ck appended
+printf 'junk' >>appended
+"$bin" piv --ensemble -q "$pairs" -o x.txt --checkpoint appended --resume 2>err
+[ $? -eq 1 ] && grep -q "^rpiv: error: appended: 4 bytes after the checkpoint's end (byte [0-9]*): refused$" err \
+    && ok || ko "junk appended: $(cat err)"
 printf 'not a checkpoint\n' >junk
 "$bin" piv --ensemble -q "$pairs" -o x.txt --checkpoint junk --resume 2>err
 [ $? -eq 1 ] && grep -q '^rpiv: error: junk: not an rpiv checkpoint$' err && ok || ko "junk: $(cat err)"
