@@ -44,6 +44,28 @@ static rpiv_status out_name(const char *out, const char *tag, char *buf, size_t 
     return RPIV_OK;
 }
 
+/* An interrupted .nc series: the fields done so far go beside OUT, into OUT_partial.nc, never
+ * over a complete OUT (issue 20 item 13). Returns RPIV_EINTR with the interruption's message
+ * and where the fields are. */
+static rpiv_status series_partial(rpiv_field_series *s, const char *out)
+{
+    char why[512], path[RPIV_PATH_MAX + 32];
+    int written = 0;
+    snprintf(why, sizeof why, "%s", rpiv_errmsg());
+    rpiv_status st = out_name(out, "_partial", path, sizeof path);
+    if (st) {
+        rpiv_status ign = rpiv_field_series_close(s, 1);
+        (void)ign;
+        return rpiv_fail(RPIV_EINTR, "%s; %s not written", why, out);
+    }
+    if ((st = rpiv_field_series_close_as(s, path, why, &written)))
+        return rpiv_fail(RPIV_EINTR, "%s; %s not written, and the fields done were lost (%s)", why,
+                         out, rpiv_errmsg());
+    if (!written)
+        return rpiv_fail(RPIV_EINTR, "%s; no field done, %s not written", why, out);
+    return rpiv_fail(RPIV_EINTR, "%s; the fields done are in %s (%s not written)", why, path, out);
+}
+
 typedef struct run_ctx {
     const char *out;
     size_t npairs;
@@ -715,10 +737,14 @@ out_agree:
     } else {
         st = rpiv_batch_series(batch, pv, local_sink, root_sink, &r, &pr);
         if (r.series) {
-            /* an interruption publishes the fields done so far */
-            rpiv_status cs = rpiv_field_series_close(r.series, st && st != RPIV_EINTR);
+            rpiv_field_series *s = r.series;
             r.series = NULL;
-            st = st ? st : cs;
+            if (st == RPIV_EINTR) {
+                st = series_partial(s, out);
+            } else {
+                rpiv_status cs = rpiv_field_series_close(s, st != RPIV_OK);
+                st = st ? st : cs;
+            }
         }
         if (st)
             goto out_free;

@@ -414,9 +414,22 @@ static void checkpoint_block_predictor_and_older_formats(void)
     bw.refuse = 1;
     CHECK_FAILS(rpiv_ensemble_load_new(pv, path, check_block, &bw, &back), RPIV_EFORMAT);
     CHECK(back == NULL && !strcmp(rpiv_errmsg(), "block refused"));
+    /* junk appended is refused, by both readers, naming the extra bytes (issue 20 item 13:
+     * before, the file was accepted and resumed) */
+    bw.refuse = 0;
+    FILE *app = fopen(path, "ab");
+    CHECK(app != NULL);
+    if (app) {
+        CHECK(fwrite("junk!", 1, 5, app) == 5);
+        fclose(app);
+    }
+    CHECK_FAILS(rpiv_ensemble_load_new(pv, path, check_block, &bw, &back), RPIV_EFORMAT);
+    CHECK(back == NULL && strstr(rpiv_errmsg(), "pass2.ck: 5 bytes after the checkpoint's end"));
+    CHECK_FAILS(rpiv_ensemble_load(e1, path), RPIV_EFORMAT);
+    CHECK(strstr(rpiv_errmsg(), "5 bytes after the checkpoint's end") != NULL);
     /* files of the earlier formats: named, refused */
-    const char *magic[2] = {"RPIVENS1", "RPIVCKP1"};
-    for (int k = 0; k < 2; k++) {
+    const char *magic[3] = {"RPIVENS1", "RPIVCKP1", "RPIVCKP2"};
+    for (int k = 0; k < 3; k++) {
         FILE *fp = fopen(old, "wb");
         CHECK(fp != NULL);
         if (!fp)

@@ -262,6 +262,20 @@ static void pgm_bad_input(void)
     CHECK(tu_write(tu_path("over.pgm"), over, strlen(over)));
     CHECK_ERR(rpiv_image_load(tu_path("over.pgm"), 0, &im, NULL), RPIV_EFORMAT, "over.pgm");
     CHECK(im == NULL);
+    /* an ASCII value too long to be a sample is out of range, not "missing" (issue 20
+     * item 14), and so is a sign; a letter is not a number */
+    const char *big = "P2 2 1 255\n5 123456789012345\n";
+    CHECK(tu_write(tu_path("big.pgm"), big, strlen(big)));
+    CHECK_ERR(rpiv_image_load(tu_path("big.pgm"), 0, &im, NULL), RPIV_EFORMAT, "big.pgm");
+    CHECK(strstr(rpiv_errmsg(), "value 2 of 2 (123456789012345) exceeds maxval 255") != NULL);
+    const char *neg = "P2 2 1 255\n5 -3\n";
+    CHECK(tu_write(tu_path("neg.pgm"), neg, strlen(neg)));
+    CHECK_ERR(rpiv_image_load(tu_path("neg.pgm"), 0, &im, NULL), RPIV_EFORMAT, "neg.pgm");
+    CHECK(strstr(rpiv_errmsg(), "value 2 of 2 is negative") != NULL);
+    const char *bad = "P2 2 1 255\n5 x7\n";
+    CHECK(tu_write(tu_path("letter.pgm"), bad, strlen(bad)));
+    CHECK_ERR(rpiv_image_load(tu_path("letter.pgm"), 0, &im, NULL), RPIV_EFORMAT, "letter.pgm");
+    CHECK(strstr(rpiv_errmsg(), "value 2 of 2 is not a number ('x')") != NULL);
     const char *shortp5 = "P5 10 10 255\nabcdefgh";
     CHECK(tu_write(tu_path("short.pgm"), shortp5, strlen(shortp5)));
     CHECK_ERR(rpiv_image_load(tu_path("short.pgm"), 0, &im, NULL), RPIV_EFORMAT, "short.pgm");
@@ -393,6 +407,44 @@ static void tiff_palette_luminance(void)
     for (int i = 0; im && i < 6; i++)
         CHECK_NEAR(im->px[i], luma(want[i] * 16, want[i] * 16, 255 - want[i] * 16), 1e-4);
     rpiv_image_free(im);
+}
+
+/* A palette TIFF whose colour map is missing, or has the wrong count, is refused: libtiff
+ * reads it silently as grey indices (issue 20 item 14; before the fix both files loaded with
+ * status 0, pixel 1 = index 10). */
+static void tiff_palette_without_colour_map(void)
+{
+    static uint16_t cmap[3 * 256];
+    for (int i = 0; i < 3 * 256; i++)
+        cmap[i] = (uint16_t)(i * 80);
+    uint8_t idx[8 * 3];
+    for (int i = 0; i < 24; i++)
+        idx[i] = (uint8_t)(i * 10);
+    tu_tiff o = {.w = 8, .h = 3, .bps = 8, .spp = 1, .photo = PHOTOMETRIC_PALETTE};
+    CHECK(tu_tiff_write(tu_path("nomap.tif"), &o, idx));
+    rpiv_image *im = (rpiv_image *)&im;
+    CHECK_ERR(rpiv_image_load(tu_path("nomap.tif"), 0, &im, NULL), RPIV_EFORMAT, "nomap.tif");
+    CHECK(im == NULL && strstr(rpiv_errmsg(), "without a colour map") != NULL);
+    /* a colour map declaring 48 values (16 entries) for 8-bit indices */
+    o.cmap = cmap;
+    CHECK(tu_tiff_write(tu_path("shortmap.tif"), &o, idx));
+    size_t n = 0;
+    unsigned char *b = tu_read(tu_path("shortmap.tif"), &n);
+    int patched = 0;
+    if (b && n >= 8 && b[0] == 'I') { /* little-endian classic TIFF, as libtiff writes here */
+        uint32_t off = b[4] | b[5] << 8 | b[6] << 16 | (uint32_t)b[7] << 24;
+        unsigned ne = off + 2 <= n ? (unsigned)(b[off] | b[off + 1] << 8) : 0;
+        for (unsigned e = 0; e < ne && off + 2 + 12 * (e + 1) <= n; e++) {
+            unsigned char *p = b + off + 2 + 12 * e;
+            if ((p[0] | p[1] << 8) == TIFFTAG_COLORMAP)
+                p[4] = 48, p[5] = 0, patched = 1;
+        }
+    }
+    CHECK(patched);
+    CHECK(b && tu_write(tu_path("shortmap.tif"), b, n));
+    free(b);
+    CHECK_ERR(rpiv_image_load(tu_path("shortmap.tif"), 0, &im, NULL), RPIV_EFORMAT, "shortmap.tif");
+    CHECK(strstr(rpiv_errmsg(), "colour map has 48 values, 768 expected") != NULL);
 }
 
 /* RGB TIFF (contig and separate planes, with alpha) -> luminance and a warning. */
@@ -866,6 +918,13 @@ static void bmp_palette_is_grey_of_palette(void)
     CHECK(strstr(rpiv_errmsg(), "compression") != NULL);
     CHECK(tu_write(tu_path("hdr.bmp"), buf, 20));
     CHECK_ERR(rpiv_image_load(tu_path("hdr.bmp"), 0, &im, NULL), RPIV_EFORMAT, "hdr.bmp");
+    /* a negative width is reported as such (issue 20 item 14: it was "invalid image size
+     * 0x3") */
+    n = make_bmp8(buf, 7, 3, pal, idx);
+    put32(buf + 18, (uint32_t)-7);
+    CHECK(tu_write(tu_path("negw.bmp"), buf, n));
+    CHECK_ERR(rpiv_image_load(tu_path("negw.bmp"), 0, &im, NULL), RPIV_EFORMAT, "negw.bmp");
+    CHECK(strstr(rpiv_errmsg(), "negative width -7") != NULL);
 }
 
 static void bmp24_and_jpeg(void)
@@ -1164,6 +1223,7 @@ int main(void)
     RUN_TEST(tiff_multipage);
     RUN_TEST(tiff_tiles_strips_compression);
     RUN_TEST(tiff_palette_luminance);
+    RUN_TEST(tiff_palette_without_colour_map);
     RUN_TEST(tiff_rgb_luminance_warns);
     RUN_TEST(tiff_grey_alpha);
     RUN_TEST(tiff_miniswhite_and_low_depth);

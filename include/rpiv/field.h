@@ -187,6 +187,12 @@ RPIV_NODISCARD rpiv_status rpiv_field_series_append(rpiv_field_series *s, const 
 /* Close and publish (rename into place). On abort=1 the temporary file is removed. s is
  * freed in every case; NULL is a no-op. */
 RPIV_NODISCARD rpiv_status rpiv_field_series_close(rpiv_field_series *s, int abort);
+/* Close and publish the fields appended so far at path instead of the series' own path,
+ * which is left untouched (an interrupted run writes its partial series beside a complete
+ * one, never over it), with the global attribute rpiv_partial = note if note is not NULL.
+ * Nothing is written if no field was appended (*written = 0). s is freed in every case. */
+RPIV_NODISCARD rpiv_status rpiv_field_series_close_as(rpiv_field_series *s, const char *path,
+                                                      const char *note, int *written);
 
 /* ---- profiles and comparisons ------------------------------------------------ */
 

@@ -391,6 +391,40 @@ rpiv_status rpiv_field_series_close(rpiv_field_series *s, int abort)
     return st;
 }
 
+rpiv_status rpiv_field_series_close_as(rpiv_field_series *s, const char *path, const char *note,
+                                       int *written)
+{
+    *written = 0;
+    if (!s)
+        return RPIV_OK;
+    if (s->nt == 0) /* nothing done: nothing to publish */
+        return rpiv_field_series_close(s, 1);
+    atomic_file af;
+    rpiv_status st = atomic_begin(&af, path, 1);
+    if (st) {
+        rpiv_status ign = rpiv_field_series_close(s, 1);
+        (void)ign;
+        return st;
+    }
+    int e = 0;
+    if (note && !(e = nc_redef(s->ncid)) &&
+        !(e = put_text(s->ncid, NC_GLOBAL, "rpiv_partial", note)))
+        e = nc_enddef(s->ncid);
+    if (e) {
+        st = nc_err(path, "attribute rpiv_partial", e);
+        atomic_abort(&af);
+        rpiv_status ign = rpiv_field_series_close(s, 1);
+        (void)ign;
+        return st;
+    }
+    /* the series' own temporary file is dropped; its bytes go to path's */
+    atomic_abort(&s->af);
+    s->af = af;
+    st = rpiv_field_series_close(s, 0);
+    *written = st == RPIV_OK;
+    return st;
+}
+
 rpiv_status field_save_nc(const rpiv_field *f, const rpiv_meta *meta, const char *path)
 {
     rpiv_field_series *s;

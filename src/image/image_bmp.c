@@ -42,9 +42,11 @@ static rpiv_status bmp_check(const char *path, const unsigned char *b, size_t n,
         bpp = le16(b + 28);
         comp = le32(b + 30);
     }
+    if (w < 0) /* only the height's sign has a meaning (top-down rows) */
+        return rpiv_fail(RPIV_EFORMAT, "%s: BMP with a negative width %lld", path, (long long)w);
     if (h < 0)
         h = -h; /* top-down rows */
-    rpiv_status st = img_check_size(path, (uint64_t)(w < 0 ? 0 : w), (uint64_t)h);
+    rpiv_status st = img_check_size(path, (uint64_t)w, (uint64_t)h);
     if (st)
         return st;
     if (bpp != 1 && bpp != 4 && bpp != 8 && bpp != 16 && bpp != 24 && bpp != 32)

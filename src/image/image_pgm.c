@@ -39,6 +39,40 @@ static int number(const unsigned char *b, size_t n, size_t *i, uint64_t *v)
     return 1;
 }
 
+/* One ASCII (P2) sample at *i, k-th of npx: a clear message for a missing, negative,
+ * non-numeric or out-of-range value. */
+static rpiv_status ascii_value(const char *path, const unsigned char *b, size_t n, size_t *i,
+                               uint64_t k, uint64_t npx, uint64_t w, uint64_t maxval, uint64_t *v)
+{
+    size_t j = skip_space(b, n, *i), j0 = j;
+    unsigned long long kk = (unsigned long long)k + 1, nn = (unsigned long long)npx;
+    if (j >= n)
+        return rpiv_fail(RPIV_EFORMAT, "%s: truncated PGM: value %llu of %llu missing", path, kk,
+                         nn);
+    if (b[j] == '-')
+        return rpiv_fail(RPIV_EFORMAT, "%s: PGM value %llu of %llu is negative", path, kk, nn);
+    if (b[j] < '0' || b[j] > '9')
+        return rpiv_fail(RPIV_EFORMAT, "%s: PGM value %llu of %llu is not a number ('%c')", path,
+                         kk, nn, b[j] >= 32 && b[j] < 127 ? b[j] : '?');
+    *v = 0;
+    while (j < n && b[j] >= '0' && b[j] <= '9') {
+        if (*v <= maxval) /* past maxval the value no longer matters; no overflow */
+            *v = *v * 10 + (uint64_t)(b[j] - '0');
+        j++;
+    }
+    if (*v > maxval) {
+        int len = j - j0 > 20 ? 20 : (int)(j - j0);
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: PGM value %llu of %llu (%.*s%s) exceeds maxval %llu "
+                         "at (%llu, %llu)",
+                         path, kk, nn, len, (const char *)b + j0, j - j0 > 20 ? "..." : "",
+                         (unsigned long long)maxval, (unsigned long long)(k % w),
+                         (unsigned long long)(k / w));
+    }
+    *i = j;
+    return RPIV_OK;
+}
+
 static int bits_for(uint64_t maxval)
 {
     int b = 0;
@@ -82,13 +116,12 @@ rpiv_status img_pgm_load(const char *path, const unsigned char *b, size_t n, rpi
     if (st)
         return st;
     for (uint64_t k = 0; k < npx; k++) {
-        uint64_t v;
+        uint64_t v = 0;
         if (ascii) {
-            if (!number(b, n, &i, &v)) {
+            st = ascii_value(path, b, n, &i, k, npx, w, maxval, &v);
+            if (st) {
                 rpiv_image_free(im);
-                return rpiv_fail(RPIV_EFORMAT,
-                                 "%s: truncated or malformed PGM: value %llu of %llu missing", path,
-                                 (unsigned long long)k + 1, (unsigned long long)npx);
+                return st;
             }
         } else if (bps == 2) {
             v = (uint64_t)b[i + 2 * k] << 8 | b[i + 2 * k + 1];

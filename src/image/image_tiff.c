@@ -167,6 +167,62 @@ static int grey_row(const unsigned char *row, int bps, int isfloat, uint32_t n, 
     return 0;
 }
 
+/* The current directory's Photometric value and ColorMap count as stored in the file
+ * (*count 0: no colour map). libtiff reads a palette image whose colour map is missing, or
+ * has the wrong count (a warning, "tag ignored"), as grey or RGB without telling the caller
+ * (issue 20 item 14): only the file's own entry shows what it was. 0 if the directory
+ * cannot be read here. */
+static int raw_palette_entry(TIFF *t, uint16_t *photo, uint64_t *count)
+{
+    int fd = TIFFFileno(t), big = TIFFIsBigTIFF(t), swab = TIFFIsByteSwapped(t);
+    uint64_t off = TIFFCurrentDirOffset(t), n = 0;
+    unsigned char head[8], e[20];
+    size_t esz = big ? 20 : 12, nsz = big ? 8 : 2;
+    *photo = 0, *count = 0;
+    if (fd < 0 || off == 0 || pread(fd, head, nsz, (off_t)off) != (ssize_t)nsz)
+        return 0;
+    if (big) {
+        memcpy(&n, head, 8);
+        if (swab)
+            TIFFSwabLong8(&n);
+    } else {
+        uint16_t n16;
+        memcpy(&n16, head, 2);
+        if (swab)
+            TIFFSwabShort(&n16);
+        n = n16;
+    }
+    int found = 0;
+    for (uint64_t i = 0; i < n && i < 65536; i++) {
+        if (pread(fd, e, esz, (off_t)(off + nsz + i * esz)) != (ssize_t)esz)
+            return 0;
+        uint16_t tag, type;
+        memcpy(&tag, e, 2);
+        memcpy(&type, e + 2, 2);
+        if (swab)
+            TIFFSwabShort(&tag), TIFFSwabShort(&type);
+        if (tag == TIFFTAG_PHOTOMETRIC && type == TIFF_SHORT) {
+            memcpy(photo, e + (big ? 12 : 8), 2);
+            if (swab)
+                TIFFSwabShort(photo);
+            found = 1;
+        } else if (tag == TIFFTAG_COLORMAP) {
+            if (big) {
+                memcpy(count, e + 4, 8);
+                if (swab)
+                    TIFFSwabLong8(count);
+            } else {
+                uint32_t c32;
+                memcpy(&c32, e + 4, 4);
+                if (swab)
+                    TIFFSwabLong(&c32);
+                *count = c32;
+            }
+        }
+    }
+    return found;
+}
+
 static rpiv_status read_info(TIFF *t, const char *path, int page, tinfo *ti)
 {
     uint16_t *extra = NULL;
@@ -182,6 +238,21 @@ static rpiv_status read_info(TIFF *t, const char *path, int page, tinfo *ti)
     TIFFGetFieldDefaulted(t, TIFFTAG_EXTRASAMPLES, &ti->nextra, &extra);
     if (!TIFFGetField(t, TIFFTAG_PHOTOMETRIC, &ti->photo))
         ti->photo = ti->spp >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK;
+    uint16_t raw;
+    uint64_t ncmap;
+    if (ti->photo != PHOTOMETRIC_PALETTE && raw_palette_entry(t, &raw, &ncmap) &&
+        raw == PHOTOMETRIC_PALETTE) {
+        if (ncmap == 0)
+            return rpiv_fail(RPIV_EFORMAT,
+                             "%s: page %d: palette TIFF without a colour map (its pixels are "
+                             "indices, not grey levels)",
+                             path, page);
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: page %d: palette TIFF colour map has %llu values, %llu expected "
+                         "(3 x 2^%u)",
+                         path, page, (unsigned long long)ncmap,
+                         ti->bps < 32 ? 3ull << ti->bps : 0ull, ti->bps);
+    }
     if (ti->sf == SAMPLEFORMAT_VOID)
         ti->sf = SAMPLEFORMAT_UINT;
     ti->extra_alpha = 1;

@@ -199,21 +199,23 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
 /* ---- checkpoint files ------------------------------------------------------------------------ */
 
 /* The one checkpoint format of rpiv, in the byte order of the machine that wrote it:
- *   header     file_header below
+ *   header     file_header below; `length` is the file's size in bytes, so that a file cut
+ *              short or with bytes appended is refused before anything else is read
  *   block      nblock bytes of the caller's (rpiv/batch.h: its run's identity, the pair states)
  *   predictor  if has_pred: nx, ny (int32), x0, y0, dx, dy, scale_mm_per_px, dt_s (double),
  *              u, v, peak_ratio, corr (nx*ny floats each), flag (nx*ny bytes)
  *   sums       nsums floats, as rpiv_ensemble_data gives them
  *   checksum   FNV-1a (base/hash.h) of every byte before it, uint64
- * RPIVENS1 (an accumulator's sums) and RPIVCKP1 (the batch's checkpoint) came before. */
-#define MAGIC  "RPIVCKP2"
+ * RPIVENS1 (an accumulator's sums), RPIVCKP1 (the batch's checkpoint) and RPIVCKP2 (no
+ * length) came before. */
+#define MAGIC  "RPIVCKP3"
 #define ENDIAN 0x01020304u
 
 typedef struct file_header {
     char magic[8];
     uint32_t endian; /* ENDIAN as written */
     int32_t pass, ww, wh, nx, ny, ox, oy, w, h, has_pred, pad;
-    uint64_t npairs, nsums, pred_hash, nblock;
+    uint64_t npairs, nsums, pred_hash, nblock, length;
 } file_header;
 
 /* The layout of pass `pass` of pv as a header (magic, byte order, pass and layout only). */
@@ -268,6 +270,10 @@ rpiv_status rpiv_ensemble_save_block(const rpiv_ensemble *e, const void *block, 
     hd.nsums = e->n;
     hd.pred_hash = e->pred_hash;
     hd.nblock = nblock;
+    size_t npred = f ? (size_t)f->nx * (size_t)f->ny : 0;
+    hd.length = sizeof hd + nblock + e->n * sizeof *e->data + sizeof(uint64_t);
+    if (f)
+        hd.length += 2 * sizeof(int32_t) + 6 * sizeof(double) + npred * (4 * sizeof(float) + 1);
     atomic_file af;
     rpiv_status st = atomic_begin(&af, path, 1);
     if (st)
@@ -276,7 +282,7 @@ rpiv_status rpiv_ensemble_save_block(const rpiv_ensemble *e, const void *block, 
     put(&io, &hd, sizeof hd);
     put(&io, block, nblock);
     if (f) {
-        size_t n = (size_t)f->nx * (size_t)f->ny;
+        size_t n = npred;
         int32_t dims[2] = {f->nx, f->ny};
         double g[6] = {f->x0, f->y0, f->dx, f->dy, f->scale_mm_per_px, f->dt_s};
         put(&io, dims, sizeof dims);
@@ -338,8 +344,12 @@ static rpiv_status read_head(reader *r, const char *path, rpiv_ensemble_block_fn
     if (hd->endian != ENDIAN)
         return rpiv_fail(RPIV_EFORMAT, "%s: checkpoint written on a machine of another byte order",
                          path);
-    if (hd->nblock > (uint64_t)r->size)
+    if (hd->length > (uint64_t)r->size || hd->nblock > (uint64_t)r->size)
         return truncated(r);
+    if (hd->length < (uint64_t)r->size) /* junk appended (issue 20 item 13) */
+        return rpiv_fail(
+            RPIV_EFORMAT, "%s: %llu bytes after the checkpoint's end (byte %llu): refused", path,
+            (unsigned long long)((uint64_t)r->size - hd->length), (unsigned long long)hd->length);
     void *block = malloc(hd->nblock ? (size_t)hd->nblock : 1);
     if (!block)
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory", path);
@@ -407,6 +417,11 @@ static rpiv_status read_sums(reader *r, float *data)
         return truncated(r);
     if (sum != want)
         return rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (checksum mismatch)", r->path);
+    long end = ftell(r->io.fp);
+    if (end < 0 || (uint64_t)end != r->hd.length)
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: corrupt checkpoint (its parts end at byte %ld, its header says %llu)",
+                         r->path, end, (unsigned long long)r->hd.length);
     return RPIV_OK;
 }
 

@@ -45,7 +45,7 @@ static double cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w
     double var = 0;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
-            const double d0 = dc[(size_t)y * (size_t)w + (size_t)x];
+            const double d0 = (double)dc[(size_t)y * (size_t)w + (size_t)x];
             double s = 0;
             for (int l = -UNC_LAG; l <= UNC_LAG; l++) {
                 const float *row = dc + (size_t)(((y + l) % h + h) % h) * (size_t)w;

@@ -268,56 +268,56 @@ static void notation(rep *r, const demo_ctx *c)
              1e3 * c->e.channel.h_m);
     const char *const q[] = {
         hline,
-        "`x*`, `y*`, `z*` = x/h, y/h, z/h: streamwise, across the channel (side walls at 0 and "
-        "1), and height above the floor through which the sheet enters (floor 0, top wall 1); "
-        "`x* = 0` where the beam's axis enters the water",
-        "`U*` = U / U_b: the streamwise velocity (V = W = 0 in this flow); `U*max` its value "
-        "on the channel's axis; `U*_ref`, `U*_comp`: the two profiles an E1 compares; "
-        "`U*_model`: the CCM's prediction",
-        "`I0*(z*)`: the laser sheet's intensity across the height at one `x*`, divided by its "
-        "maximum there",
-        "`z*_max`: the height of the sheet's peak (`I0* = 1`); `z*_inf`, `z*_sup`: the heights "
-        "below and above it where `I0* = 0.25` (the sheet's lower and upper edges)",
-        "`e*` = `z*_sup - z*_inf`: the sheet's thickness at a quarter of its maximum; "
-        "`de*/dx*`: its growth along `x*`",
-        "`z+` = (`z* - z*_max`) / `e*`: the coordinate in which the traced profiles collapse "
-        "onto one self-similar shape",
-        "`z*_OP`: the height of the camera's object (in-focus) plane; `z*_B`: the height of a "
-        "horizontal P-PIV sheet (the scan puts `z*_OP = z*_B`)",
-        "`DOF*`: the depth of focus / h (the full width at half maximum of a dot's grey level "
-        "as it leaves focus; the paper measures 0.43, `rpiv calib dof` measures it on images); "
-        "the demo models the focus with Eq. diam instead",
-        "`beta1`: the angle (deg) between the laser's axis and the normal of the prism's "
-        "inclined face; it sets the sheet's angle in the water (fig 11)",
+        ("`x*`, `y*`, `z*` = x/h, y/h, z/h: streamwise, across the channel (side walls at 0 and "
+         "1), and height above the floor through which the sheet enters (floor 0, top wall 1); "
+         "`x* = 0` where the beam's axis enters the water"),
+        ("`U*` = U / U_b: the streamwise velocity (V = W = 0 in this flow); `U*max` its value "
+         "on the channel's axis; `U*_ref`, `U*_comp`: the two profiles an E1 compares; "
+         "`U*_model`: the CCM's prediction"),
+        ("`I0*(z*)`: the laser sheet's intensity across the height at one `x*`, divided by its "
+         "maximum there"),
+        ("`z*_max`: the height of the sheet's peak (`I0* = 1`); `z*_inf`, `z*_sup`: the heights "
+         "below and above it where `I0* = 0.25` (the sheet's lower and upper edges)"),
+        ("`e*` = `z*_sup - z*_inf`: the sheet's thickness at a quarter of its maximum; "
+         "`de*/dx*`: its growth along `x*`"),
+        ("`z+` = (`z* - z*_max`) / `e*`: the coordinate in which the traced profiles collapse "
+         "onto one self-similar shape"),
+        ("`z*_OP`: the height of the camera's object (in-focus) plane; `z*_B`: the height of a "
+         "horizontal P-PIV sheet (the scan puts `z*_OP = z*_B`)"),
+        ("`DOF*`: the depth of focus / h (the full width at half maximum of a dot's grey level "
+         "as it leaves focus; the paper measures 0.43, `rpiv calib dof` measures it on images); "
+         "the demo models the focus with Eq. diam instead"),
+        ("`beta1`: the angle (deg) between the laser's axis and the normal of the prism's "
+         "inclined face; it sets the sheet's angle in the water (fig 11)"),
         "`It/Ig`: the laser power transmitted into the water / the power incident on the prism",
-        "`E1`: the relative RMS difference of two profiles (Eq. E1); `E1` along `y*` at each "
-        "`x*` (figs 24-25), along `x*` at `y* = 0.5` (figs 26-27), along `z*` (P-PIV)",
-        "`N_im`: the number of image pairs summed; sum of correlation: the pairs' correlation "
-        "maps are added before the peak is found (ensemble PIV)",
-        "P-PIV: planar PIV, horizontal thin sheets scanned in height (the reference); R-PIV: "
-        "the sheet refracted through the floor, inclined by a few degrees and thick; CCM: the "
-        "cross-correlation model of R-PIV"};
+        ("`E1`: the relative RMS difference of two profiles (Eq. E1); `E1` along `y*` at each "
+         "`x*` (figs 24-25), along `x*` at `y* = 0.5` (figs 26-27), along `z*` (P-PIV)"),
+        ("`N_im`: the number of image pairs summed; sum of correlation: the pairs' correlation "
+         "maps are added before the peak is found (ensemble PIV)"),
+        ("P-PIV: planar PIV, horizontal thin sheets scanned in height (the reference); R-PIV: "
+         "the sheet refracted through the floor, inclined by a few degrees and thick; CCM: the "
+         "cross-correlation model of R-PIV")};
     const char *const eq[] = {
-        "Eq. White: the laminar, fully developed velocity in a square duct (White 2006): "
-        "`U*(y*, z*)` = a series over odd i of `cos(i pi (y* - 0.5)) [1 - cosh(i pi (z* - "
-        "0.5)) / cosh(i pi / 2)] / i^3`, scaled so that its mean over the section is 1",
-        "Eq. Desc: each ray's refraction (Snell-Descartes, `theta_t = asin(eta sin theta_i)`, "
-        "`eta` the ratio of refractive indices) and transmitted fraction (Fresnel, `T = 1 - R`) "
-        "at the air/PMMA and PMMA/water interfaces",
-        "Eq. int: a particle's image is a Gaussian spot of energy `I0(z*) d_p^2` (fluorescence) "
-        "divided by `d_e^2 (s_0 + z')^2`, `z' = |z* - z*_OP|` its distance from the object "
-        "plane, `s_0` the working distance",
-        "Eq. diam: the particle image diameter `d_e = sqrt(M^2 d_p^2 + 5.95 (M + 1)^2 "
-        "lambda^2 f#^2 + M^2 z'^2 D_a^2 / (s_0 + z')^2)`: geometric image, diffraction, "
-        "defocus",
-        "Eq. CCM_gen, CCM_simp: the correlation of a window is a sum over its particles of "
-        "Gaussians centred on their displacements, weighted by `I0^2 / d_e^2`; CCM_simp assumes "
-        "the sheet uniform across a window, equal pulses and W = 0 (hypotheses 1-3)",
-        "Eq. statform: the sum of correlation over `N_im` pairs tends, as `N_im` grows, to the "
-        "integral over z of `P(z) R_Dz(z)` (`P` the probability of a particle at height z, "
-        "uniform here); the displacement of its peak is the model's velocity `U*_model`",
-        "Eq. E1: `E1 = sqrt(integral_0^1 (U*_ref - U*_comp)^2 d alpha) / integral_0^1 U*_ref "
-        "d alpha`, `alpha` = `x*`, `y*` or `z*` rescaled to [0, 1]"};
+        ("Eq. White: the laminar, fully developed velocity in a square duct (White 2006): "
+         "`U*(y*, z*)` = a series over odd i of `cos(i pi (y* - 0.5)) [1 - cosh(i pi (z* - "
+         "0.5)) / cosh(i pi / 2)] / i^3`, scaled so that its mean over the section is 1"),
+        ("Eq. Desc: each ray's refraction (Snell-Descartes, `theta_t = asin(eta sin theta_i)`, "
+         "`eta` the ratio of refractive indices) and transmitted fraction (Fresnel, `T = 1 - R`) "
+         "at the air/PMMA and PMMA/water interfaces"),
+        ("Eq. int: a particle's image is a Gaussian spot of energy `I0(z*) d_p^2` (fluorescence) "
+         "divided by `d_e^2 (s_0 + z')^2`, `z' = |z* - z*_OP|` its distance from the object "
+         "plane, `s_0` the working distance"),
+        ("Eq. diam: the particle image diameter `d_e = sqrt(M^2 d_p^2 + 5.95 (M + 1)^2 "
+         "lambda^2 f#^2 + M^2 z'^2 D_a^2 / (s_0 + z')^2)`: geometric image, diffraction, "
+         "defocus"),
+        ("Eq. CCM_gen, CCM_simp: the correlation of a window is a sum over its particles of "
+         "Gaussians centred on their displacements, weighted by `I0^2 / d_e^2`; CCM_simp assumes "
+         "the sheet uniform across a window, equal pulses and W = 0 (hypotheses 1-3)"),
+        ("Eq. statform: the sum of correlation over `N_im` pairs tends, as `N_im` grows, to the "
+         "integral over z of `P(z) R_Dz(z)` (`P` the probability of a particle at height z, "
+         "uniform here); the displacement of its peak is the model's velocity `U*_model`"),
+        ("Eq. E1: `E1 = sqrt(integral_0^1 (U*_ref - U*_comp)^2 d alpha) / integral_0^1 U*_ref "
+         "d alpha`, `alpha` = `x*`, `y*` or `z*` rescaled to [0, 1]")};
     r_h(r, 2, "Notation and equations");
     r_p(r, "Starred quantities are made dimensionless with the channel height and the bulk "
            "velocity, as in the paper:");

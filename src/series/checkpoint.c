@@ -38,8 +38,13 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
         h = hash_bytes(h, "|", 1);
     }
     id->series_hash = h;
-    snprintf(id->series, sizeof id->series, "%zu pairs, %s ... %s", pp->n, pp->pair[0].path_a,
-             pp->pair[pp->n - 1].path_a);
+    /* each path's last 110 characters at most, so that the description (256 bytes) always
+     * shows where the two ends differ */
+    const char *first = pp->pair[0].path_a, *last = pp->pair[pp->n - 1].path_a;
+    size_t lf = strlen(first), ll = strlen(last);
+    snprintf(id->series, sizeof id->series, "%zu pairs, %s%s ... %s%s", pp->n,
+             lf > 110 ? "..." : "", first + (lf > 110 ? lf - 110 : 0), ll > 110 ? "..." : "",
+             last + (ll > 110 ? ll - 110 : 0));
     char win[256] = "";
     for (int k = 0; k < p->npass; k++)
         snprintf(win + strlen(win), sizeof win - strlen(win), "%s%dx%d", k ? "," : "", p->win_w[k],
@@ -134,8 +139,12 @@ static rpiv_status check_block(void *user, const void *block, size_t nblock)
     if (hd.npairs != b->pairs->n || hd.series_hash != cw->id->series_hash)
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: checkpoint of another series of pairs (%s); this "
-                         "run has %s",
-                         path, hd.series, cw->id->series);
+                         "run has %s%s",
+                         path, hd.series, cw->id->series,
+                         strcmp(hd.series, cw->id->series)
+                             ? ""
+                             : ": the same count, first and last pair, another pair or order in "
+                               "between (or another second frame)");
     if (hd.plan_hash != cw->id->plan_hash || hd.npass != rpiv_piv_npass(cw->pv))
         return rpiv_fail(RPIV_EFORMAT, "%s: checkpoint of another plan (%s); this run: %s%s", path,
                          hd.plan, cw->id->plan,
