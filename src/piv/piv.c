@@ -418,6 +418,14 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
     rpiv_status st = rpiv_field_copy(predictor, &f);
     if (st)
         return st;
+    /* a rejected vector already holds its replacement (the median, the line's median or the
+     * inpainting its validation chose): only masked vectors are filled here. Refilling the
+     * rejected ones by 3 x 3 medians put a shear's crests, which the line test replaces by
+     * their row's median, back at the median across the layer (about 0), and the next repeat,
+     * deformed by that, measured them wrong again (issue 15). */
+    for (size_t k = 0; k < (size_t)f->nx * (size_t)f->ny; k++)
+        if (f->flag[k] == RPIV_FLAG_REPLACED)
+            f->flag[k] = RPIV_FLAG_VALID;
     if (!(st = rpiv_validate_replace(f, 1, NULL)) && !(filter > 0 && (st = pred_filter(f, filter))))
         st = rpiv_deform_pred_new(f, pv->w, pv->h, shift, out);
     rpiv_field_free(f);

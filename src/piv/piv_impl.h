@@ -68,9 +68,9 @@ RPIV_NODISCARD rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_p
  * on), 0 otherwise. Vectors of the pass sit at their window's centre plus this shift. */
 double piv_shift(const rpiv_piv *pv, int k);
 
-/* Build the interpolant of a predictor field (copied; rejected and masked vectors filled
- * with neighbour medians first, then low-pass filtered with weight `filter`, 0 = none), rows
- * evaluated at pixel + shift. */
+/* Build the interpolant of a predictor field (copied; masked vectors filled with neighbour
+ * medians first, rejected ones taken with the values their replacement gave them, then
+ * low-pass filtered with weight `filter`, 0 = none), rows evaluated at pixel + shift. */
 RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
                                         double shift, double filter, rpiv_deform_pred **out);
 
