@@ -16,7 +16,7 @@ rpiv_status cmd_plot(int argc, char **argv);
 
 typedef struct plot_opts {
     const char *out, *quantity, *background;
-    long every;
+    long every, time;
     double arrow_scale;
 } plot_opts;
 
@@ -47,6 +47,13 @@ static const cli_opt options[] = {
      .max = 100000,
      .help = "an arrow at every N-th point along x and y (0: automatic, at most\n"
              "28 along the longer side)"},
+    {.name = "time",
+     .kind = CLI_LONG,
+     .arg = "K",
+     .off = offsetof(plot_opts, time),
+     .min = 0,
+     .max = 1000000000,
+     .help = "the time step of a NetCDF file (.nc) to draw (0: the first)"},
     {.name = "arrow-scale",
      .kind = CLI_DOUBLE,
      .arg = "S",
@@ -60,9 +67,11 @@ static const cli_opt options[] = {
 const cli_spec cmd_plot_spec = {
     .name = "plot",
     .usage = "usage: rpiv plot FIELD -o OUT.png [--quantity Q] [--background IMAGE] [--every N]\n"
-             "                 [--arrow-scale S]\n\n"
+             "                 [--arrow-scale S] [--time K]\n\n"
              "Draw the vector file FIELD (a text file of rpiv piv, or x y u v [flag] columns\n"
-             "such as OpenPIV's) into OUT.png: a colour map of the quantity with a colour bar\n"
+             "such as OpenPIV's; or a NetCDF file, .nc, of rpiv piv or in pivpy's layout, its\n"
+             "first time step or --time K) into OUT.png: a colour map of the quantity with a "
+             "colour bar\n"
              "and its unit, arrows with a reference arrow and its value, replaced vectors in\n"
              "red and masked points marked, with their counts in a key. Axes in px and px/dt,\n"
              "or mm and m/s when the file has a scale and dt; a y-up file is drawn y up.\n"
@@ -73,7 +82,7 @@ const cli_spec cmd_plot_spec = {
 
 rpiv_status cmd_plot(int argc, char **argv)
 {
-    plot_opts o = {.arrow_scale = 1};
+    plot_opts o = {.arrow_scale = 1, .time = -1};
     cli_ctx c;
     int done;
     rpiv_status st;
@@ -91,8 +100,11 @@ rpiv_status cmd_plot(int argc, char **argv)
     if ((st = rpiv_plot_path_check(o.out)))
         return st;
     rpiv_field_format fmt = rpiv_field_format_of(in, NULL);
-    if (fmt == RPIV_FIELD_NC || fmt == RPIV_FIELD_DAT || fmt == RPIV_FIELD_VTK)
-        return rpiv_fail(RPIV_EINVAL, "%s: rpiv plot reads text vector files (.txt) only", in);
+    if (fmt == RPIV_FIELD_DAT || fmt == RPIV_FIELD_VTK)
+        return rpiv_fail(RPIV_EINVAL,
+                         "%s: rpiv plot reads text (.txt) and NetCDF (.nc) vector files only", in);
+    if (o.time >= 0 && fmt != RPIV_FIELD_NC)
+        return cli_usage_error("plot", "--time applies to NetCDF files (.nc) only, not %s", in);
     rpiv_plot_field_params p = rpiv_plot_field_params_default();
     if (o.quantity)
         p.quantity = o.quantity;
@@ -102,7 +114,8 @@ rpiv_status cmd_plot(int argc, char **argv)
         return st;
     rpiv_field *f = NULL;
     rpiv_image *bg = NULL;
-    if ((st = rpiv_field_load_txt(in, &f)))
+    if ((st = fmt == RPIV_FIELD_NC ? rpiv_field_load_nc(in, o.time > 0 ? (size_t)o.time : 0, &f)
+                                   : rpiv_field_load_txt(in, &f)))
         goto cleanup_field;
     if ((st = rpiv_plot_field_params_check(&p, f))) {
         char msg[1200];

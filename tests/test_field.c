@@ -6,6 +6,7 @@
 #include "rpiv/field.h"
 
 #include <dirent.h>
+#include <math.h>
 #include <netcdf.h>
 #include <signal.h>
 #include <stdio.h>
@@ -277,6 +278,97 @@ static void y_up_turns_and_is_recorded(void)
     text = read_all(tpath("up.vtk"));
     CHECK(text && strstr(text, "orientation y-up"));
     free(text);
+out:
+    rpiv_field_free(h);
+    rpiv_field_free(g);
+    rpiv_field_free(f);
+}
+
+/* Two fields equal in everything the files carry: grid, vectors, flags, scale, dt,
+ * orientation and quantities (names, units, values), bit for bit. */
+static int same_field(const rpiv_field *a, const rpiv_field *b)
+{
+    size_t n = (size_t)a->nx * (size_t)a->ny;
+    int ok = a->nx == b->nx && a->ny == b->ny && fabs(a->x0 - b->x0) < 1e-12 &&
+             fabs(a->y0 - b->y0) < 1e-12 && fabs(a->dx - b->dx) < 1e-12 &&
+             fabs(a->dy - b->dy) < 1e-12 && a->scale_mm_per_px == b->scale_mm_per_px &&
+             a->dt_s == b->dt_s && a->y_up == b->y_up && a->nq == b->nq;
+    ok = ok && !memcmp(a->u, b->u, n * sizeof *a->u) && !memcmp(a->v, b->v, n * sizeof *a->v) &&
+         !memcmp(a->flag, b->flag, n) && !memcmp(a->peak_ratio, b->peak_ratio, n * sizeof(float)) &&
+         !memcmp(a->corr, b->corr, n * sizeof(float));
+    /* quantities by name: a NetCDF-4 file need not list its variables in creation order */
+    for (size_t q = 0; ok && q < a->nq; q++) {
+        const rpiv_quantity *e = rpiv_field_quantity(b, a->q[q].name);
+        ok = e && a->q[q].unit == e->unit && !memcmp(a->q[q].data, e->data, n * sizeof(float));
+    }
+    return ok;
+}
+
+/* rpiv_field_load_nc reads back what rpiv_field_save wrote: image and y-up orientation, with
+ * and without physical units, extra quantities with their units and y parity; a series' step
+ * K; and bad input gives a one-line error naming the file. */
+static void netcdf_round_trip_is_exact(void)
+{
+    rpiv_field *f = sample(), *g = NULL, *h = NULL;
+    float *w = NULL, *s = NULL;
+    CHECK_OK(rpiv_field_add_quantity(f, "vorticity", RPIV_UNIT_PER_DT | RPIV_UNIT_ODD_Y, &w));
+    CHECK_OK(rpiv_field_add_quantity(f, "sigma_u", RPIV_UNIT_PX_PER_DT, &s));
+    if (!f || !w || !s)
+        goto out;
+    for (int k = 0; k < 35; k++) {
+        w[k] = 0.0123f * (float)k - 0.21f;
+        s[k] = 0.05f + 0.001f * (float)k;
+    }
+    for (int pass = 0; pass < 4; pass++) {
+        rpiv_field *src = NULL;
+        CHECK_OK(rpiv_field_copy(f, &src));
+        if (!src)
+            break;
+        if (pass & 1) {
+            src->scale_mm_per_px = 0.0213;
+            src->dt_s = 3.1e-4;
+        }
+        if (pass & 2)
+            CHECK_OK(rpiv_field_y_up(src, 80));
+        CHECK_OK(rpiv_field_save(src, NULL, tpath("rt.nc")));
+        CHECK_OK(rpiv_field_load_nc(tpath("rt.nc"), 0, &g));
+        CHECK(g && same_field(src, g));
+        if (g && pass == 3)
+            CHECK(g->y_up == 1 && g->y0 == 21.75 && g->scale_mm_per_px == 0.0213 &&
+                  rpiv_field_quantity(g, "vorticity")->unit ==
+                      (RPIV_UNIT_PER_DT | RPIV_UNIT_ODD_Y));
+        rpiv_field_free(g);
+        g = NULL;
+        rpiv_field_free(src);
+    }
+    /* a series: step 2 is the third field; step 3 is out of range */
+    rpiv_field_series *ser = NULL;
+    CHECK_OK(rpiv_field_series_open(tpath("rt3.nc"), f, NULL, &ser));
+    for (int t = 0; ser && t < 3; t++) {
+        f->u[4] = 10.0f + (float)t;
+        CHECK_OK(rpiv_field_series_append(ser, f, t));
+    }
+    CHECK_OK(rpiv_field_series_close(ser, 0));
+    CHECK_OK(rpiv_field_load_nc(tpath("rt3.nc"), 2, &g));
+    CHECK(g && g->u[4] == 12.0f && same_field(f, g));
+    CHECK_OK(rpiv_field_load_nc(tpath("rt3.nc"), 0, &h));
+    CHECK(h && h->u[4] == 10.0f && h->u[5] == f->u[5]);
+    rpiv_field *z = (rpiv_field *)1;
+    CHECK_FAILS(rpiv_field_load_nc(tpath("rt3.nc"), 3, &z), RPIV_EINVAL);
+    CHECK(z == NULL && strstr(rpiv_errmsg(), "rt3.nc: time step 3 outside 0..2"));
+    CHECK_FAILS(rpiv_field_load_nc(tpath("nope.nc"), 0, &z), RPIV_EIO);
+    CHECK(strstr(rpiv_errmsg(), "nope.nc") != NULL);
+    write_text(tpath("text.nc"), "x y u v\n1 2 3 4\n");
+    CHECK_FAILS(rpiv_field_load_nc(tpath("text.nc"), 0, &z), RPIV_EFORMAT);
+    CHECK(strstr(rpiv_errmsg(), "text.nc: not a NetCDF file") != NULL);
+    /* a NetCDF file without pivpy's dims */
+    int nc, d, var;
+    CHECK(nc_create(tpath("other.nc"), NC_NETCDF4 | NC_CLOBBER, &nc) == NC_NOERR);
+    CHECK(nc_def_dim(nc, "time", 3, &d) == NC_NOERR &&
+          nc_def_var(nc, "w", NC_FLOAT, 1, &d, &var) == NC_NOERR);
+    CHECK(nc_close(nc) == NC_NOERR);
+    CHECK_FAILS(rpiv_field_load_nc(tpath("other.nc"), 0, &z), RPIV_EFORMAT);
+    CHECK(strstr(rpiv_errmsg(), "other.nc: no dimension 'y'") != NULL);
 out:
     rpiv_field_free(h);
     rpiv_field_free(g);
@@ -858,6 +950,7 @@ int main(void)
     RUN_TEST(save_rejects_unknown_extension);
     RUN_TEST(netcdf_layout_reads_back);
     RUN_TEST(netcdf_series_of_three_along_t);
+    RUN_TEST(netcdf_round_trip_is_exact);
     RUN_TEST(tecplot_header_and_values_parse_back);
     RUN_TEST(vtk_header_and_values_parse_back);
     RUN_TEST(failed_write_keeps_the_old_file);

@@ -212,6 +212,29 @@ static void map_writes_png_for_image_and_scalar(void)
     free(im);
 }
 
+/* Each cell of a map covers its own span: 4 rows of which 4, 2 or 1 are filled cover the
+ * whole frame, half and a quarter of it, so the ink added by rows 3-4 is twice that of row 2.
+ * (PLplot's plimagefr spreads n cells at a step of extent / (n - 1): drawn so, the filled
+ * rows covered 1, 2/3 and 1/3 of the frame, a ratio of 1.) */
+static void map_cells_cover_their_span(void)
+{
+    double z[3 * 4];
+    size_t ink[3];
+    int filled[3] = {4, 2, 1};
+    rpiv_plot_opts o = rpiv_plot_opts_default();
+    o.aspect = RPIV_PLOT_FREE;
+    for (int r = 0; r < 3; r++) {
+        for (int k = 0; k < 12; k++)
+            z[k] = k / 3 < filled[r] ? 1.0 : (double)NAN;
+        unsigned w, h;
+        CHECK_OK(rpiv_plot_map(tpath("cells.png"), NULL, z, 3, 4, NULL, &o));
+        CHECK(png_size(tpath("cells.png"), &w, &h, &ink[r]));
+    }
+    double two = (double)ink[0] - (double)ink[1], one = (double)ink[1] - (double)ink[2];
+    CHECK(one > 1000);
+    CHECK_NEAR(two / one, 2.0, 0.1);
+}
+
 static void plot_into_missing_folder_fails_with_path(void)
 {
     double x[2] = {0, 1};
@@ -355,6 +378,7 @@ int main(void)
         return 1;
     }
     RUN_TEST(quiver_writes_png_of_requested_size);
+    RUN_TEST(map_cells_cover_their_span);
     RUN_TEST(lines_writes_png_with_legend);
     RUN_TEST(map_writes_png_for_image_and_scalar);
     RUN_TEST(plot_into_missing_folder_fails_with_path);
@@ -366,9 +390,9 @@ int main(void)
     if (keep) {
         printf("plots kept in %s\n", dir);
     } else {
-        const char *names[] = {"quiver.png",  "quiver2.png",  "quiver3.png", "lines.png",
-                               "lines2.png",  "image.png",    "map.png",     "field.png",
-                               "field_v.png", "field_mm.png", "field_bg.png"};
+        const char *names[] = {"quiver.png",  "quiver2.png",  "quiver3.png",  "lines.png",
+                               "lines2.png",  "image.png",    "map.png",      "field.png",
+                               "field_v.png", "field_mm.png", "field_bg.png", "cells.png"};
         for (size_t k = 0; k < sizeof names / sizeof names[0]; k++)
             unlink(tpath(names[k]));
         rmdir(dir);

@@ -175,6 +175,16 @@ RPIV_NODISCARD rpiv_status rpiv_field_save(const rpiv_field *f, const rpiv_meta 
  * data. */
 RPIV_NODISCARD rpiv_status rpiv_field_load_txt(const char *path, rpiv_field **out);
 
+/* Read time step t (0: the first) of a NetCDF vector file: rpiv's own (.nc of rpiv piv, any
+ * orientation, with or without physical units: the field comes back in pixels with its scale,
+ * dt, orientation and extra quantities, as rpiv_field_save wrote it) or a pivpy-like file of
+ * another tool (u, v on dims y, x, t with coordinates x, y on a regular increasing grid;
+ * optional chc, 0 read as replaced; non-finite vectors masked; other float variables on
+ * (y, x, t) become quantities, unit from their units attribute). RPIV_EIO if it cannot be
+ * opened; RPIV_EFORMAT naming the file and what is missing or wrong; RPIV_EINVAL if t is not
+ * below the file's number of time steps (the range named). */
+RPIV_NODISCARD rpiv_status rpiv_field_load_nc(const char *path, size_t t, rpiv_field **out);
+
 /* A series of fields of one grid written into one NetCDF-4 file along an unlimited t. The
  * file appears at path only when the series is closed without abort; until then it is a
  * temporary file next to it. grid gives the grid, scale and dt (its data are not written). */

@@ -182,7 +182,9 @@ static int define(rpiv_field_series *s, const rpiv_field *g, const rpiv_meta *me
     for (size_t q = 0; q < g->nq; q++) {
         int u = g->q[q].unit, has = (u & ~RPIV_UNIT_ODD_Y) != RPIV_UNIT_ONE;
         if ((e = def_float(s, dims, g->q[q].name, "", rpiv_unit_name(u, phys && has), g->q[q].name,
-                           (int)q, phys && has ? rpiv_unit_factor(g, u) : 1)))
+                           (int)q, phys && has ? rpiv_unit_factor(g, u) : 1)) ||
+            (e = put_text(ncid, s->var[s->nvar - 1].id, "y_parity",
+                          u & RPIV_UNIT_ODD_Y ? "odd" : "even")))
             return e;
     }
     if (phys) {

@@ -231,23 +231,19 @@ static void band_size(const demo_ctx *c, rpiv_plot_opts *o)
     o->height_px = 560;
 }
 
-/* Arrows of a field (every few vectors, no colour background: the map is a plot of its own). */
+/* The field figure of rpiv plot (rpiv_plot_field): a colour map of the displacement, arrows
+ * scaled to the 95 % quantile of the speeds with a reference arrow, the flags in a key; sized
+ * for the band's aspect ratio (a plot box 700 px wide, plus the margins, bar and key). */
 static rpiv_status quiver(demo_ctx *c, const char *name, const char *title, const rpiv_field *f)
 {
-    rpiv_plot_opts o = rpiv_plot_opts_default();
-    band_size(c, &o);
-    o.background = 0;
-    o.stride = c->nx >= 48 ? c->nx / 24 : 2;
-    /* the longest arrow 0.9 drawn grid steps long */
-    double umax = 0;
-    for (size_t k = 0; k < (size_t)c->nx * (size_t)c->ny; k++)
-        if (f->flag[k] != RPIV_FLAG_MASKED)
-            umax = fmax(umax, hypot((double)f->u[k], (double)f->v[k]));
-    if (umax > 0)
-        o.arrow_scale = 0.9 * o.stride * c->gdx / umax;
+    rpiv_plot_field_params p = rpiv_plot_field_params_default();
+    double aspect = (double)c->h / c->w, hgt = 933.0 * aspect + 60;
+    p.width_px = 1000;
+    p.height_px = hgt < 450 ? 450 : hgt > 1100 ? 1100 : (int)hgt;
     char path[RPIV_PATH_MAX];
     rpiv_status st;
-    if ((st = demo_path(c, name, path, sizeof path)) || (st = rpiv_plot_quiver(f, path, title, &o)))
+    if ((st = demo_path(c, name, path, sizeof path)) ||
+        (st = rpiv_plot_field(f, path, title, &p, NULL)))
         return st;
     return done(c, name);
 }

@@ -276,28 +276,34 @@ rpiv_status plot_draw_cells(const double *z, int nx, int ny, double x0, double x
 {
     int bx = (nx + max_x - 1) / max_x, by = (ny + max_y - 1) / max_y;
     int mx = (nx + bx - 1) / bx, my = (ny + by - 1) / by;
-    PLFLT *buf = malloc((size_t)mx * (size_t)my * sizeof *buf);
-    const PLFLT **cols = malloc((size_t)mx * sizeof *cols);
+    /* PLplot's plimagefr (no transform) spreads nx cells over [xmin, xmax] at a step of
+     * (xmax - xmin) / (nx - 1), cell k covering [xmin + k step, xmin + (k + 1) step]: the
+     * last cell falls outside. So it gets the extent shortened by one cell, and at least two
+     * cells each way (a single row or column is doubled). */
+    int px = mx < 2 ? 2 : mx, py = my < 2 ? 2 : my;
+    PLFLT *buf = malloc((size_t)px * (size_t)py * sizeof *buf);
+    const PLFLT **cols = malloc((size_t)px * sizeof *cols);
     if (!buf || !cols) {
         free(buf);
         free(cols);
         return rpiv_fail(RPIV_ENOMEM, "plot: out of memory for a %d x %d map", mx, my);
     }
     /* PLplot's matrices are indexed [i][j] with i along x */
-    for (int i = 0; i < mx; i++) {
-        cols[i] = buf + (size_t)i * (size_t)my;
-        for (int j = 0; j < my; j++) {
+    for (int i = 0; i < px; i++) {
+        cols[i] = buf + (size_t)i * (size_t)py;
+        for (int j = 0; j < py; j++) {
+            int si = i * mx / px, sj = j * my / py;
             double s = 0;
             int c = 0;
-            for (int jj = j * by; jj < (j + 1) * by && jj < ny; jj++)
-                for (int ii = i * bx; ii < (i + 1) * bx && ii < nx; ii++) {
+            for (int jj = sj * by; jj < (sj + 1) * by && jj < ny; jj++)
+                for (int ii = si * bx; ii < (si + 1) * bx && ii < nx; ii++) {
                     double val = z[(size_t)jj * (size_t)nx + (size_t)ii];
                     if (isfinite(val)) {
                         s += val;
                         c++;
                     }
                 }
-            buf[(size_t)i * (size_t)my + (size_t)j] = c ? s / c : (double)NAN;
+            buf[(size_t)i * (size_t)py + (size_t)j] = c ? s / c : (double)NAN;
         }
     }
     /* the edge cells of a reduced map are partly empty: its extent shrinks accordingly */
@@ -305,11 +311,12 @@ rpiv_status plot_draw_cells(const double *z, int nx, int ny, double x0, double x
     double ey1 = y0 + (y1 - y0) * (double)(my * by) / ny;
     /* values outside [zlo, zhi] saturate; blank cells go below zlo, which plimage skips */
     double blank = zlo - (zhi - zlo) - 1;
-    for (size_t k = 0; k < (size_t)mx * (size_t)my; k++)
+    for (size_t k = 0; k < (size_t)px * (size_t)py; k++)
         buf[k] = isnan(buf[k]) ? blank : fmin(fmax(buf[k], zlo), zhi);
     /* plimagefr, not plimage: plimage stretches the colours over the data's own range, so a
      * map narrower than [zlo, zhi] (a flat field) came out in the wrong colours */
-    plimagefr(cols, mx, my, x0, ex1, y0, ey1, zlo, zhi, zlo, zhi, NULL, NULL);
+    plimagefr(cols, px, py, x0, x0 + (ex1 - x0) * (px - 1) / px, y0,
+              y0 + (ey1 - y0) * (py - 1) / py, zlo, zhi, zlo, zhi, NULL, NULL);
     free(cols);
     free(buf);
     return RPIV_OK;

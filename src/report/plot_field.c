@@ -23,6 +23,11 @@ typedef struct grid_map {
     double x0, y0, dx, dy;
 } grid_map;
 
+/* PLplot's plvect draws its default arrow (from -0.5 to +0.5 of its unit shape) scaled by half
+ * of scale * (u, v), centred on the grid point: an arrow is 0.5 * scale * |(u, v)| long. Twice
+ * the wanted length per unit makes it span arrow_len * |(u, v)|, as the key's reference arrow. */
+#define PLVECT_FACTOR 2.0
+
 static void grid_xform(PLFLT i, PLFLT j, PLFLT *x, PLFLT *y, PLPointer data)
 {
     const grid_map *g = data;
@@ -97,9 +102,9 @@ static rpiv_status draw_quiver(const void *vctx, const rpiv_plot_opts *o)
     grid_map g = {f->x0, f->y0, f->dx * s, f->dy * s};
     if (st == RPIV_OK && umax > 0) {
         plcol0(COL_FG);
-        plvect(cols, cols + mx, mx, my, scale, grid_xform, &g);
+        plvect(cols, cols + mx, mx, my, PLVECT_FACTOR * scale, grid_xform, &g);
         plcol0(COL_REPLACED);
-        plvect(cols + 2 * mx, cols + 3 * mx, mx, my, scale, grid_xform, &g);
+        plvect(cols + 2 * mx, cols + 3 * mx, mx, my, PLVECT_FACTOR * scale, grid_xform, &g);
     }
     free(mag);
     free(ub);
@@ -345,9 +350,10 @@ static rpiv_status draw_field(const void *vctx, const rpiv_plot_opts *o)
                       f->dy * c->every * c->lf};
         plwidth(1.4);
         plcol0(COL_FG);
-        plvect(cp, cp + c->mx, c->mx, c->my, c->alen, grid_xform, &g);
+        plvect(cp, cp + c->mx, c->mx, c->my, PLVECT_FACTOR * c->alen, grid_xform, &g);
         plcol0(COL_REPLACED);
-        plvect(cp + 2 * c->mx, cp + 3 * c->mx, c->mx, c->my, c->alen, grid_xform, &g);
+        plvect(cp + 2 * c->mx, cp + 3 * c->mx, c->mx, c->my, PLVECT_FACTOR * c->alen, grid_xform,
+               &g);
         plwidth(1);
     }
     plcol0(COL_FG);

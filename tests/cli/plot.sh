@@ -3,7 +3,10 @@
 # rpiv plot and rpiv piv --plot: the figure is a complete PNG of 1000 x 800 px (every chunk's
 # CRC checked, IEND last); a non-.png output, a missing field file, an unknown quantity and a
 # file format plot cannot read give a one-line error naming the file, exit 2 (or 1 for a
-# missing file), and write nothing; --plot p.jpg fails before any PIV work.
+# missing file), and write nothing; --plot p.jpg fails before any PIV work. A NetCDF file of
+# rpiv piv (image or y-up, pixels or physical units) gives the same figure numbers as the text
+# file of the same field; --time out of range, --time on a text file, a .vtk file and a file
+# that is not NetCDF are one-line errors.
 set -u
 bin=${RPIV_BIN:?RPIV_BIN not set}
 data=${RPIV_TEST_DATA:?RPIV_TEST_DATA not set}
@@ -85,8 +88,23 @@ check_err 2 "$tmp/f.txt" "unknown quantity 'vorticity'" "$bin" plot "$tmp/f.txt"
     --quantity vorticity
 grep -qF "magnitude, u, v, peak_ratio, correlation" "$tmp/err" ||
     fail "unknown quantity: the message does not list the field's quantities: $(cat "$tmp/err")"
+# NetCDF: the same field as the text file gives the same figure's numbers, in both
+# orientations and with physical units; --time picks a step, out of range is an error
 "$bin" piv "$a" "$b" -o "$tmp/f.nc" -q || fail "piv -o f.nc exited $?"
-check_err 2 "$tmp/f.nc" ".txt" "$bin" plot "$tmp/f.nc" -o "$tmp/y.png"
+"$bin" piv "$a" "$b" -o "$tmp/up.nc" --y-up --scale 0.1 --dt 0.001 -q || fail "piv -o up.nc exited $?"
+for base in f up; do
+    t=$("$bin" plot "$tmp/$base.txt" -o "$tmp/t.png" --every 2) || fail "plot $base.txt exited $?"
+    n=$("$bin" plot "$tmp/$base.nc" -o "$tmp/c.png" --every 2 --time 0) || fail "plot $base.nc exited $?"
+    [ "${t#*.png: }" = "${n#*.png: }" ] || fail "$base.nc and $base.txt differ: '$n' vs '$t'"
+    [ "$(png_check "$tmp/c.png")" = "1000 800" ] || fail "plot $base.nc: $(png_check "$tmp/c.png")"
+done
+rm -f "$tmp/y.png"
+check_err 2 "$tmp/f.nc" "time step 1 outside 0..0" "$bin" plot "$tmp/f.nc" -o "$tmp/y.png" --time 1
+check_err 2 "--time" ".nc" "$bin" plot "$tmp/f.txt" -o "$tmp/y.png" --time 0
+"$bin" piv "$a" "$b" -o "$tmp/f.vtk" -q || fail "piv -o f.vtk exited $?"
+check_err 2 "$tmp/f.vtk" ".nc" "$bin" plot "$tmp/f.vtk" -o "$tmp/y.png"
+printf 'not netcdf\n' >"$tmp/bad.nc"
+check_err 1 "$tmp/bad.nc" "not a NetCDF file" "$bin" plot "$tmp/bad.nc" -o "$tmp/y.png"
 check_err 1 "$tmp/nope.tif" "nope.tif" "$bin" plot "$tmp/f.txt" -o "$tmp/y.png" --background "$tmp/nope.tif"
 check_err 2 "--every" "range" "$bin" plot "$tmp/f.txt" -o "$tmp/y.png" --every -1
 check_err 2 "-o OUT.png" "no output" "$bin" plot "$tmp/f.txt"
