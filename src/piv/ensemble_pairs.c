@@ -6,8 +6,8 @@
  * parallel regions (loading, prefilter, deformation strips, correlation); at two threads the
  * workers spent more time spinning and yielding at the regions' ends than working (600 pairs:
  * 1.5 s on one thread, 6.2 s on two, 54 s on two of a busy machine, issue 20 item 6). Here
- * the threads of the plan each take whole pairs, on their own one-thread copy of the plan,
- * with one synchronisation per round of several pairs a thread.
+ * the threads of the plan each take whole pairs, on their own one-thread copy of the plan
+ * (C11 threads, not OpenMP: they sleep on a condition variable when they wait, never spin).
  *
  * Determinism: each pair's planes and energies go into a slot of the round; the slots are
  * then added to the sums in pair order on the calling thread, the very float additions
@@ -21,10 +21,10 @@
 #include <threads.h>
 
 /* Frames of at most this many pixels are correlated a pair per thread (docs/benchmarks.md,
- * "Threads and small images": at 1024 x 1024 the pair-per-thread rounds still gain; at
- * 2560 x 2160 the threads inside a pair already scale). */
+ * "Threads on small images and busy machines": at 1024 x 1024 a pair per thread still beats
+ * the threads inside each pair; at 2560 x 2160 the slots would take 87 MB each). */
 #define PAIRS_MAX_PX (1500 * 1000)
-/* Pairs per thread in a round: more pairs, fewer synchronisations, more slots held. */
+/* Slots per thread: pairs done ahead of the one being added. */
 #define ROUND_PER_THREAD 4
 /* Memory the slots and plan copies may take, MB, besides piv.max_mem_mb's check. */
 #define PAIRS_MAX_MB 256.0
@@ -131,7 +131,7 @@ static rpiv_status add_serial(rpiv_ensemble *e, size_t n, rpiv_ensemble_load_fn 
     return st;
 }
 
-/* Bytes a round of m slots and nt plan copies take. */
+/* Bytes m slots and nt plan copies take. */
 static double round_bytes(const rpiv_ensemble *e, int nt, size_t m)
 {
     const double slot = (double)e->nwin * ((double)e->plane * sizeof(float) + 2 * sizeof(double));
