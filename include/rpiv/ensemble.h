@@ -53,6 +53,25 @@ void rpiv_ensemble_free(rpiv_ensemble *e); /* NULL is a no-op */
 RPIV_NODISCARD rpiv_status rpiv_ensemble_add(rpiv_ensemble *e, const rpiv_image *a,
                                              const rpiv_image *b);
 
+/* Loads pair k (0-based within a rpiv_ensemble_add_pairs call) into *a, *b, which the caller
+ * frees. May be called from several threads at once, for different k. */
+typedef rpiv_status (*rpiv_ensemble_load_fn)(void *user, size_t k, rpiv_image **a, rpiv_image **b);
+/* Told, on the calling thread and in the order of k, how pair k went: st is RPIV_OK when its
+ * planes are in the sums, else its error (loaded = 0: from the load, 1: from the correlation;
+ * its message is rpiv_errmsg()'s) and nothing of it was added. Returns RPIV_OK to go on, or
+ * the status to stop with (the later pairs are then not added). */
+typedef rpiv_status (*rpiv_ensemble_done_fn)(void *user, size_t k, rpiv_status st, int loaded);
+
+/* Add n pairs as n calls of rpiv_ensemble_add would, pair k's planes added after pair k-1's,
+ * so that the sums have the same bits for any thread count. Small images are correlated
+ * several pairs at a time, one pair per thread of the plan (their parallel regions would
+ * otherwise be too short for the threads to pay, and on a busy machine the threads wait for
+ * each other at every one); large images one after another, the plan's threads inside each
+ * pair. The first status a `done` call returns, RPIV_ENOMEM, or RPIV_OK. */
+RPIV_NODISCARD rpiv_status rpiv_ensemble_add_pairs(rpiv_ensemble *e, size_t n,
+                                                   rpiv_ensemble_load_fn load,
+                                                   rpiv_ensemble_done_fn done, void *user);
+
 /* dst += src: the sums of two accumulators of the same plan layout, pass and predictor.
  * RPIV_EINVAL if they do not match. */
 RPIV_NODISCARD rpiv_status rpiv_ensemble_merge(rpiv_ensemble *dst, const rpiv_ensemble *src);

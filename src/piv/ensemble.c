@@ -3,6 +3,7 @@
  * checkpoint format of rpiv; rpiv/batch.h adds its identity block to them). */
 #include "rpiv/ensemble.h"
 
+#include "ensemble_impl.h"
 #include "piv_impl.h"
 
 #include "base/atomic.h"
@@ -14,19 +15,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-struct rpiv_ensemble {
-    rpiv_piv *pv;
-    int pass;
-    rpiv_field *predictor;  /* copy, NULL for none */
-    rpiv_deform_pred *pred; /* its interpolant     */
-    uint64_t pred_hash;
-    size_t plane; /* floats per plane    */
-    size_t nwin;
-    size_t n;    /* floats in data      */
-    float *data; /* planes, then energies */
-    size_t npairs;
-};
 
 static uint64_t field_hash(const rpiv_field *f)
 {

@@ -144,28 +144,12 @@ static rpiv_status add_made(rpiv_batch *b, rpiv_ensemble *e, int pass, size_t i)
     return src->added ? src->added(src->user, pass, i, e) : RPIV_OK;
 }
 
-/* Add pair i to e (plan pv) in pass `pass`: RPIV_OK when added or (skip_bad) skipped; else
+/* Add pair i of a source to e in pass `pass`: RPIV_OK when added or (skip_bad) skipped; else
  * the error. */
-static rpiv_status add_pair(rpiv_batch *b, const rpiv_piv *pv, rpiv_ensemble *e, int pass, size_t i,
-                            int *added)
+static rpiv_status add_pair(rpiv_batch *b, rpiv_ensemble *e, int pass, size_t i, int *added)
 {
-    rpiv_image *a = NULL, *bb = NULL;
-    int w, h_px;
-    rpiv_status st;
+    rpiv_status st = add_made(b, e, pass, i);
     *added = 0;
-    if (b->src) {
-        st = add_made(b, e, pass, i);
-    } else {
-        rpiv_piv_size(pv, &w, &h_px);
-        st = batch_load_pair(b, i, w, h_px, &a, &bb);
-        if (!st && (st = rpiv_ensemble_add(e, a, bb))) {
-            char msg[768];
-            snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-            st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
-        }
-        rpiv_image_free(a);
-        rpiv_image_free(bb);
-    }
     if (!st) {
         b->state[i] |= DONE;
         *added = 1;
@@ -173,6 +157,99 @@ static rpiv_status add_pair(rpiv_batch *b, const rpiv_piv *pv, rpiv_ensemble *e,
         batch_mark_bad(b, i, 1);
         st = RPIV_OK;
     }
+    return st;
+}
+
+/* One pass's loop over this rank's pairs, and the bookkeeping after each pair. */
+typedef struct pass_run {
+    rpiv_batch *b;
+    const rpiv_piv *pv;
+    rpiv_ensemble *e;
+    int pass;
+    const ck_ident *id;
+    int npass;
+    const rpiv_progress *progress;
+    size_t *done, total, nmine;
+    size_t since;  /* pairs added since the last checkpoint */
+    int *saved_ok; /* the last checkpoint was written        */
+    size_t *idx;   /* run_files: the pairs it adds           */
+} pass_run;
+
+/* Pair i was added (added = 1) or skipped: the checkpoint when due, the progress. */
+static rpiv_status after_pair(pass_run *c, size_t i, int added)
+{
+    rpiv_batch *b = c->b;
+    rpiv_status st = RPIV_OK;
+    c->since += (size_t)added;
+    if (b->ckpt && b->p.checkpoint_every && c->since >= b->p.checkpoint_every) {
+        *c->saved_ok = !(st = ck_save(b, c->id, c->npass, c->e));
+        c->since = 0;
+    }
+    if (!st && rpiv_progress_report(c->progress, ++*c->done, c->total))
+        st = rpiv_fail(RPIV_EINTR, "ensemble: interrupted in pass %d after %zu of %zu pairs",
+                       c->pass + 1, i / (size_t)rpiv_mpi_size(b->mpi) + 1, c->nmine);
+    return st;
+}
+
+/* A source's pairs (b->src), one at a time: its hook sees the accumulator after each. */
+static rpiv_status run_made(pass_run *c)
+{
+    rpiv_batch *b = c->b;
+    size_t N = b->pairs->n, K = (size_t)rpiv_mpi_size(b->mpi);
+    rpiv_status st = RPIV_OK;
+    for (size_t i = (size_t)rpiv_mpi_rank(b->mpi); i < N && !st; i += K) {
+        int added;
+        if (b->state[i] & (DONE | BAD))
+            continue;
+        if (!(st = add_pair(b, c->e, c->pass, i, &added)))
+            st = after_pair(c, i, added);
+    }
+    return st;
+}
+
+static rpiv_status files_load(void *user, size_t k, rpiv_image **a, rpiv_image **bb)
+{
+    const pass_run *c = user;
+    int w, h;
+    rpiv_piv_size(c->pv, &w, &h);
+    return batch_load_pair(c->b, c->idx[k], w, h, a, bb);
+}
+
+static rpiv_status files_done(void *user, size_t k, rpiv_status st, int loaded)
+{
+    pass_run *c = user;
+    rpiv_batch *b = c->b;
+    size_t i = c->idx[k];
+    if (st && loaded) {
+        char msg[768];
+        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+        st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+    }
+    if (!st)
+        b->state[i] |= DONE;
+    else if (b->p.skip_bad && batch_unreadable(st))
+        batch_mark_bad(b, i, 1);
+    else
+        return st;
+    return after_pair(c, i, !st);
+}
+
+/* The listed pairs: several at a time when the images are small (rpiv_ensemble_add_pairs),
+ * added in the order of the list. */
+static rpiv_status run_files(pass_run *c)
+{
+    rpiv_batch *b = c->b;
+    size_t N = b->pairs->n, K = (size_t)rpiv_mpi_size(b->mpi), n = 0;
+    size_t *idx = malloc((N / K + 1) * sizeof *idx);
+    if (!idx)
+        return rpiv_fail(RPIV_ENOMEM, "batch: out of memory");
+    for (size_t i = (size_t)rpiv_mpi_rank(b->mpi); i < N; i += K)
+        if (!(b->state[i] & (DONE | BAD)))
+            idx[n++] = i;
+    c->idx = idx;
+    rpiv_status st = rpiv_ensemble_add_pairs(c->e, n, files_load, files_done, c);
+    c->idx = NULL;
+    free(idx);
     return st;
 }
 
@@ -243,24 +320,8 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
         }
         if ((st = rpiv_mpi_agree(m, st)))
             break;
-        size_t since = 0;
-        for (size_t i = r; i < N && !st; i += K) {
-            int added;
-            if (b->state[i] & (DONE | BAD))
-                continue;
-            if ((st = add_pair(b, pv, e, k, i, &added)))
-                break;
-            since += (size_t)added;
-            if (b->ckpt && b->p.checkpoint_every && since >= b->p.checkpoint_every) {
-                saved_ok = !(st = ck_save(b, &id, npass, e));
-                since = 0;
-            }
-            if (!st && rpiv_progress_report(progress, ++done, total))
-                st = rpiv_fail(RPIV_EINTR,
-                               "ensemble: interrupted in pass %d after %zu of "
-                               "%zu pairs",
-                               k + 1, i / K + 1, nmine);
-        }
+        pass_run run = {b, pv, e, k, &id, npass, progress, &done, total, nmine, 0, &saved_ok, NULL};
+        st = b->src ? run_made(&run) : run_files(&run);
         if ((st = rpiv_mpi_agree(m, st))) {
             if (b->ckpt && saved_ok)
                 st = ck_stop(b, &id, npass, e, st);
