@@ -301,8 +301,8 @@ static double median_peak_ratio(const rpiv_field *f)
 
 /* Honest warnings on stderr after a run that succeeded (rank 0): the traps the results
  * alone do not show. f: the ensemble field or the first pair's (may be NULL). */
-static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const run_ctx *r,
-                     const rpiv_field *f)
+static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const rpiv_batch *batch,
+                     const run_ctx *r, const rpiv_field *f)
 {
     const rpiv_pair_src *q0 = &pairs->pair[0];
     int pages = 1;
@@ -317,20 +317,17 @@ static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const ru
                 "rpiv piv: warning: --dt without --scale: dt is recorded in the header, but "
                 "the columns stay in px per pair interval (no m/s, 1/s); add --scale "
                 "MM_PER_PX for physical units\n");
-    rpiv_image *a = NULL, *b = NULL;
-    if (!rpiv_pairs_load(pairs, 0, &a, &b)) {
-        rpiv_image_stats sa = rpiv_image_stats_of(a), sb = rpiv_image_stats_of(b);
-        if (sa.min == sa.max || sb.min == sb.max)
-            fprintf(stderr,
-                    "rpiv piv: warning: frame %s of the first pair (%s) is %s (grey %g "
-                    "everywhere): there are no particles to correlate\n",
-                    sa.min == sa.max ? "A" : "B",
-                    sa.min == sa.max || !q0->path_b ? q0->path_a : q0->path_b,
-                    (sa.min == sa.max ? sa.max : sb.max) == 0 ? "empty" : "constant",
-                    sa.min == sa.max ? sa.max : sb.max);
-    }
-    rpiv_image_free(a);
-    rpiv_image_free(b);
+    rpiv_image_stats sa, sb;
+    size_t i0;
+    if (rpiv_batch_first_stats(batch, &i0, &sa, &sb) && (sa.min == sa.max || sb.min == sb.max))
+        fprintf(stderr,
+                "rpiv piv: warning: frame %s of the first pair (%s) is %s (grey %g "
+                "everywhere): there are no particles to correlate\n",
+                sa.min == sa.max ? "A" : "B",
+                sa.min == sa.max || !pairs->pair[i0].path_b ? pairs->pair[i0].path_a
+                                                            : pairs->pair[i0].path_b,
+                (sa.min == sa.max ? sa.max : sb.max) == 0 ? "empty" : "constant",
+                sa.min == sa.max ? sa.max : sb.max);
     if (!r->nvec || (double)r->nreplaced <= 0.10 * (double)r->nvec)
         return;
     double med = f ? median_peak_ratio(f) : 0;
@@ -812,7 +809,7 @@ out_agree:
                     "header)\n",
                     nskip, nskip == 1 ? "" : "s");
     }
-    warn_run(p, pairs, &r, field ? field : r.first);
+    warn_run(p, pairs, batch, &r, field ? field : r.first);
 out_free:
     if (r.series && rpiv_field_series_close(r.series, 1))
         st = st ? st : RPIV_EIO; /* not reached: abort only removes a temporary file */

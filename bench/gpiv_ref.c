@@ -14,6 +14,7 @@
 #include "bench.h"
 
 #ifndef RPIV_HAVE_GPIV
+
 int main(void)
 {
     printf("# gpiv_ref: built without libgpiv (RPIV_HAVE_GPIV undefined), nothing to do\n");
@@ -24,8 +25,13 @@ int main(void)
 #include "../tests/piv_testimg.h"
 #include "rpiv/piv.h"
 
+#include "rpiv/field.h"
+#include "rpiv/image.h"
+
 #include <gpiv.h>
 #include <omp.h>
+#include <stdlib.h>
+#include <unistd.h>
 
 enum { W = 2560, H = 2160 };
 static const double DISP[2] = {3.3, -1.7};
@@ -42,8 +48,8 @@ static void make_pair(float *a, float *b)
 }
 
 /* libgpiv on the pair; ms, RMS error (worst component, valid estimators), checksum. */
-static int run_gpiv(const float *a, const float *b, int deform, double *ms, double *err,
-                    uint64_t *sum, unsigned *nvec)
+/* The pair as a libgpiv image (both frames, 16 bits); NULL if out of memory. */
+static GpivImage *gpiv_image_of(const float *a, const float *b)
 {
     GpivImagePar ipar;
     memset(&ipar, 0, sizeof ipar);
@@ -58,12 +64,21 @@ static int run_gpiv(const float *a, const float *b, int deform, double *ms, doub
     ipar.x_corr__set = TRUE;
     GpivImage *img = gpiv_alloc_img(&ipar);
     if (!img)
-        return 1;
+        return NULL;
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
             img->frame1[y][x] = (guint16)a[(size_t)y * W + (size_t)x];
             img->frame2[y][x] = (guint16)b[(size_t)y * W + (size_t)x];
         }
+    return img;
+}
+
+static int run_gpiv(const float *a, const float *b, int deform, double *ms, double *err,
+                    uint64_t *sum, unsigned *nvec)
+{
+    GpivImage *img = gpiv_image_of(a, b);
+    if (!img)
+        return 1;
     GpivPivPar ppar;
     memset(&ppar, 0, sizeof ppar);
     gpiv_piv_default_parameters(&ppar, TRUE);
@@ -160,6 +175,163 @@ static int run_rpiv(float *a, float *b, int threads, double *ms, double *err, ui
     return 0;
 }
 
+#if defined(RPIV_CLI_PATH) && defined(GPIV_CLI_PATH)
+/* One command under /usr/bin/time: wall and CPU (user + system) seconds, peak RSS in MB. */
+static int timed(const char *cmd, const char *tfile, double *wall, double *cpu, double *rss)
+{
+    char line[8192];
+    snprintf(line, sizeof line, "/usr/bin/time -f '%%e %%U %%S %%M' -o %s %s", tfile, cmd);
+    if (system(line) != 0)
+        return 1;
+    FILE *f = fopen(tfile, "r");
+    double u = 0, s = 0, m = 0;
+    int n = f ? fscanf(f, "%lf %lf %lf %lf", wall, &u, &s, &m) : 0;
+    if (f)
+        fclose(f);
+    *cpu = u + s;
+    *rss = m / 1024.0;
+    return n != 4;
+}
+
+/* RMS error (worst component) of libgpiv's text output against the displacement, over the
+ * vectors it found (peak_no >= 1); lines "x y dx dy snr peak_no", '#' comments. */
+static double gpiv_text_error(const char *path, unsigned *n)
+{
+    FILE *f = fopen(path, "r");
+    char line[512];
+    double su = 0, sv = 0;
+    *n = 0;
+    while (f && fgets(line, sizeof line, f)) {
+        double x, y, dx, dy, snr;
+        int peak;
+        if (line[0] == '#' ||
+            sscanf(line, "%lf %lf %lf %lf %lf %d", &x, &y, &dx, &dy, &snr, &peak) != 6 || peak < 1)
+            continue;
+        su += (dx - DISP[0]) * (dx - DISP[0]);
+        sv += (dy - DISP[1]) * (dy - DISP[1]);
+        (*n)++;
+    }
+    if (f)
+        fclose(f);
+    return *n ? sqrt(fmax(su, sv) / *n) : 1e9;
+}
+
+static double rpiv_text_error(const char *path, size_t *n)
+{
+    rpiv_field *f = NULL;
+    if (rpiv_field_load_txt(path, &f))
+        return 1e9;
+    *n = (size_t)f->nx * (size_t)f->ny;
+    double su = 0, sv = 0;
+    for (size_t k = 0; k < *n; k++) {
+        su += ((double)f->u[k] - DISP[0]) * ((double)f->u[k] - DISP[0]);
+        sv += ((double)f->v[k] - DISP[1]) * ((double)f->v[k] - DISP[1]);
+    }
+    rpiv_field_free(f);
+    return sqrt(fmax(su, sv) / (double)*n);
+}
+
+/* The whole-process comparison (issue 15): each program reads the pair from files, processes
+ * it and writes its vectors as text, under /usr/bin/time: `rpiv piv` (default settings) and
+ * libgpiv (bench/gpiv_cli.c: its own reader, the single 32 px pass). Two inputs: uncompressed
+ * (rpiv: two 16-bit TIFF files; libgpiv: its raw format, pair.r + pair.h, as neither reads the
+ * other's uncompressed format) and compressed (the same double-frame 16-bit PNG for both, frame
+ * A on top). Rounds gpiv, rpiv -j1, rpiv -j2, three times; ratios of medians. Returns nonzero if
+ * a run failed or a result is wrong. */
+static int whole_process(const float *a, const float *b)
+{
+    char dir[] = "/tmp/rpiv_bench_gpiv_XXXXXX";
+    if (!mkdtemp(dir))
+        return 1;
+    char fa[128], fb[128], fr[128], fh[128], fp[128], tfile[128], rout[128], gout[128];
+    snprintf(fa, sizeof fa, "%s/a.tif", dir);
+    snprintf(fb, sizeof fb, "%s/b.tif", dir);
+    snprintf(fr, sizeof fr, "%s/pair.r", dir);
+    snprintf(fh, sizeof fh, "%s/pair.h", dir);
+    snprintf(fp, sizeof fp, "%s/pair.png", dir);
+    snprintf(tfile, sizeof tfile, "%s/time.txt", dir);
+    snprintf(rout, sizeof rout, "%s/rpiv.txt", dir);
+    snprintf(gout, sizeof gout, "%s/gpiv.txt", dir);
+    int bad = 0;
+    rpiv_image ia = {W, H, 16, (float *)a}, ib = {W, H, 16, (float *)b}, *st = NULL;
+    GpivImage *gimg = gpiv_image_of(a, b);
+    if (!gimg || rpiv_image_save_tiff16(&ia, fa) || rpiv_image_save_tiff16(&ib, fb) ||
+        rpiv_image_new(W, 2 * H, &st) || gpiv_fwrite_raw_image(fr, gimg)) {
+        fprintf(stderr, "gpiv_ref: cannot write the pair's files in %s\n", dir);
+        bad = 1;
+    }
+    if (gimg)
+        gpiv_free_img(gimg);
+    if (!bad) {
+        memcpy(st->px, a, sizeof(float) * W * H);
+        memcpy(st->px + (size_t)W * H, b, sizeof(float) * W * H);
+        bad = rpiv_image_save_png16(st, fp) != RPIV_OK;
+    }
+    rpiv_image_free(st);
+    struct {
+        const char *name, *rin, *gin;
+    } in[2] = {{"uncompressed", NULL, fr}, {"png", fp, fp}};
+    char rboth[300];
+    snprintf(rboth, sizeof rboth, "%s %s", fa, fb);
+    in[0].rin = rboth;
+    for (int c = 0; c < 2 && !bad; c++) {
+        printf("# whole processes, %s input (rpiv: %s; libgpiv: %s): read, processed and "
+               "written as text; /usr/bin/time wall (CPU, peak RSS) per run\n",
+               in[c].name, in[c].rin, in[c].gin);
+        double rw[2][3], gw[3];
+        char cmd[1024];
+        for (int r = 0; r < 3 && !bad; r++) {
+            double wall, cpu, rss;
+            snprintf(cmd, sizeof cmd, "%s %s %s", GPIV_CLI_PATH, in[c].gin, gout);
+            if (timed(cmd, tfile, &wall, &cpu, &rss)) {
+                printf("# libgpiv whole process failed\n");
+                bad = 1;
+                break;
+            }
+            gw[r] = wall;
+            printf("#   round %d: libgpiv %.0f ms (CPU %.0f ms, %.0f MB)", r + 1, 1e3 * wall,
+                   1e3 * cpu, rss);
+            for (int t = 1; t <= 2; t++) {
+                snprintf(cmd, sizeof cmd, "%s piv -j %d %s -o %s 2>/dev/null", RPIV_CLI_PATH, t,
+                         in[c].rin, rout);
+                if (timed(cmd, tfile, &wall, &cpu, &rss)) {
+                    printf("\n# rpiv whole process failed\n");
+                    bad = 1;
+                    break;
+                }
+                rw[t - 1][r] = wall;
+                printf("; rpiv -j%d %.0f ms (CPU %.0f ms, %.0f MB) %.1f x", t, 1e3 * wall,
+                       1e3 * cpu, rss, gw[r] / wall);
+            }
+            printf("\n");
+        }
+        if (bad)
+            break;
+        unsigned gn = 0;
+        size_t rn = 0;
+        double ge = gpiv_text_error(gout, &gn), re = rpiv_text_error(rout, &rn);
+        double gm = bench_median(gw, 3);
+        for (int t = 1; t <= 2; t++)
+            bench_line(c ? "whole_png" : "whole_uncompr", W, H, t, 1e3 * bench_median(rw[t - 1], 3),
+                       1e3 * gm, 0);
+        printf("#   speed-up (medians) %.1f x on 1 thread, %.1f x on 2; RMS error of the files: "
+               "rpiv %.4f px (%zu vectors), libgpiv %.4f px (%u vectors)%s\n",
+               gm / bench_median(rw[0], 3), gm / bench_median(rw[1], 3), re, rn, ge, gn,
+               re <= 0.012 && ge < 0.2 ? "" : " FAILED");
+        bad |= re > 0.012 || ge >= 0.2;
+    }
+    if (getenv("BENCH_KEEP")) {
+        printf("#   files kept in %s (BENCH_KEEP)\n", dir);
+        return bad;
+    }
+    const char *files[] = {fa, fb, fr, fh, fp, tfile, rout, gout};
+    for (size_t k = 0; k < sizeof files / sizeof *files; k++)
+        unlink(files[k]);
+    rmdir(dir);
+    return bad;
+}
+#endif
+
 int main(void)
 {
     rpiv_init();
@@ -205,6 +377,11 @@ int main(void)
         }
     }
     printf("#   peak RSS of this process %.0f MB\n", bench_maxrss_mb());
+#if defined(RPIV_CLI_PATH) && defined(GPIV_CLI_PATH)
+    bad |= whole_process(a, b);
+#else
+    printf("# whole processes: not built (no rpiv or gpiv_cli target)\n");
+#endif
     free(a);
     free(b);
     return bad;

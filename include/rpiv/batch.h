@@ -75,6 +75,11 @@ void rpiv_batch_free(rpiv_batch *b); /* NULL is a no-op */
 /* The frame size of the series: that of the first pair that can be read (earlier ones are
  * skipped with skip_bad, else their error is returned). Every rank reads the same pairs. */
 RPIV_NODISCARD rpiv_status rpiv_batch_size(rpiv_batch *b, int *w, int *h);
+/* The grey-level statistics of the frames of the pair rpiv_batch_size read, and its index
+ * (0-based) in *i: 1, or 0 if it read none. The frames themselves are kept for the first use of
+ * that pair by this rank, so that the files are not read twice. */
+int rpiv_batch_first_stats(const rpiv_batch *b, size_t *i, rpiv_image_stats *sa,
+                           rpiv_image_stats *sb);
 
 /* The background of the series (rpiv_series_background) for w x h frames: each rank computes it
  * over its own pairs and the ranks combine them (minimum: exact; mean: the ranks' means

@@ -35,6 +35,7 @@ void rpiv_batch_free(rpiv_batch *b)
 {
     if (!b)
         return;
+    batch_first_free(b);
     free(b->ckpt);
     free(b->state);
     free(b->skipped);

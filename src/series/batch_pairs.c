@@ -7,6 +7,7 @@
 #include "mpi_impl.h"
 #include "series_impl.h"
 
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -30,7 +31,15 @@ void batch_mark_bad(rpiv_batch *b, size_t i, int notify)
 rpiv_status batch_load_pair(const rpiv_batch *b, size_t i, int w, int h, rpiv_image **a,
                             rpiv_image **bb)
 {
-    rpiv_status st = rpiv_pairs_load(b->pairs, i, a, bb);
+    rpiv_status st = RPIV_OK;
+    rpiv_image *fa = NULL;
+    if (b->first && b->first->i == i && (fa = atomic_exchange(&b->first->a, NULL))) {
+        *a = fa;
+        *bb = b->first->b;
+        b->first->b = NULL;
+    } else {
+        st = rpiv_pairs_load(b->pairs, i, a, bb);
+    }
     if (!st && w > 0 && ((*a)->w != w || (*a)->h != h)) {
         st = rpiv_fail(RPIV_ESIZE, "pair %zu of %zu: %s: %dx%d frames, the series' are %dx%d",
                        i + 1, b->pairs->n, b->pairs->pair[i].path_a, (*a)->w, (*a)->h, w, h);
@@ -75,6 +84,48 @@ out_free:
     return st;
 }
 
+/* Keep pair i's frames (taking them from *a, *bb) for the first batch_load_pair of i, if this
+ * rank processes that pair; keep their statistics in any case. */
+static void batch_keep_first(rpiv_batch *b, size_t i, rpiv_image **a, rpiv_image **bb)
+{
+    batch_first_free(b);
+    batch_first *f = calloc(1, sizeof *f);
+    if (!f)
+        return; /* only a lost shortcut: the pair is read again */
+    f->i = i;
+    f->sa = rpiv_image_stats_of(*a);
+    f->sb = rpiv_image_stats_of(*bb);
+    f->have_stats = 1;
+    atomic_init(&f->a, NULL);
+    if (rpiv_mpi_mine(b->mpi, i) && !(b->state[i] & DONE)) {
+        atomic_store(&f->a, *a);
+        f->b = *bb;
+        *a = *bb = NULL;
+    }
+    b->first = f;
+}
+
+void batch_first_free(rpiv_batch *b)
+{
+    if (!b->first)
+        return;
+    rpiv_image_free(atomic_exchange(&b->first->a, NULL));
+    rpiv_image_free(b->first->b);
+    free(b->first);
+    b->first = NULL;
+}
+
+int rpiv_batch_first_stats(const rpiv_batch *b, size_t *i, rpiv_image_stats *sa,
+                           rpiv_image_stats *sb)
+{
+    if (!b->first || !b->first->have_stats)
+        return 0;
+    *i = b->first->i;
+    *sa = b->first->sa;
+    *sb = b->first->sb;
+    return 1;
+}
+
 rpiv_status rpiv_batch_size(rpiv_batch *b, int *w, int *h)
 {
     rpiv_status st = RPIV_OK;
@@ -86,6 +137,7 @@ rpiv_status rpiv_batch_size(rpiv_batch *b, int *w, int *h)
         if (!(st = rpiv_pairs_load(b->pairs, i, &a, &bb))) {
             *w = a->w;
             *h = a->h;
+            batch_keep_first(b, i, &a, &bb);
         } else if (b->p.skip_bad && batch_unreadable(st)) {
             batch_mark_bad(b, i, rpiv_mpi_mine(b->mpi, i));
             st = RPIV_OK;

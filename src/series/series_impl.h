@@ -8,10 +8,23 @@
 #include "rpiv/batch.h"
 #include "rpiv/ensemble.h"
 
+#include <stdatomic.h>
+
 #include <stddef.h>
 #include <stdint.h>
 
 enum { DONE = 1, BAD = 2 }; /* per-pair state bits: added in this pass; unreadable */
+
+/* The frames of the pair rpiv_batch_size read (pair i), handed to the first batch_load_pair of
+ * that pair instead of reading the files again (the first of several threads to ask takes
+ * them; the others read the files), and their statistics. */
+typedef struct batch_first {
+    size_t i;
+    _Atomic(rpiv_image *) a; /* frame A, or NULL once taken */
+    rpiv_image *b;           /* frame B, owned with a        */
+    rpiv_image_stats sa, sb;
+    int have_stats;
+} batch_first;
 
 struct rpiv_batch {
     const rpiv_pairs *pairs;       /* the files, or &made for a source                   */
@@ -25,6 +38,7 @@ struct rpiv_batch {
     size_t *skipped, nskipped;
     int resumed, resume_pass;
     size_t resume_done, npairs_last;
+    batch_first *first; /* the pair rpiv_batch_size read, kept for its first use */
 };
 
 /* ---- batch.c, batch_pairs.c: making a batch, unreadable pairs
@@ -41,6 +55,8 @@ void batch_mark_bad(rpiv_batch *b, size_t i, int notify);
 /* Load pair i; frames of another size than w x h (w > 0) are an error naming the pair. */
 RPIV_NODISCARD rpiv_status batch_load_pair(const rpiv_batch *b, size_t i, int w, int h,
                                            rpiv_image **a, rpiv_image **bb);
+/* Release the pair kept by rpiv_batch_size, if any. */
+void batch_first_free(rpiv_batch *b);
 /* Merge the BAD marks of all ranks and rebuild the list of skipped pairs. Collective. */
 RPIV_NODISCARD rpiv_status batch_sync_bad(rpiv_batch *b);
 
