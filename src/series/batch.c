@@ -5,6 +5,7 @@
  * pair goes where and when. Checkpoints are in checkpoint.c, the background in background.c,
  * loading pairs and agreeing on the unreadable ones in batch_pairs.c. */
 #include "rpiv/batch.h"
+#include "rpiv/validate.h"
 
 #include "rpiv/ensemble.h"
 
@@ -339,6 +340,12 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
     }
     rpiv_ensemble_free(e);
     if (st) {
+        rpiv_field_free(pred);
+        return st;
+    }
+    /* optional smoothing of the final field (off by default), as for a pair's field */
+    double s = rpiv_piv_params_of(pv)->smooth;
+    if (s > 0 && (st = rpiv_validate_smooth(pred, s))) {
         rpiv_field_free(pred);
         return st;
     }
