@@ -8,6 +8,7 @@
 #include "rpiv/series.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -294,6 +295,88 @@ static void each_visits_every_pair_in_order_and_stops(void)
     CHECK(v.n == 0);
 }
 
+/* rpiv_piv_run_pairs: small frames go a pair per thread, yet every field has the bits of the
+ * pair run alone on a one-thread plan; `done` sees the pairs in order, a failed load with
+ * loaded = 0 and its message, and a stop status ends the run. */
+typedef struct rp_ctx {
+    float *a[6], *b[6];
+    size_t seen[8], nseen;
+    int fail_k, stop_k;
+    rpiv_field *ref[6];
+    int same, checked, msg_ok;
+} rp_ctx;
+
+static rpiv_status rp_load(void *user, size_t k, rpiv_image **a, rpiv_image **b)
+{
+    rp_ctx *c = user;
+    if ((int)k == c->fail_k)
+        return rpiv_fail(RPIV_EIO, "pair %zu: cannot read (test)", k);
+    rpiv_status st = rpiv_image_new(128, 128, a);
+    if (!st && (st = rpiv_image_new(128, 128, b))) {
+        rpiv_image_free(*a);
+        *a = NULL;
+    }
+    if (!st) {
+        memcpy((*a)->px, c->a[k], 128 * 128 * sizeof(float));
+        memcpy((*b)->px, c->b[k], 128 * 128 * sizeof(float));
+    }
+    return st;
+}
+
+static rpiv_status rp_done(void *user, size_t k, rpiv_status st, int loaded, rpiv_field *f)
+{
+    rp_ctx *c = user;
+    c->seen[c->nseen++] = k;
+    if ((int)k == c->fail_k) {
+        c->msg_ok = st == RPIV_EIO && !loaded && !f && strstr(rpiv_errmsg(), "cannot read (test)");
+    } else if (!st && f && c->ref[k]) {
+        size_t n = (size_t)f->nx * (size_t)f->ny;
+        c->checked++;
+        c->same += n == (size_t)c->ref[k]->nx * (size_t)c->ref[k]->ny &&
+                   !memcmp(f->u, c->ref[k]->u, n * sizeof *f->u) &&
+                   !memcmp(f->v, c->ref[k]->v, n * sizeof *f->v) &&
+                   !memcmp(f->flag, c->ref[k]->flag, n * sizeof *f->flag);
+    }
+    rpiv_field_free(f);
+    return (int)k == c->stop_k ? rpiv_fail(RPIV_EINTR, "stop (test)") : RPIV_OK;
+}
+
+static void run_pairs_in_order_same_bits(void)
+{
+    rp_ctx c = {.fail_k = 2, .stop_k = 4};
+    rpiv_piv_params p = rpiv_piv_params_default();
+    p.threads = 1;
+    rpiv_piv *one = NULL, *two = NULL;
+    CHECK_OK(rpiv_piv_new(&p, 128, 128, NULL, &one));
+    p.threads = 2;
+    CHECK_OK(rpiv_piv_new(&p, 128, 128, NULL, &two));
+    for (int k = 0; k < 6; k++) {
+        c.a[k] = malloc(128 * 128 * sizeof(float));
+        c.b[k] = malloc(128 * 128 * sizeof(float));
+        double d[2] = {1.0 + 0.37 * k, -0.6 + 0.21 * k};
+        ti_params tp = {128, 128, 0.04, 2.5, 1000, 0.02, 50, 900 + (uint64_t)k};
+        ti_pair(&tp, ti_uniform, d, c.a[k], c.b[k]);
+        rpiv_image ia = {128, 128, 8, c.a[k]}, ib = {128, 128, 8, c.b[k]};
+        CHECK_OK(rpiv_piv_run(one, &ia, &ib, &c.ref[k]));
+    }
+    rpiv_status st = rpiv_piv_run_pairs(two, 6, rp_load, rp_done, &c);
+    CHECK(st == RPIV_EINTR);
+    CHECK(c.nseen == 5);
+    for (size_t j = 0; j < c.nseen; j++)
+        CHECK(c.seen[j] == j);
+    CHECK(c.msg_ok);
+    CHECK(c.checked == 4 && c.same == 4);
+    printf("  %zu pairs seen in order, %d of %d fields bit-identical to the one-thread run\n",
+           c.nseen, c.same, c.checked);
+    for (int k = 0; k < 6; k++) {
+        free(c.a[k]);
+        free(c.b[k]);
+        rpiv_field_free(c.ref[k]);
+    }
+    rpiv_piv_free(one);
+    rpiv_piv_free(two);
+}
+
 int main(void)
 {
     rpiv_init();
@@ -301,5 +384,6 @@ int main(void)
     RUN_TEST(background_min_and_mean);
     RUN_TEST(series_driver_runs_every_pair);
     RUN_TEST(each_visits_every_pair_in_order_and_stops);
+    RUN_TEST(run_pairs_in_order_same_bits);
     return check_summary();
 }

@@ -159,4 +159,22 @@ RPIV_NODISCARD rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *
 RPIV_NODISCARD rpiv_status rpiv_piv_run(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b,
                                         rpiv_field **out);
 
+/* Loads pair k (0-based within a rpiv_piv_run_pairs call) into *a, *b, which the callee frees.
+ * May be called from several threads at once, for different k. */
+typedef rpiv_status (*rpiv_piv_load_fn)(void *user, size_t k, rpiv_image **a, rpiv_image **b);
+/* Told, on the calling thread and in the order of k, how pair k went: st RPIV_OK and f its field
+ * (owned by the callee from then on), or its error (f NULL; loaded = 0: from the load, 1: from
+ * the passes; the message is rpiv_errmsg()'s). Returns RPIV_OK to go on, or the status to stop
+ * with (the later pairs are then not done). */
+typedef rpiv_status (*rpiv_piv_done_fn)(void *user, size_t k, rpiv_status st, int loaded,
+                                        rpiv_field *f);
+/* The fields of n pairs, each as rpiv_piv_load + rpiv_piv_passes give it, handed to `done` in
+ * pair order. Small frames (up to 1.5 Mpx) go a pair per thread of the plan, each thread on its
+ * own one-thread copy (their parallel regions would otherwise be too short for the threads to
+ * pay, and on a busy machine the threads would wait for each other at every one); large frames
+ * one after another, the plan's threads inside each. The fields have the same bits either way.
+ * The first status a `done` call returns, RPIV_ENOMEM, or RPIV_OK. */
+RPIV_NODISCARD rpiv_status rpiv_piv_run_pairs(rpiv_piv *pv, size_t n, rpiv_piv_load_fn load,
+                                              rpiv_piv_done_fn done, void *user);
+
 #endif /* RPIV_PIV_H */

@@ -390,10 +390,72 @@ static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **
     return st;
 }
 
+/* A team of one: the readable pairs through rpiv_piv_run_pairs (small frames a pair per
+ * thread), the sinks called in pair order as the loop below calls them. */
+typedef struct solo_ctx {
+    rpiv_batch *b;
+    const size_t *idx; /* the pairs to do */
+    int w, h;
+    rpiv_series_sink local, root;
+    void *user;
+    const rpiv_progress *progress;
+    size_t done, n;
+} solo_ctx;
+
+static rpiv_status solo_load(void *user, size_t k, rpiv_image **a, rpiv_image **bb)
+{
+    const solo_ctx *c = user;
+    return batch_load_pair(c->b, c->idx[k], c->w, c->h, a, bb);
+}
+
+static rpiv_status solo_done(void *user, size_t k, rpiv_status st, int loaded, rpiv_field *f)
+{
+    solo_ctx *c = user;
+    rpiv_batch *b = c->b;
+    size_t i = c->idx[k];
+    if (st && loaded) {
+        char msg[768];
+        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+        st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+    }
+    if (st && b->p.skip_bad && batch_unreadable(st)) {
+        batch_mark_bad(b, i, 1);
+        st = RPIV_OK;
+    }
+    if (!st && f && c->local)
+        st = c->local(c->user, i, f);
+    if (!st && f && c->root)
+        st = c->root(c->user, i, f);
+    rpiv_field_free(f);
+    if (!st && rpiv_progress_report(c->progress, ++c->done, c->n))
+        st = rpiv_fail(RPIV_EINTR, "piv: interrupted after %zu of %zu pairs", c->done, c->n);
+    return st;
+}
+
+static rpiv_status series_solo(rpiv_batch *b, rpiv_piv *pv, rpiv_series_sink local,
+                               rpiv_series_sink root, void *user, const rpiv_progress *progress)
+{
+    size_t N = b->pairs->n, n = 0;
+    size_t *idx = malloc((N ? N : 1) * sizeof *idx);
+    if (!idx)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory");
+    for (size_t i = 0; i < N; i++)
+        if (!(b->state[i] & BAD))
+            idx[n++] = i;
+    solo_ctx c = {b, idx, 0, 0, local, root, user, progress, N - n, N};
+    rpiv_piv_size(pv, &c.w, &c.h);
+    rpiv_status st = rpiv_piv_run_pairs(pv, n, solo_load, solo_done, &c);
+    free(idx);
+    rpiv_status ss = batch_sync_bad(b);
+    return st ? st : ss;
+}
+
 rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_series_sink local,
                               rpiv_series_sink root, void *user, const rpiv_progress *progress)
 {
     const rpiv_mpi *m = b->mpi;
+    if (rpiv_mpi_size(m) == 1)
+        return series_solo(b, pv, local, root, user, progress);
     size_t N = b->pairs->n, K = (size_t)rpiv_mpi_size(m), r = (size_t)rpiv_mpi_rank(m);
     size_t nmine = N / K + (r < N % K), done = 0;
     rpiv_field *grid = NULL, **all = calloc(K, sizeof *all);
