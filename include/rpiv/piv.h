@@ -54,6 +54,8 @@ typedef struct rpiv_piv_params {
     double refine_tol_px; /* convergence: RMS change between iterations, px (0.02) */
     double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.1
                              suggested with refine_defer) */
+    int refine_denoise;   /* 1: shrink the predictor's detail, threshold from its noise (1) */
+    int refine_stop;      /* 1: stop when the change no longer falls, keep the iterate before (1) */
     int refine_defer;     /* 1: no median test between repeats of the final size, only on the
                              field they converge to (0; experimental, docs/piv.md) */
     /* Image preprocessing applied to both frames of every pair on loading, after the
