@@ -174,7 +174,7 @@ static const key_spec keys[] = {
     {"piv", "refine_denoise", KEY_BOOL, OFF(piv.refine_denoise), 0, 1, 1, "-",
      "refinement: shrink the predictor's detail, threshold from its own noise level", 0},
     {"piv", "refine_stop", KEY_BOOL, OFF(piv.refine_stop), 0, 1, 1, "-",
-     "refinement: stop when the change no longer falls (keep the iterate before)", 0},
+     "refinement: stop when the change stops falling (keep the field of the smallest change)", 0},
     {"piv", "refine_defer", KEY_BOOL, OFF(piv.refine_defer), 0, 1, 1, "-",
      "refinement: median test on the converged field only, not between repeats", 0},
     {"piv", "uncertainty", KEY_BOOL, OFF(piv.uncertainty), 0, 1, 1, "-",
