@@ -181,6 +181,7 @@ static void piv_sinusoidal_shear_amplitude(void)
      * switched off, as it must be for any field sampled this coarsely. */
     rpiv_piv_params prm = rpiv_piv_params_default();
     prm.median_thr = 0;
+    prm.refine_max = 0; /* the listed passes (the refinement: test_refine) */
     rpiv_field *f = run(&prm, &p);
     rpiv_piv_params one = prm;
     one.npass = 1;
@@ -220,7 +221,11 @@ static void piv_refinement_recovers_a_shear(void)
         p.a[k] = floorf(fminf(p.a[k], 255) + 0.5f);
         p.b[k] = floorf(fminf(p.b[k], 255) + 0.5f);
     }
-    rpiv_piv_params d = rpiv_piv_params_default(), r = d, qd = d, qv;
+    rpiv_piv_params d = rpiv_piv_params_default(), r, qd, qv;
+    d.refine_max = 0; /* session 4's defaults (now: test_refine) */
+    d.refine_denoise = 0;
+    d.median_lines = 0;
+    r = qd = d;
     r.refine_max = 6;
     r.refine_filter = 0.2;
     r.median_lines = 1;

@@ -38,7 +38,7 @@ typedef struct rpiv_piv_params {
     double median_thr;              /* normalised median threshold; 0 = off (2)    */
     double median_eps;              /* median test epsilon, px (0.1)               */
     int median_lines;               /* 1: keep a vector failing the 3x3 test that
-                                       agrees with a row, column or diagonal (0)   */
+                                       agrees with a row, column or diagonal (1)   */
     rpiv_background background;     /* (none)                                      */
     int roi[4];                     /* x0, y0, x1, y1 px; all 0 = whole image      */
     char mask[512];                 /* mask image, 0 = masked ("" = none)          */
@@ -48,12 +48,16 @@ typedef struct rpiv_piv_params {
     int deform;                     /* 1: deform images between passes (1)         */
     double max_mem_mb;              /* refuse runs needing more memory, MB (4096)  */
     /* Iterative refinement at the final window size (rpiv_piv_passes): the last pass is
-     * repeated, each time deformed by the low-pass filtered result of the one before, until
-     * the RMS change of the field falls below refine_tol_px or refine_max repeats are done. */
-    int refine_max;       /* repeats of the last pass, 0..20 (0; 6 suggested) */
+     * repeated, each time deformed by the denoised result of the one before, until the RMS
+     * change of the field falls below refine_tol_px, stops falling (refine_stop) or
+     * refine_max repeats are done (docs/piv.md, "Refinement at the final size"). */
+    int refine_max;       /* repeats of the last pass, 0..20 (10) */
     double refine_tol_px; /* convergence: RMS change between iterations, px (0.02) */
     double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.1
                              suggested with refine_defer) */
+    int refine_denoise;   /* 1: shrink the predictor's detail, threshold from its noise (1) */
+    int refine_stop;      /* 1: stop when the change has not fallen below its smallest for two
+                             repeats; end with the iterate of the smallest change (1) */
     int refine_defer;     /* 1: no median test between repeats of the final size, only on the
                              field they converge to (0; experimental, docs/piv.md) */
     /* Image preprocessing applied to both frames of every pair on loading, after the
@@ -149,10 +153,12 @@ RPIV_NODISCARD rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_fiel
                                          rpiv_field **out);
 
 /* Every pass on the loaded pair, each pass's field being the next one's predictor, then the
- * refinement at the final window size: the last pass repeated (deformed by the low-pass
- * filtered field before it, params refine_filter) until the RMS change of the field between
- * two passes of the final size is below refine_tol_px, at most refine_max times (none with
- * deformation off). *out is the last field; *nrefine (may be NULL) the repeats done. */
+ * refinement at the final window size: the last pass repeated (deformed by the field before
+ * it, denoised with refine_denoise, low-passed with refine_filter) until the RMS change of the
+ * field between two passes of the final size is below refine_tol_px or, with refine_stop, has
+ * not fallen below its smallest for two repeats (the field of the smallest change is kept), at
+ * most refine_max times (none with deformation off). *out is the last field; *nrefine (may be
+ * NULL) the repeats of the field returned. */
 RPIV_NODISCARD rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine);
 
 /* The whole run on one pair: rpiv_piv_load, then rpiv_piv_passes. */

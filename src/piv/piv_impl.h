@@ -73,6 +73,13 @@ double piv_shift(const rpiv_piv *pv, int k);
  * low-pass filtered with weight `filter`, 0 = none), rows evaluated at pixel + shift. */
 RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
                                         double shift, double filter, rpiv_deform_pred **out);
+/* Does a predictor on this field's grid serve a pass that repeats the window size before it
+ * (the grid is that of pass j, and pass j + 1, or the last pass itself, repeats)? Such
+ * predictors are denoised with refine_denoise (src/piv/refine_filter.c). */
+int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
+/* Shrink the detail of a grid field above its [1/4, 1/2, 1/4] smoothing, along x then y, with
+ * a threshold from the field's own noise level (src/piv/refine_filter.c). */
+RPIV_NODISCARD rpiv_status piv_pred_denoise(rpiv_field *f);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

@@ -18,7 +18,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .subpixel = RPIV_SUBPIXEL_GAUSS,
                              .median_thr = 2.0,
                              .median_eps = 0.1,
-                             .median_lines = 0,
+                             .median_lines = 1,
                              .background = RPIV_BACKGROUND_NONE,
                              .roi = {0, 0, 0, 0},
                              .mask = "",
@@ -27,9 +27,11 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .dt_s = 0,
                              .deform = 1,
                              .max_mem_mb = 4096,
-                             .refine_max = 0,
+                             .refine_max = 10,
                              .refine_tol_px = 0.02,
                              .refine_filter = 0,
+                             .refine_denoise = 1,
+                             .refine_stop = 1,
                              .refine_defer = 0,
                              .prep = rpiv_preprocess_params_default()};
 }
@@ -65,6 +67,10 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_max: %d outside 0..20", p->refine_max);
     if (!(p->refine_tol_px >= 0 && p->refine_tol_px <= 10))
         return rpiv_fail(RPIV_EINVAL, "piv.refine_tol_px: %g outside 0..10", p->refine_tol_px);
+    if (p->refine_denoise != 0 && p->refine_denoise != 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_denoise: %d is not 0 or 1", p->refine_denoise);
+    if (p->refine_stop != 0 && p->refine_stop != 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_stop: %d is not 0 or 1", p->refine_stop);
     if (p->refine_defer != 0 && p->refine_defer != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
     if (!(p->refine_filter >= 0 && p->refine_filter <= 0.5))

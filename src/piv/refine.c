@@ -41,7 +41,9 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
     rpiv_status st = RPIV_OK;
     const int last = pv->npass - 1;
     double change = (double)INFINITY;
-    int it = 0, deferred = 0;
+    int it = 0, deferred = 0, stale = 0, best_it = 0;
+    rpiv_field *best = NULL;
+    double least = (double)INFINITY;
     *out = NULL;
     if (nrefine)
         *nrefine = 0;
@@ -58,11 +60,40 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
     }
     if (!pv->deforms)
         it = pv->p.refine_max; /* window offsets do not iterate */
+    /* the listed passes' own repeat is the first candidate of the noise-floor stop */
+    if (pv->p.refine_stop && it < pv->p.refine_max && isfinite(change) &&
+        !(change < pv->p.refine_tol_px)) {
+        if ((st = rpiv_field_copy(prev, &best)))
+            goto out_free;
+        least = change;
+    }
     for (; it < pv->p.refine_max && !(change < pv->p.refine_tol_px); it++) {
         if ((st = piv_step(pv, last, prev, pv->p.refine_defer, &f)))
             goto out_free;
         deferred = pv->p.refine_defer;
-        change = field_change(f, prev);
+        double now = field_change(f, prev);
+        /* the noise floor: the change has not fallen below its smallest for two repeats,
+         * the repeats only stir the measurement noise (docs/piv.md): end with the iterate
+         * that came with the smallest change */
+        change = now;
+        if (pv->p.refine_stop && now < least) {
+            least = now;
+            stale = 0;
+            rpiv_field_free(best);
+            best = NULL;
+            if ((st = rpiv_field_copy(f, &best)))
+                goto out_free;
+            best_it = it + 1;
+        } else if (pv->p.refine_stop && ++stale >= 2) {
+            rpiv_field_free(prev);
+            prev = best;
+            best = NULL;
+            rpiv_field_free(f);
+            f = NULL;
+            if (nrefine)
+                *nrefine = best_it;
+            break;
+        }
         rpiv_field_free(prev);
         prev = f;
         f = NULL;
@@ -81,6 +112,8 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
     *out = prev;
     prev = NULL;
 out_free:
+    rpiv_field_free(best);
+    rpiv_field_free(f);
     rpiv_field_free(prev);
     return st;
 }

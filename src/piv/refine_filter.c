@@ -1,0 +1,129 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/piv/refine_filter.c - the denoiser of the refinement's predictor (docs/piv.md,
+ * "Refinement at the final size"): the field split, line by line along x and then along y,
+ * into a [1/4, 1/2, 1/4] smoothing and its detail, the detail shrunk (non-negative garrote)
+ * with a threshold set from the field's own noise level, sigma sqrt(2 ln n) (Donoho and
+ * Johnstone's universal threshold), sigma the median absolute detail / 0.6745 along the grid
+ * direction where it is smallest. */
+#include "piv_impl.h"
+
+#include "rpiv/deform.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Detail of sample i of a line of n >= 3 samples (stride s): U_i minus its smoothing.
+ * Inside, (2 U_i - U_{i-1} - U_{i+1}) / 4; at an end, U_0 minus the least-squares line
+ * through the first three samples, (U_0 - 2 U_1 + U_2) / 6, whose noise is 2/3 of the inner
+ * one's (white noise). Both vanish on linear fields. */
+static double detail(const float *g, int n, size_t s, int i)
+{
+    if (i == 0)
+        return ((double)g[0] - 2.0 * (double)g[s] + (double)g[2 * s]) / 6.0;
+    if (i == n - 1) {
+        const float *e = g + (size_t)(n - 1) * s;
+        return ((double)e[0] - 2.0 * (double)e[-(ptrdiff_t)s] + (double)e[-2 * (ptrdiff_t)s]) / 6.0;
+    }
+    const float *c = g + (size_t)i * s;
+    return (2.0 * (double)c[0] - (double)c[-(ptrdiff_t)s] - (double)c[s]) / 4.0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median_of(double *v, size_t n)
+{
+    if (!n)
+        return 0;
+    qsort(v, n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* Noise level of one component: the smallest over the four grid directions (x, y and the
+ * diagonals) of the median absolute inner detail / 0.6745. A shear or wave along one
+ * direction has no detail across it, so at least one direction sees the noise alone. */
+static double noise_sigma(const float *g, int nx, int ny, double *buf)
+{
+    const ptrdiff_t sx = 1, sy = nx;
+    const ptrdiff_t dirs[4] = {sx, sy, sy + sx, sy - sx};
+    double best = (double)INFINITY;
+    for (int d = 0; d < 4; d++) {
+        const int ix = d != 1, iy = d != 0; /* an inner sample along x, along y */
+        size_t m = 0;
+        for (int j = iy; j < ny - iy; j++)
+            for (int i = ix; i < nx - ix; i++) {
+                const float *c = g + (size_t)j * (size_t)nx + (size_t)i;
+                buf[m++] =
+                    fabs(2.0 * (double)c[0] - (double)c[-dirs[d]] - (double)c[dirs[d]]) / 4.0;
+            }
+        if (m >= 8) {
+            double s = median_of(buf, m) / 0.6745;
+            best = s < best ? s : best;
+        }
+    }
+    return best;
+}
+
+/* Shrink the details of the lines of g (count lines, n samples each, sample stride s, line
+ * stride ls) with threshold t (t * 2/3 at the ends, whose detail has 2/3 of the noise). */
+static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, double t, double *line)
+{
+    for (int l = 0; l < count; l++) {
+        float *r = g + (size_t)l * ls;
+        for (int i = 0; i < n; i++)
+            line[i] = detail(r, n, s, i);
+        for (int i = 0; i < n; i++) {
+            double d = line[i], ti = (i == 0 || i == n - 1) ? t * (2.0 / 3.0) : t;
+            /* non-negative garrote: d - t^2 / d above the threshold, 0 below */
+            double kept = fabs(d) > ti ? d - ti * ti / d : 0;
+            r[(size_t)i * s] = (float)((double)r[(size_t)i * s] - d + kept);
+        }
+    }
+}
+
+rpiv_status piv_pred_denoise(rpiv_field *f)
+{
+    const int nx = f->nx, ny = f->ny;
+    const size_t n = (size_t)nx * (size_t)ny;
+    if (nx < 3 && ny < 3)
+        return RPIV_OK;
+    double *buf = malloc((n + (size_t)(nx > ny ? nx : ny)) * sizeof *buf);
+    if (!buf)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor denoiser");
+    double *line = buf + n;
+    const double universal = sqrt(2.0 * log((double)n));
+    for (int comp = 0; comp < 2; comp++) {
+        float *g = comp ? f->v : f->u;
+        double sigma = noise_sigma(g, nx, ny, buf);
+        if (!isfinite(sigma))
+            continue;
+        const double t = sigma * universal;
+        if (nx >= 3)
+            shrink_lines(g, ny, nx, 1, (size_t)nx, t, line);
+        if (ny >= 3)
+            shrink_lines(g, nx, ny, (size_t)nx, 1, t, line);
+    }
+    free(buf);
+    return RPIV_OK;
+}
+
+int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
+{
+    /* piv_shift and piv_repeats (src/piv/piv.c) spelled out: this file calls nothing there */
+    for (int j = 0; j < pv->npass; j++) {
+        const piv_pass *ps = &pv->pass[j];
+        const double c = j > 0 && pv->deforms ? RPIV_DEFORM_SHIFT : 0.0;
+        if (ps->nx == predictor->nx && ps->ny == predictor->ny && ps->sx == predictor->dx &&
+            ps->sy == predictor->dy && ps->ox + 0.5 * (ps->ww - 1) + c == predictor->x0 &&
+            ps->oy + 0.5 * (ps->wh - 1) + c == predictor->y0) {
+            const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
+            return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
+                   pv->pass[k].wh == pv->pass[k - 1].wh;
+        }
+    }
+    return 0;
+}
