@@ -60,6 +60,14 @@ typedef struct rpiv_piv_params {
                              repeats; end with the iterate of the smallest change (1) */
     int refine_defer;     /* 1: no median test between repeats of the final size, only on the
                              field they converge to (0; experimental, docs/piv.md) */
+    double refine_adapt;  /* k > 0: the repeat's predictor filter (refine_filter a) adapts to
+                             each vector's noise: weight a 6k s^2 / (6k s^2 + D^2), s the vector's
+                             random uncertainty (correlation statistics, computed on the passes
+                             of the final size), D the field's second difference along the
+                             filter's axis (0 = off; 4 with refine_filter 0.5 suggested for
+                             noisy images; docs/deform.md, "Noisy small particles"). The
+                             fields of those passes carry sigma_u, sigma_v (with refine_max
+                             > 0 the final field too) */
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;

@@ -428,8 +428,14 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
             f->flag[k] = RPIV_FLAG_VALID;
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise) */
     const int denoise = pv->p.refine_denoise && piv_pred_repeats(pv, predictor);
+    const rpiv_quantity *su = rpiv_field_quantity(f, "sigma_u"),
+                        *sv = rpiv_field_quantity(f, "sigma_v");
+    const float *sig[2] = {su ? su->data : NULL, sv ? sv->data : NULL};
+    const int adapt = filter > 0 && pv->p.refine_adapt > 0 && sig[0] && sig[1];
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
-        !(filter > 0 && (st = pred_filter(f, filter))) && !(denoise && (st = piv_pred_denoise(f))))
+        !(filter > 0 && (st = adapt ? deform_pred_filter_adapt(f, filter, pv->p.refine_adapt, sig)
+                                    : pred_filter(f, filter))) &&
+        !(denoise && (st = piv_pred_denoise(f))))
         st = rpiv_deform_pred_new(f, pv->w, pv->h, shift, out);
     rpiv_field_free(f);
     return st;
@@ -737,7 +743,13 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
         if (ps->masked[win])
             f->flag[win] = RPIV_FLAG_MASKED;
     step_ctx c = {pv, ps, f, NULL, NULL, NULL};
-    if (pv->p.uncertainty && pass == pv->npass - 1) {
+    /* the adaptive predictor filter (refine_adapt) reads the uncertainty of the passes of the
+     * final size that feed a repeat: every one before the last, the last when it repeats */
+    const piv_pass *fin = &pv->pass[pv->npass - 1];
+    const int adapt_unc = pv->p.refine_adapt > 0 && pv->p.refine_filter > 0 && pv->deforms &&
+                          pass > 0 && ps->ww == fin->ww && ps->wh == fin->wh &&
+                          (pass < pv->npass - 1 || pv->p.refine_max > 0);
+    if ((pv->p.uncertainty && pass == pv->npass - 1) || adapt_unc) {
         /* the final window size: sigma_u, sigma_v of every vector (docs/uncertainty.md) */
         if ((st = unc_add(f, &c.su, &c.sv)))
             goto out_free;

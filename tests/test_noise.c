@@ -1,0 +1,282 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* Noisy, small particle images (issue 15): pairs of tests/piv_testimg.h with particle images
+ * of 1.5 px (e^-2 diameter) at SNR 10 (Gaussian noise of standard deviation 0.1 of the grey
+ * level of a centred particle of full intensity), uniform shifts u = s, v = -s, s = 0 .. 2 px
+ * in steps of 0.1 px, 512 x 512, the default 64, 32, 32 passes. RMS error over every vector
+ * (borders included) and peak-locking: the largest value of the periodic part (two
+ * harmonics, period 1 px) fitted to the mean error against the shift. docs/deform.md,
+ * "Noisy small particles", gives the study these figures come from (bench/bench_noise.c). */
+#include "check.h"
+#include "piv_testimg.h"
+#include "rpiv/piv.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { N = 512 };
+
+/* Largest |periodic part| of the least-squares fit a0 + sum_{h=1,2} a_h sin(2 pi h f) +
+ * b_h cos(2 pi h f) to (f[i], e[i]). */
+static double locking(const double *f, const double *e, int n)
+{
+    double A[5][6] = {{0}};
+    for (int i = 0; i < n; i++) {
+        double b[5] = {1, sin(2 * M_PI * f[i]), cos(2 * M_PI * f[i]), sin(4 * M_PI * f[i]),
+                       cos(4 * M_PI * f[i])};
+        for (int r = 0; r < 5; r++) {
+            for (int c = 0; c < 5; c++)
+                A[r][c] += b[r] * b[c];
+            A[r][5] += b[r] * e[i];
+        }
+    }
+    for (int c = 0; c < 5; c++) {
+        int p = c;
+        for (int r = c + 1; r < 5; r++)
+            if (fabs(A[r][c]) > fabs(A[p][c]))
+                p = r;
+        for (int k = 0; k < 6; k++) {
+            double t = A[c][k];
+            A[c][k] = A[p][k];
+            A[p][k] = t;
+        }
+        for (int r = 0; r < 5; r++)
+            if (r != c) {
+                double m = A[r][c] / A[c][c];
+                for (int k = 0; k < 6; k++)
+                    A[r][k] -= m * A[c][k];
+            }
+    }
+    double amp = 0;
+    for (int k = 0; k < 200; k++) {
+        double t = k / 200.0;
+        double v = A[1][5] / A[1][1] * sin(2 * M_PI * t) + A[2][5] / A[2][2] * cos(2 * M_PI * t) +
+                   A[3][5] / A[3][3] * sin(4 * M_PI * t) + A[4][5] / A[4][4] * cos(4 * M_PI * t);
+        amp = fmax(amp, fabs(v));
+    }
+    return amp;
+}
+
+typedef struct sweep {
+    double rms, locking;
+} sweep;
+
+/* The sweep 0 .. smax px of one configuration at density ppp (seeds as bench_noise's first). */
+static sweep run_sweep(const rpiv_piv_params *prm, double ppp, double smax)
+{
+    sweep r = {NAN, NAN};
+    const int ns = (int)lround(smax / 0.1) + 1;
+    float *a = malloc(sizeof *a * N * N), *b = malloc(sizeof *b * N * N);
+    double fr[64], me[64], sq = 0;
+    long cnt = 0;
+    rpiv_piv *pv = NULL;
+    CHECK(a && b && ns <= 32);
+    if (!a || !b || ns > 32)
+        goto out_free;
+    CHECK_OK(rpiv_piv_new(prm, N, N, NULL, &pv));
+    if (!pv)
+        goto out_free;
+    for (int k = 0; k < ns; k++) {
+        double s = 0.1 * k, d[2] = {s, -s}, mu = 0, mv = 0;
+        ti_params tp = {N, N, ppp, 1.5, 1000, 0.1, 0, (uint64_t)(7919 + 31 * k + 1)};
+        ti_pair(&tp, ti_uniform, d, a, b);
+        rpiv_image ia = {N, N, 16, a}, ib = {N, N, 16, b};
+        rpiv_field *f = NULL;
+        CHECK_OK(rpiv_piv_run(pv, &ia, &ib, &f));
+        if (!f)
+            goto out_free;
+        size_t nv = (size_t)f->nx * (size_t)f->ny;
+        for (size_t i = 0; i < nv; i++) {
+            double eu = (double)f->u[i] - d[0], ev = (double)f->v[i] - d[1];
+            sq += eu * eu + ev * ev;
+            mu += eu;
+            mv += ev;
+        }
+        cnt += (long)nv;
+        fr[2 * k] = s;
+        me[2 * k] = mu / (double)nv;
+        fr[2 * k + 1] = -s;
+        me[2 * k + 1] = mv / (double)nv;
+        rpiv_field_free(f);
+    }
+    r.rms = sqrt(sq / (2.0 * (double)cnt));
+    r.locking = locking(fr, me, 2 * ns);
+out_free:
+    rpiv_piv_free(pv);
+    free(a);
+    free(b);
+    return r;
+}
+
+/* The default settings on 1.5 px particles at SNR 10 and 0.05 ppp (~50 particles per 32 px
+ * window): the issue's targets, RMS <= 0.055 px and peak-locking <= 0.015 px (measured
+ * 0.045 and 0.010 px over 3 seeds). */
+static void noise_default_settings_meet_the_target_at_005_ppp(void)
+{
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = 2;
+    sweep s = run_sweep(&prm, 0.05, 2.0);
+    printf("    1.5 px, SNR 10, 0.05 ppp, 64-32-32: RMS %.4f px, peak-locking %.4f px\n", s.rms,
+           s.locking);
+    CHECK(s.rms <= 0.055);
+    CHECK(s.locking <= 0.015);
+}
+
+/* Sparser pairs, 0.03 and 0.02 ppp (~30 and ~20 particles per 32 px window), with the
+ * defaults of session 5 (the final size repeated with a denoised predictor, refine.c) against
+ * those of session 4 (refine_max 0, no denoiser, no line test: the listed third pass deformed
+ * by the raw second-pass field, which counted the window-scale noise twice: 0.078 px at 0.02
+ * ppp over 3 seeds and shifts 0..2, docs/deform.md). The target is met at 0.03 ppp; at 0.02 ppp
+ * one 32 px correlation alone is at 0.058 px, so it is not, but the repeat no longer adds. */
+static void noise_defaults_at_003_and_002_ppp(void)
+{
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = 2;
+    sweep s3 = run_sweep(&prm, 0.03, 1.0);
+    sweep s2 = run_sweep(&prm, 0.02, 1.0);
+    rpiv_piv_params old = prm;
+    old.refine_max = 0;
+    old.refine_denoise = 0;
+    old.median_lines = 0;
+    sweep o2 = run_sweep(&old, 0.02, 1.0);
+    printf("    1.5 px, SNR 10, shifts 0..1 px: RMS defaults 0.03 ppp %.4f, 0.02 ppp %.4f px "
+           "(session 4's defaults %.4f px); peak-locking %.4f %.4f %.4f px\n",
+           s3.rms, s2.rms, o2.rms, s3.locking, s2.locking, o2.locking);
+    CHECK(s3.rms <= 0.055 && s3.locking <= 0.015);
+    CHECK(s2.rms < 0.9 * o2.rms && s2.locking <= 0.015);
+}
+
+static void sine(void *user, double x, double y, double *u, double *v)
+{
+    (void)user;
+    (void)x;
+    *u = 3.0 * sin(2 * M_PI * y / 64.0);
+    *v = 0;
+}
+
+/* Least-squares amplitude of u(y) = A sin(2 pi y / 64) + B cos(...) over the field. */
+static double sine_amplitude(const rpiv_field *f)
+{
+    double ss = 0, cc = 0, sc = 0, us = 0, uc = 0;
+    for (int j = 0; j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            double y = f->y0 + j * f->dy, s = sin(2 * M_PI * y / 64), c = cos(2 * M_PI * y / 64);
+            double u = (double)f->u[(size_t)j * (size_t)f->nx + (size_t)i];
+            ss += s * s;
+            cc += c * c;
+            sc += s * c;
+            us += u * s;
+            uc += u * c;
+        }
+    double det = ss * cc - sc * sc, A = (us * cc - uc * sc) / det, B = (uc * ss - us * sc) / det;
+    return sqrt(A * A + B * B);
+}
+
+/* The amplitude kept of test_piv's clean shear u = 3 sin(2 pi y / 64) px (2.5 px particles,
+ * 0.05 ppp, 256 x 256, median test off as there), 64, 32, 32. */
+static double sine_kept(const rpiv_piv_params *prm)
+{
+    enum { S = 256 };
+    float *a = malloc(sizeof *a * S * S), *b = malloc(sizeof *b * S * S);
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    double kept = NAN;
+    CHECK(a && b);
+    if (!a || !b)
+        goto out_free;
+    ti_params tp = {S, S, 0.05, 2.5, 1000, 0, 0, 4242};
+    ti_pair(&tp, sine, NULL, a, b);
+    rpiv_image ia = {S, S, 16, a}, ib = {S, S, 16, b};
+    CHECK_OK(rpiv_piv_new(prm, S, S, NULL, &pv));
+    if (pv)
+        CHECK_OK(rpiv_piv_run(pv, &ia, &ib, &f));
+    if (f)
+        kept = sine_amplitude(f) / 3;
+out_free:
+    rpiv_field_free(f);
+    rpiv_piv_free(pv);
+    free(a);
+    free(b);
+    return kept;
+}
+
+/* The option refine_adapt (off by default): the repeat's predictor filter weighted by each
+ * vector's noise. Made when the defaults did not repeat the final size (session 4: it brought
+ * 0.060 px at 0.03 ppp to 0.051); with the denoised repeats of session 5 it is no longer needed
+ * there (0.049 -> 0.048 px), but it is still not worse and keeps the clean shear's amplitude
+ * where the fixed filter of the same weight loses it. */
+static void noise_adaptive_predictor_filter(void)
+{
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = 2;
+    sweep s0 = run_sweep(&prm, 0.03, 1.0);
+    prm.refine_filter = 0.5;
+    prm.refine_adapt = 4;
+    sweep sa = run_sweep(&prm, 0.03, 1.0);
+    printf("    1.5 px, SNR 10, 0.03 ppp, shifts 0..1 px: RMS defaults %.4f, refine_filter 0.5 + "
+           "refine_adapt 4 %.4f px; peak-locking %.4f %.4f px\n",
+           s0.rms, sa.rms, s0.locking, sa.locking);
+    CHECK(sa.rms <= 0.055 && sa.rms <= s0.rms);
+    CHECK(sa.locking <= 0.015);
+    rpiv_piv_params clean = rpiv_piv_params_default();
+    clean.median_thr = 0;
+    clean.threads = 2;
+    double k0 = sine_kept(&clean);
+    clean.refine_filter = 0.5;
+    double kf = sine_kept(&clean);
+    clean.refine_adapt = 4;
+    double ka = sine_kept(&clean);
+    printf(
+        "    clean sine 3 px / 64 px, amplitude kept: %.1f %% (defaults), %.1f %% (refine_filter "
+        "0.5), %.1f %% (refine_filter 0.5, refine_adapt 4)\n",
+        100 * k0, 100 * kf, 100 * ka);
+    CHECK(ka >= 0.9 && ka > kf + 0.05 && ka <= k0 + 1e-9);
+}
+
+/* The option gives the same bits on 1 and 3 threads (the uncertainty is per window, the
+ * filter serial). */
+static void noise_adaptive_filter_is_deterministic(void)
+{
+    enum { S = 256 };
+    float *a = malloc(sizeof *a * S * S), *b = malloc(sizeof *b * S * S);
+    rpiv_field *f[2] = {NULL, NULL};
+    CHECK(a && b);
+    if (!a || !b)
+        goto out_free;
+    double d[2] = {0.7, -1.3};
+    ti_params tp = {S, S, 0.03, 1.5, 1000, 0.1, 0, 99};
+    ti_pair(&tp, ti_uniform, d, a, b);
+    rpiv_image ia = {S, S, 16, a}, ib = {S, S, 16, b};
+    for (int t = 0; t < 2; t++) {
+        rpiv_piv_params prm = rpiv_piv_params_default();
+        prm.refine_filter = 0.5;
+        prm.refine_adapt = 4;
+        prm.threads = t ? 3 : 1;
+        rpiv_piv *pv = NULL;
+        CHECK_OK(rpiv_piv_new(&prm, S, S, NULL, &pv));
+        if (pv)
+            CHECK_OK(rpiv_piv_run(pv, &ia, &ib, &f[t]));
+        rpiv_piv_free(pv);
+    }
+    if (f[0] && f[1]) {
+        size_t n = (size_t)f[0]->nx * (size_t)f[0]->ny;
+        CHECK(f[1]->nx == f[0]->nx && f[1]->ny == f[0]->ny);
+        CHECK(!memcmp(f[0]->u, f[1]->u, n * sizeof *f[0]->u));
+        CHECK(!memcmp(f[0]->v, f[1]->v, n * sizeof *f[0]->v));
+    }
+out_free:
+    rpiv_field_free(f[0]);
+    rpiv_field_free(f[1]);
+    free(a);
+    free(b);
+}
+
+int main(void)
+{
+    RUN_TEST(noise_default_settings_meet_the_target_at_005_ppp);
+    RUN_TEST(noise_defaults_at_003_and_002_ppp);
+    RUN_TEST(noise_adaptive_predictor_filter);
+    RUN_TEST(noise_adaptive_filter_is_deterministic);
+    return check_summary();
+}
