@@ -125,6 +125,13 @@ void rpiv_piv_size(const rpiv_piv *pv, int *w, int *h);
  * continued over the mask and the background frames the plan holds (h itself if none). */
 uint64_t rpiv_piv_hash_frames(const rpiv_piv *pv, uint64_t h);
 
+/* Cancellation inside one pair (a large image with small windows can take minutes): the plan
+ * calls cancel->fn(cancel->user, 0, 0) from the calling thread before each pass and every
+ * few rows of windows of rpiv_piv_step / rpiv_piv_passes / rpiv_piv_run; a non-zero return
+ * stops the pair with RPIV_EINTR (no field). The ensemble's passes are not cut (the series
+ * loop asks between pairs). NULL or fn NULL: never asked (the default). Copied. */
+void rpiv_piv_set_cancel(rpiv_piv *pv, const rpiv_progress *cancel);
+
 /* A zeroed field on the grid of pass `pass` (0-based), scale and dt set from the params. */
 RPIV_NODISCARD rpiv_status rpiv_piv_grid(const rpiv_piv *pv, int pass, rpiv_field **out);
 
