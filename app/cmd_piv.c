@@ -350,6 +350,22 @@ static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const ru
                         "check frame order and --dt\n");
 }
 
+/* piv.max_mem_mb against the run's estimated peak (rpiv_piv_mem_estimate; a per-pair run
+ * keeps a copy of the first field), before anything large is allocated. */
+static rpiv_status check_memory(const rpiv_piv_params *p, int w, int h, int mask, size_t npairs)
+{
+    const double MB = 1048576.0;
+    rpiv_piv_mem m = rpiv_piv_mem_estimate(p, w, h, mask, npairs, !p->ensemble);
+    if (m.total / MB <= p->max_mem_mb)
+        return RPIV_OK;
+    return rpiv_fail(RPIV_ELIMIT,
+                     "piv: the run needs about %.0f MB (%dx%d frames %.0f MB, decoding %.0f MB, "
+                     "%s %.0f MB, process %.0f MB), above piv.max_mem_mb = %g",
+                     m.total / MB, w, h, m.frames / MB, m.load / MB,
+                     p->ensemble ? "correlation sums" : "vector fields", m.work / MB, m.base / MB,
+                     p->max_mem_mb);
+}
+
 /* The work after option parsing, on every rank of the team. */
 static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi);
 
@@ -668,6 +684,8 @@ static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rp
     if (p->mask[0])
         st = rpiv_image_load(p->mask, 0, &mask, NULL);
     if ((st = rpiv_mpi_agree(mpi, st)))
+        goto out_free;
+    if ((st = check_memory(p, w, h, mask != NULL, pairs->n)))
         goto out_free;
     if (p->background != RPIV_BACKGROUND_NONE) {
         cli_progress_init(&prog, "background", c->quiet || !root);
