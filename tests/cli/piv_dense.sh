@@ -31,6 +31,16 @@ med=$(sed -n 's/.*(median peak ratio \([0-9.]*\)).*/\1/p' d.err)
 ref=$(rows d.txt | awk '$5 != 2 {print $6}' | sort -g | awk '{a[NR - 1] = $1} END {printf "%.2f", a[int(NR / 2)]}')
 [ -n "$med" ] && [ "$med" = "$ref" ] && ok || ko "median peak ratio '$med', the file's is '$ref': $(cat d.err)"
 
+# piv.max_mem_mb counts the fields, not only the frames (issue 20 item 12): the dense run
+# needs about 28 MB (the process 18, two 1 MB frames, 255 025 vectors of 17 bytes twice and
+# the validation's 12): refused at 20 MB up front, one line naming the estimate and the limit
+"$bin" piv --window 8 --overlap 0.95 --set piv.max_mem_mb=20 s/pair_00001_a.tif \
+    s/pair_00001_b.tif -o m.txt 2>m.err
+rc=$?
+[ $rc -eq 1 ] && [ "$(wc -l <m.err)" -eq 1 ] && [ ! -e m.txt ] &&
+    grep -Eq '^rpiv: error: piv: the run needs about 2[0-9] MB \(.*\), above piv.max_mem_mb = 20$' m.err \
+    && ok || ko "max_mem_mb 20: exit $rc, $(cat m.err)"
+
 # a signal inside the passes of one long pair: stopped within seconds, nothing written
 "$bin" synth -q --pairs 1 --size 2048x2048 --seed 21 --out L || ko "synth 2048"
 for sig in TERM INT; do
