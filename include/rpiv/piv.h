@@ -95,7 +95,9 @@ RPIV_NODISCARD rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p);
  *           summed planes of the largest pass with a pair being loaded, the predictor,
  *           the pairs in flight (small frames, several threads) and the final field.
  * Checked within 25 % of the peak RSS of rpiv piv (test_mem; docs/benchmarks.md). mask: 1 if
- * a mask image is used; npairs: pairs in the run. */
+ * a mask image is used; npairs: pairs in the run. rpiv_piv_new itself refuses only frames
+ * above the limit (it does not know the pairs or what the caller keeps): a caller compares
+ * total with piv.max_mem_mb before it, as rpiv piv does. */
 #define RPIV_PIV_MEM_BASE_MB 18
 typedef struct rpiv_piv_mem {
     double base, frames, load, held, work, total; /* bytes */
