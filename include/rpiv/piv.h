@@ -90,6 +90,33 @@ typedef struct rpiv_piv_params {
 rpiv_piv_params rpiv_piv_params_default(void);
 RPIV_NODISCARD rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p);
 
+/* ---- memory ------------------------------------------------------------------------------
+ *
+ * The peak memory of a run, estimated before anything is allocated, in bytes: what
+ * piv.max_mem_mb is compared with (rpiv piv refuses a run above it). total = base + frames +
+ * the larger of load and work:
+ *   base    the process itself: code, libraries, FFTW plans (RPIV_PIV_MEM_BASE_MB);
+ *   frames  the plan's two frames, the preprocessing frame, the mask (bytes, and the caller's
+ *           float image), the background frames, the correlation workspaces;
+ *   load    a pair being decoded: its two frames as float and the reader's rows of one;
+ *   held    fields of the final grid the caller keeps (rpiv piv keeps a copy of the first
+ *           pair's field: held = 1), from the end of the first pair on;
+ *   work    per pair: the largest pass (its field, validated; the predictor field, its copy
+ *           and its cubic-spline coefficients; the deformation strips), with the held fields
+ *           when there are later pairs, or the last field with the held ones; ensemble: the
+ *           summed planes of the largest pass with a pair being loaded, the predictor,
+ *           the pairs in flight (small frames, several threads) and the final field.
+ * Checked within 25 % of the peak RSS of rpiv piv (test_mem; docs/benchmarks.md). mask: 1 if
+ * a mask image is used; npairs: pairs in the run. rpiv_piv_new itself refuses only frames
+ * above the limit (it does not know the pairs or what the caller keeps): a caller compares
+ * total with piv.max_mem_mb before it, as rpiv piv does. */
+#define RPIV_PIV_MEM_BASE_MB 18
+typedef struct rpiv_piv_mem {
+    double base, frames, load, held, work, total; /* bytes */
+} rpiv_piv_mem;
+rpiv_piv_mem rpiv_piv_mem_estimate(const rpiv_piv_params *p, int w, int h, int mask, size_t npairs,
+                                   int held);
+
 /* ---- the engine ---------------------------------------------------------------------------
  *
  * A plan (rpiv_piv) is made once for an image size and a set of parameters: the grid of every
@@ -136,6 +163,13 @@ void rpiv_piv_size(const rpiv_piv *pv, int *w, int *h);
 /* What identifies the plan beyond its parameters, for a checkpoint: the 64-bit FNV-1a hash h
  * continued over the mask and the background frames the plan holds (h itself if none). */
 uint64_t rpiv_piv_hash_frames(const rpiv_piv *pv, uint64_t h);
+
+/* Cancellation inside one pair (a large image with small windows can take minutes): the plan
+ * calls cancel->fn(cancel->user, 0, 0) from the calling thread before each pass and every
+ * few rows of windows of rpiv_piv_step / rpiv_piv_passes / rpiv_piv_run; a non-zero return
+ * stops the pair with RPIV_EINTR (no field). The ensemble's passes are not cut (the series
+ * loop asks between pairs). NULL or fn NULL: never asked (the default). Copied. */
+void rpiv_piv_set_cancel(rpiv_piv *pv, const rpiv_progress *cancel);
 
 /* A zeroed field on the grid of pass `pass` (0-based), scale and dt set from the params. */
 RPIV_NODISCARD rpiv_status rpiv_piv_grid(const rpiv_piv *pv, int pass, rpiv_field **out);

@@ -578,22 +578,32 @@ void piv_windows(const rpiv_piv *pv, const piv_pass *ps, const piv_source *src, 
         fn(ctx, ws->plane2, ws->colmax2, win[1], e[2], e[3], pu[1], pv_[1], &xs[1]);
 }
 
-rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_win_fn fn,
-                         void *ctx)
+/* piv_pass_run; cut = 1: stop (RPIV_EINTR) when the plan's cancel hook asks. */
+static rpiv_status pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_win_fn fn,
+                            void *ctx, int cut)
 {
     const piv_pass *ps = &pv->pass[k];
     piv_source src;
+    int stop = 0;
+    cut = cut && pv->cancel.fn;
     rpiv_status st = piv_prepare(pv, k, pred, &src);
     if (st)
         return st;
     if (!src.deform) {
         /* windows two by two along each row: (0, 1), (2, 3), ... */
         const size_t half = ((size_t)ps->nx + 1) / 2, nslot = half * (size_t)ps->ny;
-#pragma omp parallel for schedule(dynamic, 4) num_threads(pv->nthreads)
-        for (size_t slot = 0; slot < nslot; slot++)
-            piv_windows(pv, ps, &src, ps->ws[omp_get_thread_num()], 2 * (slot % half), slot / half,
-                        fn, ctx);
-        return RPIV_OK;
+#pragma omp parallel num_threads(pv->nthreads)
+        {
+            size_t calls = 0;
+            int mine = 0; /* this thread has seen the stop */
+#pragma omp for schedule(dynamic, 4)
+            for (size_t slot = 0; slot < nslot; slot++)
+                if (!mine &&
+                    !(cut && calls++ % 256 == 0 && (mine = piv_pass_stopped(pv, cut, &stop))))
+                    piv_windows(pv, ps, &src, ps->ws[omp_get_thread_num()], 2 * (slot % half),
+                                slot / half, fn, ctx);
+        }
+        return stop ? rpiv_fail(RPIV_EINTR, "piv: interrupted in pass %d", k + 1) : RPIV_OK;
     }
     /* Strips, without any synchronisation: the rows of windows are cut into chunks handed
      * out dynamically; a thread deforms the rows under its chunk into its own buffer of one
@@ -624,7 +634,7 @@ rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
         for (int c = 0; c < nchunks; c++) {
             int prev_s = 0, prev_e = 0; /* rows held: [prev_s, prev_e) */
             int j1 = (c + 1) * chunk < ps->ny ? (c + 1) * chunk : ps->ny;
-            for (int j = c * chunk; j < j1; j++) {
+            for (int j = c * chunk; j < j1 && !(cut && piv_pass_stopped(pv, cut, &stop)); j++) {
                 const int s = ps->oy + j * ps->sy, e = s + wh, keep = prev_e > s ? prev_e - s : 0;
                 if (keep) { /* the overlap with the previous strip moves to the top */
                     memmove(sa, sa + (size_t)(s - prev_s) * sw, (size_t)keep * sw * sizeof *sa);
@@ -643,7 +653,13 @@ rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
         }
     }
     free(buf);
-    return RPIV_OK;
+    return stop ? rpiv_fail(RPIV_EINTR, "piv: interrupted in pass %d", k + 1) : RPIV_OK;
+}
+
+rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_win_fn fn,
+                         void *ctx)
+{
+    return pass_run(pv, k, pred, fn, ctx, 0);
 }
 
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
@@ -727,6 +743,8 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
         return rpiv_fail(RPIV_EINVAL, "piv: pass %d outside 0..%d", pass, pv->npass - 1);
     if (pv->state == PIV_EMPTY)
         return rpiv_fail(RPIV_EINVAL, "piv: no pair loaded");
+    if (piv_cancelled(pv))
+        return rpiv_fail(RPIV_EINTR, "piv: interrupted before pass %d", pass + 1);
     const piv_pass *ps = &pv->pass[pass];
     rpiv_deform_pred *pred = NULL;
     rpiv_field *f = NULL;
@@ -760,7 +778,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
             goto out_free;
         }
     }
-    if ((st = piv_pass_run(pv, pass, pred, step_vector, &c)))
+    if ((st = pass_run(pv, pass, pred, step_vector, &c, 1)))
         goto out_free;
     if (defer && refines && predictor && predictor->nx == f->nx && predictor->ny == f->ny) {
         /* validation deferred to the converged field: a window without a peak keeps the

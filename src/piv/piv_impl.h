@@ -37,6 +37,7 @@ struct rpiv_piv {
     float fill_a, fill_b; /* mean grey level of the loaded frames                 */
     int state;            /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
     size_t bytes;         /* memory held                                          */
+    rpiv_progress cancel; /* asked between passes and rows of windows (fn NULL: never) */
 };
 
 /* What a pass correlates: frames (stride w) whose first row is image row row0, and the
@@ -63,6 +64,12 @@ typedef void (*piv_win_fn)(void *ctx, const float *plane, const float *colmax, s
  * correlated; no deformed frame is ever held whole, and threads never wait for each other. */
 RPIV_NODISCARD rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
                                         piv_win_fn fn, void *ctx);
+
+/* Has the plan's cancel hook (rpiv_piv_set_cancel) asked to stop? Calling thread only. */
+int piv_cancelled(const rpiv_piv *pv);
+/* A pass's check inside a parallel region (cut = 1: the hook is asked by thread 0 of the
+ * team, which is the calling thread, and sets *stop; every thread reads *stop): 1 = stop. */
+int piv_pass_stopped(const rpiv_piv *pv, int cut, int *stop);
 
 /* The sampling shift of pass k: RPIV_DEFORM_SHIFT for a deforming pass (k > 0, deformation
  * on), 0 otherwise. Vectors of the pass sit at their window's centre plus this shift. */

@@ -469,6 +469,8 @@ rpiv_status rpiv_batch_series(rpiv_batch *b, rpiv_piv *pv, rpiv_series_sink loca
         if (i < N && !(b->state[i] & BAD)) {
             if (!(st = run_pair(b, pv, i, &f)) && f && local)
                 st = local(user, i, f);
+            if (st == RPIV_EINTR) /* the plan's cancel hook, inside the pair: not done */
+                st = rpiv_fail(RPIV_EINTR, "piv: interrupted after %zu of %zu pairs", done, nmine);
             if (!st && K == 1 && f && root)
                 st = root(user, i, f);
         }
