@@ -4,6 +4,8 @@
  * allocation of the engine; the figures it was checked against are in docs/benchmarks.md. */
 #include "rpiv/piv.h"
 
+#include "pair_pool.h"
+
 #include <math.h>
 #include <omp.h>
 
@@ -75,10 +77,29 @@ rpiv_piv_mem rpiv_piv_mem_estimate(const rpiv_piv_params *p, int w, int h, int m
             }
             work = pass > work ? pass : work;
         }
+        /* the repeats of the final size (refine.c) keep the field of the smallest change
+         * beside the two they compare */
+        if (p->refine_max > 0 && p->refine_stop && p->deform && p->npass > 1)
+            work += nlast * final_b;
         /* the last field and the caller's copy of it (the first pair's) */
         const double end = nlast * final_b + m.held;
         m.work = npairs > 1 ? work + m.held : work;
         m.work = end > m.work ? end : m.work;
+        /* small frames, several pairs and threads: a pair per thread (rpiv_piv_run_pairs,
+         * pair_pool.h), each thread with a one-thread copy of the plan (its frames and
+         * workspaces), a pair being loaded and a pair's work; the slots hold fields */
+        if (npairs > 1 && nt > 1 && px <= POOL_MAX_PX) {
+            double copy = 2 * frame + (p->prep.ops[0] ? frame : 0) + (mask ? px : 0) +
+                          (p->background != RPIV_BACKGROUND_NONE ? 2 * frame : 0);
+            for (int k = 0; k < p->npass; k++)
+                copy += 4 * 4.0 * p->win_w[k] * p->win_h[k];
+            /* as pool_slots decides: the ring (slots and copies) within POOL_MAX_MB and
+             * what piv.max_mem_mb leaves beside the plan */
+            const double ring = POOL_PER_THREAD * nt * nlast * 2 * 4.0 * 2 + nt * copy;
+            const double budget = p->max_mem_mb * 1048576.0 - m.frames;
+            if (ring <= POOL_MAX_MB * 1048576.0 && ring <= budget)
+                m.work += ring + nt * work + (nt - 1) * m.load;
+        }
     } else {
         /* the summed planes and energies of the largest pass with a pair being loaded, the
          * predictor field and its coefficients (the sums of the pass before are freed) */
