@@ -411,7 +411,9 @@ static const cli_opt options[] = {
      .kind = CLI_FLAG,
      .off = offsetof(piv_opts, c.exp.piv.ensemble),
      .help = "sum of correlation over all pairs [ensemble]"},
-    PIV_KEY("subpixel", "M", "subpixel", "gauss, parabola or centroid (gauss) [subpixel]"),
+    PIV_KEY("subpixel", "M", "subpixel",
+            "gauss, parabola, centroid, spline or auto (auto: spline for --ensemble, else gauss) "
+            "[subpixel]"),
     {.name = "validate",
      .kind = CLI_FN,
      .arg = "V",
