@@ -358,11 +358,11 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
      * of correlation (peak.h, rpiv_subpixel_resolve) as the 8 x 8 float plane in circular
      * order that it reads after an FFT: shifts -4..3, the search over -1..1, normalised by
      * the centre; the samples the estimator reads (the 3-point fits: the row and the column
-     * through the centre; the centroid: 3 x 3; the spline: 5 x 5) */
+     * through the centre; the centroid: 3 x 3; the spline: 7 x 7) */
     enum { PW = 8 };
     float plane[PW * PW] = {0};
     rpiv_subpixel method = rpiv_subpixel_resolve(p->subpixel, 1);
-    int rad = method == RPIV_SUBPIXEL_SPLINE ? 2 : 1;
+    int rad = method == RPIV_SUBPIXEL_SPLINE ? 3 : 1;
     double r0 = rpiv_ccm_corr_eval(c, mx, my);
     for (int j = -rad; j <= rad; j++)
         for (int i = -rad; i <= rad; i++) {
