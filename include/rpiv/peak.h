@@ -10,12 +10,13 @@
 #define RPIV_PEAK_H
 
 typedef enum rpiv_subpixel {
-    RPIV_SUBPIXEL_GAUSS = 0,    /* 3-point Gaussian fit in x and y (default) */
+    RPIV_SUBPIXEL_GAUSS = 0,    /* 3-point Gaussian fit in x and y           */
     RPIV_SUBPIXEL_PARABOLA = 1, /* 3-point parabola                          */
     RPIV_SUBPIXEL_CENTROID = 2, /* 3x3 centroid                              */
     RPIV_SUBPIXEL_SPLINE = 3,   /* continuous maximum of a cubic spline through the logarithm
-                                   of the 5x5 samples; the 3-point Gaussian where it cannot
-                                   (a sample <= 0, no maximum within 1 px; docs/piv.md) */
+                                   of the 7x7 samples (5x5 if one of those is <= 0); the
+                                   3-point Gaussian where it cannot (a sample <= 0 in the 5x5,
+                                   no maximum within 1 px; docs/piv.md "Peak")              */
     RPIV_SUBPIXEL_AUTO = 4      /* spline on sums of correlation (ensemble runs, the CCM),
                                    gauss on single pairs (the engine's default)           */
 } rpiv_subpixel;
