@@ -226,7 +226,6 @@ static rpiv_status add_files(rpiv_meta *m, const rpiv_pairs *pairs)
 static rpiv_status add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_pairs *pairs,
                             const rpiv_piv *pv)
 {
-    static const char *const sub[] = {"gauss", "parabola", "centroid"};
     static const char *const bg[] = {"none", "min", "mean"};
     char win[256] = "";
     for (int k = 0; k < p->npass; k++)
@@ -241,7 +240,10 @@ static rpiv_status add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_p
         (st = rpiv_meta_add(m, "windows", "%s", win)) ||
         (st = rpiv_meta_add(m, "overlap", "%g", p->overlap)) ||
         (st = rpiv_meta_add(m, "step_px", "%d", p->step_px)) ||
-        (st = rpiv_meta_add(m, "subpixel", "%s", sub[p->subpixel])) ||
+        (st = rpiv_meta_add(m, "subpixel", "%s%s", rpiv_subpixel_names[p->subpixel],
+                            p->subpixel != RPIV_SUBPIXEL_AUTO ? ""
+                            : p->ensemble                     ? " (spline)"
+                                                              : " (gauss)")) ||
         (st = rpiv_meta_add(m, "deform", "%s", p->deform ? "cubic B-spline, symmetric" : "off")) ||
         (st = rpiv_meta_add(m, "median_threshold", "%g", p->median_thr)) ||
         (st = rpiv_meta_add(m, "median_eps_px", "%g", p->median_eps)) ||
@@ -427,7 +429,9 @@ static const cli_opt options[] = {
      .kind = CLI_FLAG,
      .off = offsetof(piv_opts, c.exp.piv.ensemble),
      .help = "sum of correlation over all pairs [ensemble]"},
-    PIV_KEY("subpixel", "M", "subpixel", "gauss, parabola or centroid (gauss) [subpixel]"),
+    PIV_KEY("subpixel", "M", "subpixel",
+            "gauss, parabola, centroid, spline or auto (auto: spline for --ensemble, else gauss) "
+            "[subpixel]"),
     {.name = "validate",
      .kind = CLI_FN,
      .arg = "V",

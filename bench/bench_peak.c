@@ -16,7 +16,7 @@
  * 9), CPU time (steadier than the wall clock on a shared machine), one thread. The checksum
  * is that of the results. The program fails (exit 1, "FAIL") if a field of any result
  * differs from the reference's by a bit, for each sub-pixel method, with max_shift 0 and
- * w/4.
+ * w/4. Each size is followed by the spline estimator's cost (a "#" line).
  *     build/bench/bench_peak 15 */
 #include "../tests/test_peak_ref.h"
 #include "bench.h"
@@ -120,6 +120,29 @@ static void time_all(const float *planes, int n, int count, int order, rpiv_peak
     *tr = 1e9 * sr / count;
 }
 
+/* The spline estimator's cost against the 3-point Gaussian's on the same planes (whole plane
+ * searched, as the engine does; medians of reps, in alternating order), and how often it
+ * keeps the 3-point fit (a non-positive sample in its 5 x 5 neighbourhood, ...). */
+static void spline_cost(const float *planes, int n, int count, int reps, rpiv_peak *pa,
+                        rpiv_peak *pb)
+{
+    double tg[MAXREP], ts[MAXREP];
+    for (int r = 0; r < reps; r++)
+        for (int pass = 0; pass < 2; pass++) {
+            int spline = (pass + r) % 2;
+            double t0 = bench_cpu();
+            run(fn_new, planes, n, 0, count, 0, spline ? RPIV_SUBPIXEL_SPLINE : RPIV_SUBPIXEL_GAUSS,
+                spline ? pb : pa);
+            (spline ? ts : tg)[r] = 1e9 * (bench_cpu() - t0) / count;
+        }
+    int same = 0;
+    for (int k = 0; k < count; k++)
+        same += pa[k].dx == pb[k].dx && pa[k].dy == pb[k].dy;
+    printf("#   spline: %.1f ns per plane, gauss %.1f ns; %.1f %% of the planes keep the 3-point "
+           "fit\n",
+           bench_median(ts, reps), bench_median(tg, reps), 100.0 * same / count);
+}
+
 static int bench_size(const char *kind, int n, int count, int reps, double s, double noise,
                       double loss)
 {
@@ -183,6 +206,7 @@ static int bench_size(const char *kind, int n, int count, int reps, double s, do
            (unsigned long long)h, bad ? " FAIL" : "");
     fflush(stdout);
     fail = bad != 0;
+    spline_cost(planes, n, count, reps, pa, pb);
 cleanup:
     rpiv_xcorr_work_free(ws);
     rpiv_xcorr_free(x);

@@ -66,7 +66,7 @@ static void out_of_range_and_nan_values_are_errors(void)
 {
     const char *cases[] = {"[camera]\nfnumber = 0\n",   "[camera]\nfnumber = -2\n",
                            "[camera]\nfnumber = nan\n", "[piv]\noverlap = 0.99\n",
-                           "[piv]\nwindows = 64,4\n",   "[piv]\nsubpixel = spline\n",
+                           "[piv]\nwindows = 64,4\n",   "[piv]\nsubpixel = bicubic\n",
                            "[synth]\npairs = 2.5\n",    "[camera]\nfnumber = 5.6mm\n",
                            "[piv]\nroi = 10,10,5,5\n",  "just text\n"};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {

@@ -196,11 +196,13 @@ out:
 }
 
 /* The ensemble of a single pair is the instantaneous result, bit for bit (same planes, same
- * peak search; only the correlation value differs, through float energy sums). */
+ * peak search; only the correlation value differs, through float energy sums), with the same
+ * estimator named (the default, auto, takes spline for ensembles and gauss for pairs). */
 static void ensemble_of_one_pair_is_the_instantaneous_field(void)
 {
     rpiv_piv_params prm = rpiv_piv_params_default();
     prm.refine_max = 0; /* the ensemble runs the listed passes, without the repeats */
+    prm.subpixel = RPIV_SUBPIXEL_GAUSS;
     rpiv_piv *pv = NULL;
     float *a = malloc(sizeof(float) * W * H), *b = malloc(sizeof(float) * W * H);
     rpiv_image ia = {W, H, 16, a}, ib = {W, H, 16, b};

@@ -39,7 +39,8 @@ typedef struct rpiv_ccm_params {
     double xtol_px;         /* Brent's bracket tolerance, px (1e-7); a Newton polish follows    */
     int max_iter;           /* iterations of the peak minimiser (500)                           */
     int max_range_px;       /* widest integer-sampled correlation plane per axis, px (4096)     */
-    rpiv_subpixel subpixel; /* sub-pixel estimator on the sampled plane (gauss)               */
+    rpiv_subpixel subpixel; /* sub-pixel estimator on the sampled plane; auto: the engine's
+                               for a sum of correlation, spline (auto)                      */
     size_t utab;            /* runs over many windows (scenarios, Monte-Carlo) tabulate U*, V*
                                on this many nodes of [zlo, zhi] (Akima spline; 3e-11 for the
                                duct); 0 = evaluate the profile every time (4097)               */
@@ -80,7 +81,8 @@ typedef struct rpiv_ccm_peak {
 } rpiv_ccm_peak;
 
 /* Find the peak of c: sample R on the integer plane spanning the terms' displacements (plus
- * one pixel), take the sampled maximum, apply the sub-pixel estimator p->subpixel there, and
+ * one pixel), take the sampled maximum, apply the sub-pixel estimator p->subpixel there (as the
+ * engine does on an ensemble's sum: rpiv_subpixel_resolve(p->subpixel, 1)), and
  * refine to the continuous maximum: Brent's method (gsl_min_fminimizer_brent) bracketed by
  * the neighbouring samples when all terms share one DY (or one DX; the maximum is then exactly
  * on that line), the Nelder-Mead simplex (gsl_multimin) otherwise. Errors: RPIV_ENUMERIC when

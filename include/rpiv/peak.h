@@ -10,13 +10,25 @@
 #define RPIV_PEAK_H
 
 typedef enum rpiv_subpixel {
-    RPIV_SUBPIXEL_GAUSS = 0,    /* 3-point Gaussian fit in x and y (default) */
+    RPIV_SUBPIXEL_GAUSS = 0,    /* 3-point Gaussian fit in x and y           */
     RPIV_SUBPIXEL_PARABOLA = 1, /* 3-point parabola                          */
-    RPIV_SUBPIXEL_CENTROID = 2  /* 3x3 centroid                              */
+    RPIV_SUBPIXEL_CENTROID = 2, /* 3x3 centroid                              */
+    RPIV_SUBPIXEL_SPLINE = 3,   /* continuous maximum of a cubic spline through the logarithm
+                                   of the 7x7 samples (5x5 if one of those is <= 0); the
+                                   3-point Gaussian where it cannot (a sample <= 0 in the 5x5,
+                                   no maximum within 1 px; docs/piv.md "Peak")              */
+    RPIV_SUBPIXEL_AUTO = 4      /* spline on sums of correlation (ensemble runs, the CCM),
+                                   gauss on single pairs (the engine's default)           */
 } rpiv_subpixel;
 
-/* The methods' names in enum order (NULL-terminated): "gauss", "parabola", "centroid". */
+/* The methods' names in enum order (NULL-terminated): "gauss", "parabola", "centroid",
+ * "spline", "auto". */
 extern const char *const rpiv_subpixel_names[];
+
+/* The estimator that `method` stands for on a sum of correlation (ensemble = 1: an ensemble
+ * run, the CCM's model of one) or on a single pair (0): AUTO becomes SPLINE or GAUSS, any
+ * other method itself. rpiv_peak_find takes AUTO as GAUSS. */
+rpiv_subpixel rpiv_subpixel_resolve(rpiv_subpixel method, int ensemble);
 
 /* The peak ratio reported when there is no second peak (or it is not positive). */
 #define RPIV_PEAK_RATIO_MAX 1000.0f
@@ -56,7 +68,8 @@ void rpiv_peak_find_cm(const float *plane, int w, int h, const float *colmax, rp
  * c(0) the largest: Gaussian (exact for samples of exp(-(x-x0)^2/k)), parabola (exact for a
  * parabola). The Gaussian falls back to the parabola when a sample is not positive. *ok is 0
  * (and the offset 0) when the three samples do not make a maximum. CENTROID is not a 3-point
- * method here: it gives the 3-sample centroid (negative samples taken as 0). */
+ * method here: it gives the 3-sample centroid (negative samples taken as 0); SPLINE and AUTO
+ * give the Gaussian. */
 double rpiv_peak_fit3(double cm, double c0, double cp, rpiv_subpixel method, int *ok);
 
 #endif /* RPIV_PEAK_H */

@@ -34,7 +34,7 @@ typedef struct rpiv_piv_params {
     double overlap;                 /* window overlap fraction, 0..0.95 (0.5)      */
     int step_px;                    /* grid step, px; 0 = from overlap (0)         */
     int ensemble;                   /* 1: sum of correlation over all pairs (0)    */
-    rpiv_subpixel subpixel;         /* (gauss)                                     */
+    rpiv_subpixel subpixel;         /* (auto: spline for ensembles, else gauss)   */
     double median_thr;              /* normalised median threshold; 0 = off (2)    */
     double median_eps;              /* median test epsilon, px (0.1)               */
     int median_lines;               /* 1: keep a vector failing the 3x3 test that

@@ -25,7 +25,7 @@ rpiv_ccm_params rpiv_ccm_params_default(void)
                              .xtol_px = 1e-7,
                              .max_iter = 500,
                              .max_range_px = 4096,
-                             .subpixel = RPIV_SUBPIXEL_GAUSS,
+                             .subpixel = RPIV_SUBPIXEL_AUTO,
                              .utab = 4097};
 }
 
@@ -49,7 +49,7 @@ rpiv_status rpiv_ccm_params_check(const rpiv_ccm_params *p)
         return rpiv_fail(RPIV_EINVAL, "ccm.max_range_px: %d outside 3..1e6", p->max_range_px);
     if ((p->utab > 0 && p->utab < 5) || p->utab > 10000000)
         return rpiv_fail(RPIV_EINVAL, "ccm.utab: %zu nodes: 0 or 5..1e7", p->utab);
-    if (p->subpixel < RPIV_SUBPIXEL_GAUSS || p->subpixel > RPIV_SUBPIXEL_CENTROID)
+    if (p->subpixel < RPIV_SUBPIXEL_GAUSS || p->subpixel > RPIV_SUBPIXEL_AUTO)
         return rpiv_fail(RPIV_EINVAL, "ccm.subpixel: unknown estimator %d", (int)p->subpixel);
     return RPIV_OK;
 }

@@ -354,20 +354,25 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     sampled_argmax(c, &s, &mx, &my);
     out->mx = mx;
     out->my = my;
-    /* the sampled plane around the maximum, handed to the PIV engine's estimator
-     * (peak.h) as the 4 x 4 float plane in circular order that it reads after an FFT:
-     * shifts -2..1, the fits use -1..1, normalised by the centre */
-    float plane[16] = {0};
+    /* the sampled plane around the maximum, handed to the PIV engine's estimator for a sum
+     * of correlation (peak.h, rpiv_subpixel_resolve) as the 8 x 8 float plane in circular
+     * order that it reads after an FFT: shifts -4..3, the search over -1..1, normalised by
+     * the centre; the samples the estimator reads (the 3-point fits: the row and the column
+     * through the centre; the centroid: 3 x 3; the spline: 7 x 7) */
+    enum { PW = 8 };
+    float plane[PW * PW] = {0};
+    rpiv_subpixel method = rpiv_subpixel_resolve(p->subpixel, 1);
+    int rad = method == RPIV_SUBPIXEL_SPLINE ? 3 : 1;
     double r0 = rpiv_ccm_corr_eval(c, mx, my);
-    for (int j = -1; j <= 1; j++)
-        for (int i = -1; i <= 1; i++) {
-            if (i && j && p->subpixel != RPIV_SUBPIXEL_CENTROID)
-                continue; /* the 3-point fits read the row and the column only */
+    for (int j = -rad; j <= rad; j++)
+        for (int i = -rad; i <= rad; i++) {
+            if (i && j && method != RPIV_SUBPIXEL_CENTROID && method != RPIV_SUBPIXEL_SPLINE)
+                continue;
             double v = i || j ? rpiv_ccm_corr_eval(c, mx + i, my + j) / r0 : 1.0;
-            plane[((j + 4) % 4) * 4 + (i + 4) % 4] = (float)v;
+            plane[((j + PW) % PW) * PW + (i + PW) % PW] = (float)v;
         }
     rpiv_peak fit;
-    rpiv_peak_find(plane, 4, 4, 1, p->subpixel, &fit);
+    rpiv_peak_find(plane, PW, PW, 1, method, &fit);
     out->dx_sub = mx + fit.dx;
     out->dy_sub = my + fit.dy;
     /* the continuous maximum */

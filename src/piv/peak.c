@@ -2,6 +2,8 @@
 /* src/piv/peak.c - correlation peak search, sub-pixel fits, second peak and peak ratio. */
 #include "rpiv/peak.h"
 
+#include "peak_impl.h"
+
 #include "base/simd.h"
 
 #include <math.h>
@@ -36,9 +38,18 @@ static inline v4f vmax(v4f r, v4f m)
 #endif
 }
 
+rpiv_subpixel rpiv_subpixel_resolve(rpiv_subpixel method, int ensemble)
+{
+    if (method != RPIV_SUBPIXEL_AUTO)
+        return method;
+    return ensemble ? RPIV_SUBPIXEL_SPLINE : RPIV_SUBPIXEL_GAUSS;
+}
+
 double rpiv_peak_fit3(double cm, double c0, double cp, rpiv_subpixel method, int *ok)
 {
     *ok = 0;
+    if (method == RPIV_SUBPIXEL_SPLINE || method == RPIV_SUBPIXEL_AUTO)
+        method = RPIV_SUBPIXEL_GAUSS;
     if (!isfinite(cm) || !isfinite(c0) || !isfinite(cp))
         return 0;
     if (method == RPIV_SUBPIXEL_CENTROID) {
@@ -413,6 +424,8 @@ static void peak_find(const float *plane, int w, int h, int max_shift, const flo
     }
     *out = (rpiv_peak){0};
     out->ratio = RPIV_PEAK_RATIO_MAX;
+    if (method == RPIV_SUBPIXEL_AUTO)
+        method = RPIV_SUBPIXEL_GAUSS;
     if (bi < 0 || !isfinite(best))
         return;
     out->ix = shift_of(bi, w);
@@ -424,6 +437,15 @@ static void peak_find(const float *plane, int w, int h, int max_shift, const flo
     if (method == RPIV_SUBPIXEL_CENTROID) {
         centroid3x3(plane, w, h, bi, bj, &fx, &fy, &okx);
         oky = okx;
+    } else if (method == RPIV_SUBPIXEL_SPLINE) {
+        /* the 3-point Gaussian, the start of the spline's search and its fallback */
+        fit_xy(plane, w, h, bi, bj, best, RPIV_SUBPIXEL_GAUSS, &fx, &fy, &okx, &oky);
+        double sx, sy;
+        if (peak_fit_spline(plane, w, h, bi, bj, okx ? fx : 0, oky ? fy : 0, &sx, &sy)) {
+            fx = sx;
+            fy = sy;
+            okx = oky = 1;
+        }
     } else {
         fit_xy(plane, w, h, bi, bj, best, method, &fx, &fy, &okx, &oky);
     }

@@ -663,13 +663,15 @@ rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_
 }
 
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
-                double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win)
+                double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win,
+                int ensemble)
 {
     rpiv_peak pk;
+    rpiv_subpixel method = rpiv_subpixel_resolve(pv->p.subpixel, ensemble);
     if (colmax)
-        rpiv_peak_find_cm(plane, ps->ww, ps->wh, colmax, pv->p.subpixel, &pk);
+        rpiv_peak_find_cm(plane, ps->ww, ps->wh, colmax, method, &pk);
     else
-        rpiv_peak_find(plane, ps->ww, ps->wh, 0, pv->p.subpixel, &pk);
+        rpiv_peak_find(plane, ps->ww, ps->wh, 0, method, &pk);
     if (!(ea > 0) || !(eb > 0) || !pk.fit_ok || !(pk.value > 0)) {
         /* nothing to measure: rejected, replaced by validation */
         f->u[win] = (float)pu;
@@ -711,7 +713,7 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
                         double eb, double pu, double pv_, const rpiv_xcorr_src *xs)
 {
     step_ctx *c = ctx;
-    piv_vector(c->pv, c->ps, plane, colmax, ea, eb, pu, pv_, c->f, win);
+    piv_vector(c->pv, c->ps, plane, colmax, ea, eb, pu, pv_, c->f, win, 0);
     if (c->su && c->f->flag[win] == RPIV_FLAG_VALID) {
         const piv_pass *ps = c->ps;
         double su, sv;

@@ -109,9 +109,11 @@ void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, dou
                       double *pv_);
 
 /* The vector of window `win` from its (raw or summed) plane, its column maxima (NULL: not
- * known) and energies: into f at win. */
+ * known) and energies: into f at win. ensemble: 1 for a sum of correlation (the estimator
+ * of rpiv_subpixel_resolve). */
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
-                double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win);
+                double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win,
+                int ensemble);
 
 /* Validate (median test if enabled) and replace rejected vectors. */
 RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);

@@ -3,7 +3,7 @@
 
 #include <math.h>
 
-const char *const rpiv_subpixel_names[] = {"gauss", "parabola", "centroid", NULL};
+const char *const rpiv_subpixel_names[] = {"gauss", "parabola", "centroid", "spline", "auto", NULL};
 const char *const rpiv_background_names[] = {"none", "min", "mean", NULL};
 const char *const rpiv_replace_names[] = {"median", "inpaint", NULL};
 
@@ -15,7 +15,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .overlap = 0.5,
                              .step_px = 0,
                              .ensemble = 0,
-                             .subpixel = RPIV_SUBPIXEL_GAUSS,
+                             .subpixel = RPIV_SUBPIXEL_AUTO,
                              .median_thr = 2.0,
                              .median_eps = 0.1,
                              .median_lines = 1,
@@ -53,6 +53,8 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.overlap: %g outside 0..0.95", p->overlap);
     if (p->step_px < 0 || p->step_px > 1024)
         return rpiv_fail(RPIV_EINVAL, "piv.step_px: %d outside 0..1024", p->step_px);
+    if (p->subpixel < RPIV_SUBPIXEL_GAUSS || p->subpixel > RPIV_SUBPIXEL_AUTO)
+        return rpiv_fail(RPIV_EINVAL, "piv.subpixel: unknown estimator %d", (int)p->subpixel);
     if (!(p->median_thr >= 0 && p->median_thr <= 100))
         return rpiv_fail(RPIV_EINVAL, "piv.median_threshold: %g outside 0..100", p->median_thr);
     if (!(p->median_eps >= 0 && p->median_eps <= 10))

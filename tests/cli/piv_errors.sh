@@ -52,7 +52,7 @@ else echo "FAIL: piv on a FIFO: exit $rc: $(cat "$tmp/err")" >&2; fail=$((fail +
 check 2 "unknown option '--bogus'" "$a" "$b" --bogus -o "$tmp/x.txt"
 check 2 "overlap" "$a" "$b" --overlap 0.99 -o "$tmp/x.txt"
 check 2 "window" "$a" "$b" --window 64,abc -o "$tmp/x.txt"
-check 2 "subpixel" "$a" "$b" --subpixel spline -o "$tmp/x.txt"
+check 2 "subpixel" "$a" "$b" --subpixel bicubic -o "$tmp/x.txt"
 check 2 "validate" "$a" "$b" --validate mean:3 -o "$tmp/x.txt"
 check 2 "background" "$a" "$b" --background max -o "$tmp/x.txt"
 check 2 "pairing" "$a" "$b" --pairing random -o "$tmp/x.txt"

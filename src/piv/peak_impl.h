@@ -1,0 +1,21 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/piv/peak_impl.h - the wide-neighbourhood sub-pixel estimator (peak_fit.c), used by
+ * peak.c for RPIV_SUBPIXEL_SPLINE. */
+#ifndef RPIV_SRC_PEAK_IMPL_H
+#define RPIV_SRC_PEAK_IMPL_H
+
+/* Half-width of the widest neighbourhood the spline estimator reads: (2 R + 1)^2 samples. */
+#define PEAK_SPLINE_R 3
+
+/* The continuous maximum of the tensor-product not-a-knot cubic spline through the logarithm
+ * of the 7 x 7 samples of the w x h circular plane around its integer maximum (bi, bj), or of
+ * the 5 x 5 ones when one of the 7 x 7 is not positive (or the plane is smaller than 7),
+ * found by Newton's method from (x0, y0) (offsets in px from (bi, bj), e.g. the 3-point
+ * Gaussian's). 1 and the offsets in *fx, *fy (within 1 px of (bi, bj)) on success; 0 when a
+ * sample of the 5 x 5 is not positive or not finite, the plane is smaller than 5, the spline
+ * has no maximum within 1 px, or Newton's method does not converge in 40 steps (the caller
+ * then keeps its 3-point fit). */
+int peak_fit_spline(const float *plane, int w, int h, int bi, int bj, double x0, double y0,
+                    double *fx, double *fy);
+
+#endif /* RPIV_SRC_PEAK_IMPL_H */
