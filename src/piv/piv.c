@@ -41,6 +41,7 @@ void rpiv_piv_free(rpiv_piv *pv)
     free(pv->ia);
     free(pv->ib);
     free(pv->prep);
+    unc_chain_free(pv->unc);
     free(pv);
 }
 
@@ -699,6 +700,30 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
     }
 }
 
+/* The uncertainty of the vectors of pass `pass` (f, validated; cs its windows' own sigmas):
+ * the level joins the chain of the passes before it when its predictor is the field the last
+ * one returned; the final pass gets sigma_u, sigma_v. */
+static rpiv_status step_uncertainty(rpiv_piv *pv, int pass, const rpiv_field *predictor,
+                                    int refines, rpiv_field *f, const float *cs)
+{
+    const piv_pass *ps = &pv->pass[pass];
+    const unc_geom g = {
+        ps->ox, ps->oy, ps->sx, ps->sy, ps->ww, ps->wh, pv->w, pv->h, piv_shift(pv, pass)};
+    const int linked = piv_shift(pv, pass) != 0 && unc_chain_links(pv->unc, predictor);
+    rpiv_status st = unc_chain_push(&pv->unc, linked, &g, refines ? pv->p.refine_filter : 0, f, cs,
+                                    cs + ps->nwin);
+    if (st)
+        return st;
+    if (pass == pv->npass - 1) {
+        float *su, *sv;
+        if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(pv->unc, f, su, sv, pv->nthreads)))
+            return st;
+        unc_replaced(f);
+    }
+    unc_chain_set_hash(pv->unc, f);
+    return RPIV_OK;
+}
+
 int piv_repeats(const rpiv_piv *pv, int pass)
 {
     return pass > 0 && pv->deforms && pv->pass[pass].ww == pv->pass[pass - 1].ww &&
@@ -721,7 +746,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     const piv_pass *ps = &pv->pass[pass];
     rpiv_deform_pred *pred = NULL;
     rpiv_field *f = NULL;
-    float *scratch = NULL;
+    float *scratch = NULL, *cs = NULL; /* cs: the windows' own sigmas, u then v */
     rpiv_status st;
     /* a repeat of the window size before it (a refinement): its predictor low-passed */
     const int refines = piv_repeats(pv, pass);
@@ -734,16 +759,17 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
         if (ps->masked[win])
             f->flag[win] = RPIV_FLAG_MASKED;
     step_ctx c = {pv, ps, f, NULL, NULL, NULL};
-    if (pv->p.uncertainty && pass == pv->npass - 1) {
-        /* the final window size: sigma_u, sigma_v of every vector (docs/uncertainty.md) */
-        if ((st = unc_add(f, &c.su, &c.sv)))
-            goto out_free;
+    if (pv->p.uncertainty) {
+        /* every pass: the final vectors carry the predictors' noise (docs/uncertainty.md) */
         const size_t nscr = (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
         c.scratch = scratch = malloc(nscr * sizeof *scratch);
-        if (!scratch) {
+        cs = calloc(2 * ps->nwin, sizeof *cs);
+        if (!scratch || !cs) {
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
             goto out_free;
         }
+        c.su = cs;
+        c.sv = cs + ps->nwin;
     }
     if ((st = piv_pass_run(pv, pass, pred, step_vector, &c)))
         goto out_free;
@@ -757,10 +783,12 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
             }
     } else if ((st = piv_validate(pv, f)))
         goto out_free;
-    unc_replaced(f);
+    if (cs && (st = step_uncertainty(pv, pass, predictor, refines, f, cs)))
+        goto out_free;
     *out = f;
     f = NULL;
 out_free:
+    free(cs);
     free(scratch);
     rpiv_field_free(f);
     rpiv_deform_pred_free(pred);

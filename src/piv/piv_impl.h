@@ -29,14 +29,15 @@ struct rpiv_piv {
     int w, h, nthreads, npass;
     int roi[4];
     piv_pass pass[RPIV_PIV_MAX_PASSES];
-    unsigned char *mask;  /* w*h, 1 = masked pixel; NULL = no mask                */
-    float *bga, *bgb;     /* backgrounds, NULL = none                             */
-    float *ia, *ib;       /* loaded frames, then their B-spline coefficients      */
-    float *prep;          /* a frame being preprocessed; NULL without preprocessing */
-    int deforms;          /* passes after the first deform the frames             */
-    float fill_a, fill_b; /* mean grey level of the loaded frames                 */
-    int state;            /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
-    size_t bytes;         /* memory held                                          */
+    unsigned char *mask;   /* w*h, 1 = masked pixel; NULL = no mask                */
+    float *bga, *bgb;      /* backgrounds, NULL = none                             */
+    float *ia, *ib;        /* loaded frames, then their B-spline coefficients      */
+    float *prep;           /* a frame being preprocessed; NULL without preprocessing */
+    int deforms;           /* passes after the first deform the frames             */
+    float fill_a, fill_b;  /* mean grey level of the loaded frames                 */
+    int state;             /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
+    size_t bytes;          /* memory held                                          */
+    struct unc_chain *unc; /* the passes' uncertainty (uncertainty_impl.h), or NULL */
 };
 
 /* What a pass correlates: frames (stride w) whose first row is image row row0, and the

@@ -12,9 +12,9 @@
  * (particle images up to ~4 px: their products decorrelate within 2 px). */
 #define UNC_LAG 2
 
-/* One direction (dx, dy = (1, 0) or (0, 1)) of unc_cs. */
-static double cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix,
-                     int iy, double ma, double mb, int dx, int dy, float *dc)
+/* One direction (dx, dy = (1, 0) or (0, 1)) of unc_cs_sums: C0, C+, C-, var(C+ - C-). */
+static void cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix,
+                   int iy, double ma, double mb, int dx, int dy, float *dc, double out[4])
 {
     double c0 = 0, cp = 0, cm = 0, sum = 0;
     const size_t n = (size_t)w * (size_t)h;
@@ -54,6 +54,14 @@ static double cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w
             }
             var += d0 * s;
         }
+    out[0] = c0;
+    out[1] = cp;
+    out[2] = cm;
+    out[3] = var > 0 ? var : 0;
+}
+
+double unc_cs_sigma(double c0, double cp, double cm, double var)
+{
     if (!(var > 0))
         return 0;
     const double sd = sqrt(var), cpm = 0.5 * (cp + cm);
@@ -65,8 +73,8 @@ static double cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w
     return s < UNC_SIGMA_MAX ? s : UNC_SIGMA_MAX;
 }
 
-void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
-            float *scratch, double *su, double *sv)
+void unc_cs_sums(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
+                 float *scratch, double sums[8])
 {
     double ma = 0, mb = 0;
     for (int y = 0; y < h; y++)
@@ -76,11 +84,20 @@ void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, 
         }
     ma /= (double)w * h;
     mb /= (double)w * h;
-    *su = cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 1, 0, scratch);
-    *sv = cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 0, 1, scratch);
+    cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 1, 0, scratch, sums);
+    cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 0, 1, scratch, sums + 4);
 }
 
-static float *quantity_data(rpiv_field *f, const char *name)
+void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
+            float *scratch, double *su, double *sv)
+{
+    double s[8];
+    unc_cs_sums(a, sa, b, sb, w, h, ix, iy, scratch, s);
+    *su = unc_cs_sigma(s[0], s[1], s[2], s[3]);
+    *sv = unc_cs_sigma(s[4], s[5], s[6], s[7]);
+}
+
+float *unc_quantity(rpiv_field *f, const char *name)
 {
     for (size_t k = 0; k < f->nq; k++)
         if (!strcmp(f->q[k].name, name))
@@ -95,7 +112,7 @@ rpiv_status unc_add(rpiv_field *f, float **su, float **sv)
     const char *names[2] = {"sigma_u", "sigma_v"};
     float **out[2] = {su, sv};
     for (int c = 0; c < 2; c++) {
-        *out[c] = quantity_data(f, names[c]);
+        *out[c] = unc_quantity(f, names[c]);
         if (*out[c])
             memset(*out[c], 0, n * sizeof **out[c]);
         else if ((st = rpiv_field_add_quantity(f, names[c], RPIV_UNIT_PX_PER_DT, out[c])))
@@ -106,7 +123,7 @@ rpiv_status unc_add(rpiv_field *f, float **su, float **sv)
 
 void unc_replaced(rpiv_field *f)
 {
-    float *g[2] = {quantity_data(f, "sigma_u"), quantity_data(f, "sigma_v")};
+    float *g[2] = {unc_quantity(f, "sigma_u"), unc_quantity(f, "sigma_v")};
     if (!g[0] || !g[1])
         return;
     const int nx = f->nx, ny = f->ny;
