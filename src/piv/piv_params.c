@@ -83,9 +83,6 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.smooth: %g outside 0..1e6", p->smooth);
     if (p->uncertainty != 0 && p->uncertainty != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.uncertainty: %d is not 0 or 1", p->uncertainty);
-    if (p->uncertainty && p->ensemble)
-        return rpiv_fail(RPIV_EINVAL,
-                         "piv.uncertainty: not available for ensemble runs (piv.ensemble = 1)");
     if (!(p->max_mem_mb > 0))
         return rpiv_fail(RPIV_EINVAL, "piv.max_mem_mb: %g must be > 0", p->max_mem_mb);
     return RPIV_OK;
