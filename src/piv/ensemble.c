@@ -72,7 +72,7 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
         goto out_free;
     }
     if (pv->p.uncertainty &&
-        !(e->scratch = malloc((size_t)pv->nthreads * plane * sizeof *e->scratch))) {
+        !(e->scratch = malloc(2 * (size_t)pv->nthreads * plane * sizeof *e->scratch))) {
         st = rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory for the uncertainty");
         goto out_free;
     }
@@ -96,7 +96,7 @@ static void add_plane(void *ctx, const float *plane, const float *colmax, size_t
     (void)colmax;
     if (e->scratch) {
         double us[ENS_UNC_SUMS];
-        ens_unc_pair(e, plane, xs, e->scratch + (size_t)omp_get_thread_num() * e->plane, us);
+        ens_unc_pair(e, plane, xs, e->scratch + 2 * (size_t)omp_get_thread_num() * e->plane, us);
         ens_unc_add(e, win, us);
     }
     float *sum = e->data + win * e->plane, *energy = e->data + e->nwin * e->plane;

@@ -21,7 +21,7 @@ struct rpiv_ensemble {
     size_t n;    /* floats in data      */
     float *data; /* planes, then energies */
     size_t npairs;
-    float *scratch; /* with piv.uncertainty: a plane per thread (ensemble_unc.c), else NULL */
+    float *scratch; /* with piv.uncertainty: two planes per thread (ensemble_unc.c), else NULL */
 };
 
 /* Floats per window of the uncertainty's sums (ensemble_unc.c), after the energies. */
@@ -31,7 +31,7 @@ struct rpiv_ensemble {
 size_t ens_unc_floats(const rpiv_piv *pv, int pass);
 
 /* One pair's sums of window win's correlation statistics (plane: its raw plane; xs: the
- * window pair as correlated; scratch: a plane of floats). */
+ * window pair as correlated; scratch: two planes of floats). */
 void ens_unc_pair(const rpiv_ensemble *e, const float *plane, const rpiv_xcorr_src *xs,
                   float *scratch, double sums[ENS_UNC_SUMS]);
 

@@ -36,7 +36,7 @@ typedef struct pair_slot {
     float *planes;  /* nwin planes                                              */
     double *energy; /* 2 nwin energies                                          */
     double *unc;    /* with the uncertainty: ENS_UNC_SUMS per window, else NULL */
-    float *scratch; /* with the uncertainty: a plane                            */
+    float *scratch; /* with the uncertainty: two planes                        */
 } pair_slot;
 
 typedef struct slot_ctx {
@@ -241,7 +241,7 @@ rpiv_status rpiv_ensemble_add_pairs(rpiv_ensemble *e, size_t n, rpiv_ensemble_lo
         r.slots[j].energy = calloc(2 * e->nwin, sizeof *r.slots[j].energy);
         if (e->scratch) {
             r.slots[j].unc = malloc(e->nwin * ENS_UNC_SUMS * sizeof *r.slots[j].unc);
-            r.slots[j].scratch = malloc(e->plane * sizeof *r.slots[j].scratch);
+            r.slots[j].scratch = malloc(2 * e->plane * sizeof *r.slots[j].scratch);
         }
         if (!r.slots[j].planes || !r.slots[j].energy ||
             (e->scratch && (!r.slots[j].unc || !r.slots[j].scratch))) {

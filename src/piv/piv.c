@@ -680,7 +680,7 @@ typedef struct step_ctx {
     const piv_pass *ps;
     rpiv_field *f;
     float *su, *sv; /* sigma_u, sigma_v of f; NULL: no uncertainty   */
-    float *scratch; /* ww * wh floats per thread for the uncertainty */
+    float *scratch; /* 2 ww wh floats per thread for the uncertainty */
 } step_ctx;
 
 static void step_vector(void *ctx, const float *plane, const float *colmax, size_t win, double ea,
@@ -691,7 +691,8 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
     if (c->su && c->f->flag[win] == RPIV_FLAG_VALID) {
         const piv_pass *ps = c->ps;
         double su, sv;
-        float *scr = c->scratch + (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
+        float *scr =
+            c->scratch + 2 * (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
         unc_cs(xs->a, xs->stride_a, xs->b, xs->stride_b, ps->ww, ps->wh,
                (int)lround((double)c->f->u[win] - pu), (int)lround((double)c->f->v[win] - pv_), scr,
                &su, &sv);
@@ -761,7 +762,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     step_ctx c = {pv, ps, f, NULL, NULL, NULL};
     if (pv->p.uncertainty) {
         /* every pass: the final vectors carry the predictors' noise (docs/uncertainty.md) */
-        const size_t nscr = (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
+        const size_t nscr = 2 * (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
         c.scratch = scratch = malloc(nscr * sizeof *scratch);
         cs = calloc(2 * ps->nwin, sizeof *cs);
         if (!scratch || !cs) {

@@ -228,6 +228,72 @@ typedef struct term {
     double q[2];        /* coefficient * sigma / sqrt(area), u and v */
 } term;
 
+static int gcd(int a, int b)
+{
+    a = a < 0 ? -a : a;
+    b = b < 0 ? -b : b;
+    while (b) {
+        int r = a % b;
+        a = b;
+        b = r;
+    }
+    return a;
+}
+
+/* Cells beyond which the variance is summed over pairs of terms instead. */
+#define UNC_MAX_CELLS 262144
+
+/* var[0], var[1] = sum over pixels of (sum of the q of the windows holding it)^2. Returns 0,
+ * or -1 when out of memory. */
+static int terms_var(const term *t, size_t nt, double var[2])
+{
+    int X0 = t[0].x0, Y0 = t[0].y0, X1 = t[0].x1, Y1 = t[0].y1, gx = 0, gy = 0;
+    for (size_t a = 1; a < nt; a++) {
+        X0 = t[a].x0 < X0 ? t[a].x0 : X0;
+        Y0 = t[a].y0 < Y0 ? t[a].y0 : Y0;
+        X1 = t[a].x1 > X1 ? t[a].x1 : X1;
+        Y1 = t[a].y1 > Y1 ? t[a].y1 : Y1;
+    }
+    for (size_t a = 0; a < nt; a++) {
+        gx = gcd(gcd(gx, t[a].x0 - X0), t[a].x1 - X0);
+        gy = gcd(gcd(gy, t[a].y0 - Y0), t[a].y1 - Y0);
+    }
+    const size_t cx = (size_t)((X1 - X0) / gx), cy = (size_t)((Y1 - Y0) / gy);
+    if (cx * cy <= UNC_MAX_CELLS) {
+        double *cell = calloc(2 * cx * cy, sizeof *cell);
+        if (!cell)
+            return -1;
+        for (size_t a = 0; a < nt; a++)
+            for (int y = (t[a].y0 - Y0) / gy; y < (t[a].y1 - Y0) / gy; y++)
+                for (int x = (t[a].x0 - X0) / gx; x < (t[a].x1 - X0) / gx; x++) {
+                    double *c = cell + 2 * ((size_t)y * cx + (size_t)x);
+                    c[0] += t[a].q[0];
+                    c[1] += t[a].q[1];
+                }
+        for (size_t k = 0; k < cx * cy; k++) {
+            var[0] += cell[2 * k] * cell[2 * k];
+            var[1] += cell[2 * k + 1] * cell[2 * k + 1];
+        }
+        var[0] *= (double)gx * gy;
+        var[1] *= (double)gx * gy;
+        free(cell);
+        return 0;
+    }
+    for (size_t a = 0; a < nt; a++)
+        for (size_t b = a; b < nt; b++) {
+            const int x0 = t[a].x0 > t[b].x0 ? t[a].x0 : t[b].x0;
+            const int x1 = t[a].x1 < t[b].x1 ? t[a].x1 : t[b].x1;
+            const int y0 = t[a].y0 > t[b].y0 ? t[a].y0 : t[b].y0;
+            const int y1 = t[a].y1 < t[b].y1 ? t[a].y1 : t[b].y1;
+            if (x1 <= x0 || y1 <= y0)
+                continue;
+            const double ov = (double)(x1 - x0) * (y1 - y0) * (a == b ? 1 : 2);
+            var[0] += ov * t[a].q[0] * t[b].q[0];
+            var[1] += ov * t[a].q[1] * t[b].q[1];
+        }
+    return 0;
+}
+
 /* The node range of the level before (pn nodes at p0 + k pd) that the windows i0..i1 of this
  * level reach. */
 static void reach(int i0, int i1, int w0, int st, int ww, double shift, double p0, double pd,
@@ -334,19 +400,11 @@ static int vector_var(const unc_chain *c, int ix, int iy, double var[2])
         by0 = ky0;
         by1 = ky1;
     }
-    /* the variance of the sum of the terms: window noises covary by their shared pixels */
-    for (size_t a = 0; a < nt && !bad; a++)
-        for (size_t b = a; b < nt; b++) {
-            const int x0 = t[a].x0 > t[b].x0 ? t[a].x0 : t[b].x0;
-            const int x1 = t[a].x1 < t[b].x1 ? t[a].x1 : t[b].x1;
-            const int y0 = t[a].y0 > t[b].y0 ? t[a].y0 : t[b].y0;
-            const int y1 = t[a].y1 < t[b].y1 ? t[a].y1 : t[b].y1;
-            if (x1 <= x0 || y1 <= y0)
-                continue;
-            const double ov = (double)(x1 - x0) * (y1 - y0) * (a == b ? 1 : 2);
-            var[0] += ov * t[a].q[0] * t[b].q[0];
-            var[1] += ov * t[a].q[1] * t[b].q[1];
-        }
+    /* the variance of the sum of the terms: window noises covary by their shared pixels,
+     * var = sum_a sum_b q_a q_b |W_a & W_b| = sum over pixels of (sum of q_a over the windows
+     * holding the pixel)^2, summed on cells of g pixels (g: the common divisor of the edges) */
+    if (!bad && nt)
+        bad = terms_var(t, nt, var);
     free(cf);
     free(nx_cf);
     free(th);

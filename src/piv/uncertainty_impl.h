@@ -16,13 +16,14 @@
 
 /* The standard uncertainty (1 sigma, px) of the displacement measured on a window pair: a
  * (rows sa floats apart) and b (sb), w x h, the pair as it was correlated (deformed), the
- * correlation peak at the integer shift (ix, iy). scratch holds w * h floats. Writes *su, *sv
+ * correlation peak at the integer shift (ix, iy). scratch holds 2 w h floats. Writes *su, *sv
  * in 0..UNC_SIGMA_MAX. */
 void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
             float *scratch, double *su, double *sv);
 
 /* The sums unc_cs propagates, for one pair: per direction (x, then y) the correlation at the
- * peak's integer shift C0, at +1 and -1 px, and the variance of C+ - C- (sums[8]). An
+ * peak's integer shift C0, at +1 and -1 px, and the variance of C+ - C- (sums[8]); scratch
+ * as unc_cs's. An
  * ensemble adds them over its pairs (independent pairs: their variances add). */
 void unc_cs_sums(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
                  float *scratch, double sums[8]);
