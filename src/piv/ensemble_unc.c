@@ -82,6 +82,8 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
     if ((st = unc_chain_push(&c, linked, &g, 0, f, cs, cs + e->nwin)) ||
         (st = unc_add(f, &su, &sv)) || (st = unc_chain_total(c, f, su, sv, pv->nthreads)))
         goto out_free;
+    if (g.shift != 0)
+        unc_edge_bias(f, ps->ww, ps->wh, su, sv);
     unc_replaced(f);
 out_free:
     unc_chain_free(c);

@@ -719,6 +719,8 @@ static rpiv_status step_uncertainty(rpiv_piv *pv, int pass, const rpiv_field *pr
         float *su, *sv;
         if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(pv->unc, f, su, sv, pv->nthreads)))
             return st;
+        if (pv->deforms)
+            unc_edge_bias(f, ps->ww, ps->wh, su, sv);
         unc_replaced(f);
     }
     unc_chain_set_hash(pv->unc, f);

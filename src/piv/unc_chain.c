@@ -433,3 +433,36 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
     }
     return bad ? rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty") : RPIV_OK;
 }
+
+/* |second difference| of g along a line at the edge node k0 (inward step dk, stride st). */
+static double edge_curv(const float *g, size_t k0, ptrdiff_t st)
+{
+    return fabs((double)g[k0] - 2 * (double)g[(ptrdiff_t)k0 + st] +
+                (double)g[(ptrdiff_t)k0 + 2 * st]);
+}
+
+void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv)
+{
+    const int nx = f->nx, ny = f->ny;
+    const float *g[2] = {f->u, f->v};
+    float *s[2] = {su, sv};
+    for (int j = 0; j < ny; j++)
+        for (int i = 0; i < nx; i++) {
+            const size_t k = (size_t)j * (size_t)nx + (size_t)i;
+            const int ex = nx >= 3 && (i == 0 || i == nx - 1);
+            const int ey = ny >= 3 && (j == 0 || j == ny - 1);
+            if ((!ex && !ey) || f->flag[k] != RPIV_FLAG_VALID)
+                continue;
+            for (int c = 0; c < 2; c++) {
+                double b = 0;
+                if (ex)
+                    b += (double)ww * ww / 24 / (f->dx * f->dx) *
+                         edge_curv(g[c], k, i == 0 ? 1 : -1);
+                if (ey)
+                    b += (double)wh * wh / 24 / (f->dy * f->dy) *
+                         edge_curv(g[c], k, j == 0 ? (ptrdiff_t)nx : -(ptrdiff_t)nx);
+                const double t = sqrt((double)s[c][k] * (double)s[c][k] + b * b);
+                s[c][k] = (float)(t < UNC_SIGMA_MAX ? t : UNC_SIGMA_MAX);
+            }
+        }
+}

@@ -78,4 +78,11 @@ uint64_t unc_field_hash(const rpiv_field *f);
 RPIV_NODISCARD rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su,
                                            float *sv, int nthreads);
 
+/* The bias of the vectors on the grid's edge rows and columns, added to their sigma (in
+ * quadrature): a top-hat window of ww x wh px measures the window mean, u + ww^2/24 u_xx +
+ * wh^2/24 u_yy + ..., which the deformation compensates inside the grid, but not across its
+ * edge, where the predictor is continued linearly; u_xx, u_yy from the field's second
+ * differences inward. f: the final field (grid steps dx, dy px). */
+void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv);
+
 #endif /* RPIV_SRC_UNCERTAINTY_IMPL_H */
