@@ -472,6 +472,18 @@ static void unc_ensemble_deterministic(void)
         }
         CHECK(!memcmp(f1->u, f2->u, n * sizeof *f1->u) && !memcmp(f1->v, f2->v, n * sizeof *f1->v));
     }
+    /* the checkpoint of a run with the uncertainty, resumed without it: refused, named */
+    rpiv_piv_params off = rpiv_piv_params_default();
+    off.ensemble = 1;
+    rpiv_piv *pv = NULL;
+    rpiv_ensemble *e = NULL;
+    CHECK_OK(rpiv_piv_new(&off, 128, 128, NULL, &pv));
+    if (pv) {
+        CHECK_FAILS(rpiv_ensemble_load_new(pv, "test_uncertainty_ens.ck", NULL, NULL, &e),
+                    RPIV_EFORMAT);
+        CHECK(e == NULL && strstr(rpiv_errmsg(), "made with piv.uncertainty on"));
+    }
+    rpiv_piv_free(pv);
     remove("test_uncertainty_ens.ck");
     rpiv_field_free(f1);
     rpiv_field_free(f2);

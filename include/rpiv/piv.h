@@ -69,9 +69,10 @@ typedef struct rpiv_piv_params {
     int replace;   /* rejected vectors: 0 local median, 1 inpainting (Laplace) (0)        */
     double smooth; /* final field: penalised least-squares smoothing parameter, 0 = off (0) */
     int y_up;      /* output files: 1 origin bottom-left, y and v up; 0 image coordinates (0) */
-    /* Random uncertainty of every vector of the final window size: the quantities sigma_u,
-     * sigma_v (1 standard deviation, px per pair) by correlation statistics (Wieneke 2015;
-     * docs/uncertainty.md). Not for ensemble runs. */
+    /* Random uncertainty of every vector of the final window size, instantaneous or ensemble:
+     * the quantities sigma_u, sigma_v (1 standard deviation, px per pair), correlation
+     * statistics (Wieneke 2015) of every pass with the predictors' noise carried through the
+     * passes (docs/uncertainty.md). */
     int uncertainty; /* 1: add sigma_u, sigma_v (0) */
 } rpiv_piv_params;
 

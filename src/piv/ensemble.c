@@ -380,6 +380,13 @@ static rpiv_status read_head(reader *r, const char *path, rpiv_ensemble_block_fn
 static rpiv_status check_layout(const reader *r, const file_header *want)
 {
     const file_header *hd = &r->hd;
+    if (hd->nsums != want->nsums &&
+        hd->nsums - (uint64_t)hd->nx * (uint64_t)hd->ny * ENS_UNC_SUMS == want->nsums)
+        return rpiv_fail(RPIV_EFORMAT, "%s: sums made with piv.uncertainty on; this run has it off",
+                         r->path);
+    if (hd->nsums + (uint64_t)want->nx * (uint64_t)want->ny * ENS_UNC_SUMS == want->nsums)
+        return rpiv_fail(RPIV_EFORMAT, "%s: sums made with piv.uncertainty off; this run has it on",
+                         r->path);
     if (hd->w != want->w || hd->h != want->h || hd->pass != want->pass || hd->ww != want->ww ||
         hd->wh != want->wh || hd->nx != want->nx || hd->ny != want->ny || hd->ox != want->ox ||
         hd->oy != want->oy || hd->nsums != want->nsums)
