@@ -701,32 +701,6 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
     }
 }
 
-/* The uncertainty of the vectors of pass `pass` (f, validated; cs its windows' own sigmas):
- * the level joins the chain of the passes before it when its predictor is the field the last
- * one returned; the final pass gets sigma_u, sigma_v. */
-static rpiv_status step_uncertainty(rpiv_piv *pv, int pass, const rpiv_field *predictor,
-                                    int refines, rpiv_field *f, const float *cs)
-{
-    const piv_pass *ps = &pv->pass[pass];
-    const unc_geom g = {
-        ps->ox, ps->oy, ps->sx, ps->sy, ps->ww, ps->wh, pv->w, pv->h, piv_shift(pv, pass)};
-    const int linked = piv_shift(pv, pass) != 0 && unc_chain_links(pv->unc, predictor);
-    rpiv_status st = unc_chain_push(&pv->unc, linked, &g, refines ? pv->p.refine_filter : 0, f, cs,
-                                    cs + ps->nwin);
-    if (st)
-        return st;
-    if (pass == pv->npass - 1) {
-        float *su, *sv;
-        if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(pv->unc, f, su, sv, pv->nthreads)))
-            return st;
-        if (pv->deforms)
-            unc_edge_bias(f, ps->ww, ps->wh, su, sv);
-        unc_replaced(f);
-    }
-    unc_chain_set_hash(pv->unc, f);
-    return RPIV_OK;
-}
-
 int piv_repeats(const rpiv_piv *pv, int pass)
 {
     return pass > 0 && pv->deforms && pv->pass[pass].ww == pv->pass[pass - 1].ww &&
@@ -786,7 +760,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
             }
     } else if ((st = piv_validate(pv, f)))
         goto out_free;
-    if (cs && (st = step_uncertainty(pv, pass, predictor, refines, f, cs)))
+    if (cs && (st = piv_step_uncertainty(pv, pass, piv_shift(pv, pass), predictor, refines, f, cs)))
         goto out_free;
     *out = f;
     f = NULL;

@@ -112,4 +112,12 @@ int piv_repeats(const rpiv_piv *pv, int pass);
 RPIV_NODISCARD rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int defer,
                                     rpiv_field **out);
 
+/* The uncertainty of the vectors of pass `pass` (f, validated; cs its windows' own sigmas, u
+ * then v; shift: piv_shift's): the level joins the chain of the passes before it when its
+ * predictor is the field the last one returned (`refines`: a repeat, its predictor
+ * low-passed); the final pass gets sigma_u, sigma_v (unc_step.c). */
+RPIV_NODISCARD rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift,
+                                                const rpiv_field *predictor, int refines,
+                                                rpiv_field *f, const float *cs);
+
 #endif /* RPIV_SRC_PIV_IMPL_H */
