@@ -13,7 +13,6 @@
  *   B-spline's [1 4 1]/6 in x and y, so that the engine's prefilter gives back the frames
  *   themselves as coefficients: interpolation by the (smoothing) B-spline approximation)
  *   rfilter=A (params refine_filter: the repeat's predictor low-passed by [A/2, 1-A, A/2])
- *   adapt=K (params refine_adapt: that filter adapted to each vector's noise)
  *   mode=estimators: the sub-pixel estimators on the planes of single 32 px windows instead */
 #include "../tests/piv_testimg.h"
 #include "rpiv/peak.h"
@@ -31,7 +30,7 @@ typedef struct opts {
     int nppp;
     double d, noise, smax;
     char passes[64], sub[16], pre[32];
-    double rfilter, adapt;
+    double rfilter;
     int estimators;
 } opts;
 
@@ -248,7 +247,7 @@ static void estimators(const opts *o)
 
 int main(int argc, char **argv)
 {
-    opts o = {512, 3, {0.02, 0.05}, 2, 1.5, 0.1, 2.0, "64,32,32", "gauss", "none", 0, 0, 0};
+    opts o = {512, 3, {0.02, 0.05}, 2, 1.5, 0.1, 2.0, "64,32,32", "gauss", "none", 0, 0};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = strchr(a, '=');
         if (!v) {
@@ -278,8 +277,6 @@ int main(int argc, char **argv)
             snprintf(o.pre, sizeof o.pre, "%s", v);
         else if (!strncmp(a, "mode=", 5))
             o.estimators = !strcmp(v, "estimators");
-        else if (!strncmp(a, "adapt=", 6))
-            o.adapt = atof(v);
         else if (!strncmp(a, "rfilter=", 8))
             o.rfilter = atof(v);
         else {
@@ -294,7 +291,6 @@ int main(int argc, char **argv)
     rpiv_piv_params prm = rpiv_piv_params_default();
     parse_passes(o.passes, &prm);
     prm.refine_filter = o.rfilter;
-    prm.refine_adapt = o.adapt;
     prm.subpixel = !strcmp(o.sub, "parabola")   ? RPIV_SUBPIXEL_PARABOLA
                    : !strcmp(o.sub, "centroid") ? RPIV_SUBPIXEL_CENTROID
                                                 : RPIV_SUBPIXEL_GAUSS;
@@ -310,9 +306,9 @@ int main(int argc, char **argv)
         return 1;
     }
     printf("# size %d, d %.2f px, SNR %.1f, passes %s, sub %s, pre %s, refine_filter %g, "
-           "refine_adapt %g, %d seeds, shifts 0..%.1f px\n",
+           "%d seeds, shifts 0..%.1f px\n",
            n, o.d, o.noise > 0 ? 1 / o.noise : (double)INFINITY, o.passes, o.sub, o.pre, o.rfilter,
-           o.adapt, o.seeds, o.smax);
+           o.seeds, o.smax);
     for (int q = 0; q < o.nppp; q++) {
         double sq = 0, sq_in = 0, worst_mean = 0;
         long cnt = 0, repl = 0, out = 0;

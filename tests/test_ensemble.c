@@ -431,8 +431,8 @@ static void checkpoint_block_predictor_and_older_formats(void)
     CHECK_FAILS(rpiv_ensemble_load(e1, path), RPIV_EFORMAT);
     CHECK(strstr(rpiv_errmsg(), "5 bytes after the checkpoint's end") != NULL);
     /* files of the earlier formats: named, refused */
-    const char *magic[3] = {"RPIVENS1", "RPIVCKP1", "RPIVCKP2"};
-    for (int k = 0; k < 3; k++) {
+    const char *magic[4] = {"RPIVENS1", "RPIVCKP1", "RPIVCKP2", "RPIVCKP3"};
+    for (int k = 0; k < 4; k++) {
         FILE *fp = fopen(old, "wb");
         CHECK(fp != NULL);
         if (!fp)

@@ -24,10 +24,12 @@
  * Scale-out and checkpoints: rpiv_ensemble_data exposes the raw sums as one float array
  * (MPI_Reduce with MPI_FLOAT/MPI_SUM into a root accumulator, then rpiv_ensemble_set_npairs
  * with the total). rpiv_ensemble_save/_load write and read an accumulator as a checkpoint
- * file, the one checkpoint format of rpiv (magic RPIVCKP2): a header that ties the sums to the
+ * file, the one checkpoint format of rpiv (magic RPIVCKP4): a header that ties the sums to the
  * pass, the windows, the grid and the image size, a block of the caller's bytes (rpiv/batch.h
  * keeps the identity of its series, plan and rank there, and which pairs are done), the
- * predictor, the sums and their pair count, and a 64-bit checksum of all of it. */
+ * predictor (and its sigma_u, sigma_v with piv.uncertainty), the sums (with piv.uncertainty,
+ * 8 more per window: docs/uncertainty.md) and their pair count, and a 64-bit checksum of all
+ * of it. */
 #ifndef RPIV_ENSEMBLE_H
 #define RPIV_ENSEMBLE_H
 

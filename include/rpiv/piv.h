@@ -60,14 +60,6 @@ typedef struct rpiv_piv_params {
                              repeats; end with the iterate of the smallest change (1) */
     int refine_defer;     /* 1: no median test between repeats of the final size, only on the
                              field they converge to (0; experimental, docs/piv.md) */
-    double refine_adapt;  /* k > 0: the repeat's predictor filter (refine_filter a) adapts to
-                             each vector's noise: weight a 6k s^2 / (6k s^2 + D^2), s the vector's
-                             random uncertainty (correlation statistics, computed on the passes
-                             of the final size), D the field's second difference along the
-                             filter's axis (0 = off; 4 with refine_filter 0.5 suggested for
-                             noisy images; docs/deform.md, "Noisy small particles"). The
-                             fields of those passes carry sigma_u, sigma_v (with refine_max
-                             > 0 the final field too) */
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;
@@ -81,9 +73,10 @@ typedef struct rpiv_piv_params {
     int replace;   /* rejected vectors: 0 local median, 1 inpainting (Laplace) (0)        */
     double smooth; /* final field: penalised least-squares smoothing parameter, 0 = off (0) */
     int y_up;      /* output files: 1 origin bottom-left, y and v up; 0 image coordinates (0) */
-    /* Random uncertainty of every vector of the final window size: the quantities sigma_u,
-     * sigma_v (1 standard deviation, px per pair) by correlation statistics (Wieneke 2015;
-     * docs/uncertainty.md). Not for ensemble runs. */
+    /* Random uncertainty of every vector of the final window size, instantaneous or ensemble:
+     * the quantities sigma_u, sigma_v (1 standard deviation, px per pair), correlation
+     * statistics (Wieneke 2015) of every pass with the predictors' noise carried through the
+     * passes (docs/uncertainty.md). */
     int uncertainty; /* 1: add sigma_u, sigma_v (0) */
 } rpiv_piv_params;
 

@@ -178,8 +178,6 @@ static const key_spec keys[] = {
      "refinement: stop when the change stops falling (keep the field of the smallest change)", 0},
     {"piv", "refine_defer", KEY_BOOL, OFF(piv.refine_defer), 0, 1, 1, "-",
      "refinement: median test on the converged field only, not between repeats", 0},
-    {"piv", "refine_adapt", KEY_DOUBLE, OFF(piv.refine_adapt), 0, 100, 1, "-",
-     "repeat's predictor filter adapted to each vector's noise, k (0 = off; 4 suggested)", 0},
     {"piv", "uncertainty", KEY_BOOL, OFF(piv.uncertainty), 0, 1, 1, "-",
      "add sigma_u, sigma_v per vector (correlation statistics; docs/uncertainty.md)", 0},
     {"piv", "background", KEY_ENUM, OFF(piv.background), 0, 0, 1, "-",

@@ -321,39 +321,3 @@ rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int
 }
 
 /* ---- the predictor filter adapted to the noise (deform_impl.h) ---------------------------- */
-
-/* One line of n values (the copy `line`) filtered into r (every step floats), sig the
- * uncertainties at the same stride as r. */
-static void pred_filter_line(float *r, size_t step, const float *line, const float *sig, int n,
-                             double a, double k)
-{
-    for (int i = 1; i < n - 1; i++) {
-        const double d = (double)line[i - 1] - 2.0 * (double)line[i] + (double)line[i + 1];
-        const double s = (double)sig[(size_t)i * step], n2 = 6.0 * k * s * s;
-        const double w = n2 + d * d > 0 ? a * n2 / (n2 + d * d) : 0;
-        r[(size_t)i * step] = (float)((double)line[i] + 0.5 * w * d);
-    }
-}
-
-rpiv_status deform_pred_filter_adapt(rpiv_field *f, double a, double k, const float *sig[2])
-{
-    const int nx = f->nx, ny = f->ny, n = nx > ny ? nx : ny;
-    float *line = malloc((size_t)n * sizeof *line);
-    if (!line)
-        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor filter");
-    for (int comp = 0; comp < 2; comp++) {
-        float *g = comp ? f->v : f->u;
-        for (int j = 0; nx > 2 && j < ny; j++) {
-            float *r = g + (size_t)j * (size_t)nx;
-            memcpy(line, r, (size_t)nx * sizeof *line);
-            pred_filter_line(r, 1, line, sig[comp] + (size_t)j * (size_t)nx, nx, a, k);
-        }
-        for (int i = 0; ny > 2 && i < nx; i++) {
-            for (int j = 0; j < ny; j++)
-                line[j] = g[(size_t)j * (size_t)nx + (size_t)i];
-            pred_filter_line(g + i, (size_t)nx, line, sig[comp] + i, ny, a, k);
-        }
-    }
-    free(line);
-    return RPIV_OK;
-}

@@ -76,14 +76,4 @@ void deform_prefilter_pair(float *a, float *b, int w, int h, int nthreads);
 void deform_pred_row_ref(const rpiv_deform_pred *p, int y, int x0, int x1, float *u, float *v,
                          float *scratch);
 
-/* The predictor's [a/2, 1 - a, a/2] filter (x, then y; edge values kept) adapted to each
- * vector's noise (params refine_adapt = k > 0): a vector's weight along an axis is
- * a 6k s^2 / (6k s^2 + D^2), s its random uncertainty (sig[0] for u, sig[1] for v: sigma_u,
- * sigma_v of f), D = U(-1) - 2 U(0) + U(1) its second difference along the axis (6 s^2 is the
- * variance of D for independent noise). A noisy vector of a smooth field is filtered by
- * nearly a, one where the field curves far beyond its noise (a true gradient) is left as it
- * is. RPIV_ENOMEM. docs/deform.md, "Noisy small particles". */
-RPIV_NODISCARD rpiv_status deform_pred_filter_adapt(rpiv_field *f, double a, double k,
-                                                    const float *sig[2]);
-
 #endif /* RPIV_SRC_DEFORM_IMPL_H */

@@ -5,6 +5,7 @@
 
 #include "ensemble_impl.h"
 #include "piv_impl.h"
+#include "uncertainty_impl.h"
 
 #include "base/atomic.h"
 #include "base/hash.h"
@@ -35,6 +36,7 @@ void rpiv_ensemble_free(rpiv_ensemble *e)
         return;
     rpiv_field_free(e->predictor);
     rpiv_deform_pred_free(e->pred);
+    free(e->scratch);
     free(e->data);
     free(e);
 }
@@ -46,7 +48,8 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
     if (pass < 0 || pass >= pv->npass)
         return rpiv_fail(RPIV_EINVAL, "ensemble: pass %d outside 0..%d", pass, pv->npass - 1);
     const piv_pass *ps = &pv->pass[pass];
-    size_t plane = (size_t)ps->ww * (size_t)ps->wh, n = ps->nwin * (plane + 2);
+    size_t plane = (size_t)ps->ww * (size_t)ps->wh;
+    const size_t n = ps->nwin * (plane + 2) + ens_unc_floats(pv, pass);
     double mb = ((double)pv->bytes + (double)n * sizeof(float)) / 1048576.0;
     if (mb > pv->p.max_mem_mb)
         return rpiv_fail(RPIV_ELIMIT,
@@ -68,6 +71,11 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
                        ps->nwin, ps->ww, ps->wh);
         goto out_free;
     }
+    if (pv->p.uncertainty &&
+        !(e->scratch = malloc(2 * (size_t)pv->nthreads * plane * sizeof *e->scratch))) {
+        st = rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory for the uncertainty");
+        goto out_free;
+    }
     if (predictor) {
         if ((st = rpiv_field_copy(predictor, &e->predictor)) ||
             (st = piv_pred_new(pv, predictor, piv_shift(pv, pass), 0, &e->pred)))
@@ -86,7 +94,11 @@ static void add_plane(void *ctx, const float *plane, const float *colmax, size_t
 {
     rpiv_ensemble *e = ctx;
     (void)colmax;
-    (void)xs;
+    if (e->scratch) {
+        double us[ENS_UNC_SUMS];
+        ens_unc_pair(e, plane, xs, e->scratch + 2 * (size_t)omp_get_thread_num() * e->plane, us);
+        ens_unc_add(e, win, us);
+    }
     float *sum = e->data + win * e->plane, *energy = e->data + e->nwin * e->plane;
     (void)pu;
     (void)pv_;
@@ -176,7 +188,7 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
         piv_vector(pv, ps, e->data + win * e->plane, NULL, (double)energy[2 * win],
                    (double)energy[2 * win + 1], pu, pv_, f, win, 1);
     }
-    if ((st = piv_validate(pv, f))) {
+    if ((st = piv_validate(pv, f)) || (e->scratch && (st = ens_unc_finish(e, f)))) {
         rpiv_field_free(f);
         return st;
     }
@@ -191,18 +203,21 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
  *              short or with bytes appended is refused before anything else is read
  *   block      nblock bytes of the caller's (rpiv/batch.h: its run's identity, the pair states)
  *   predictor  if has_pred: nx, ny (int32), x0, y0, dx, dy, scale_mm_per_px, dt_s (double),
- *              u, v, peak_ratio, corr (nx*ny floats each), flag (nx*ny bytes)
- *   sums       nsums floats, as rpiv_ensemble_data gives them
+ *              u, v, peak_ratio, corr (nx*ny floats each), flag (nx*ny bytes), then if
+ *              flags & CK_PRED_SIGMA its sigma_u, sigma_v (nx*ny floats each)
+ *   sums       nsums floats, as rpiv_ensemble_data gives them (with piv.uncertainty, 8
+ *              more per window: ensemble_unc.c)
  *   checksum   FNV-1a (base/hash.h) of every byte before it, uint64
- * RPIVENS1 (an accumulator's sums), RPIVCKP1 (the batch's checkpoint) and RPIVCKP2 (no
- * length) came before. */
-#define MAGIC  "RPIVCKP3"
-#define ENDIAN 0x01020304u
+ * RPIVENS1 (an accumulator's sums), RPIVCKP1 (the batch's checkpoint), RPIVCKP2 (no
+ * length) and RPIVCKP3 (no uncertainty) came before. */
+#define MAGIC         "RPIVCKP4"
+#define ENDIAN        0x01020304u
+#define CK_PRED_SIGMA 1 /* flags: the predictor's sigma_u, sigma_v follow its flags */
 
 typedef struct file_header {
     char magic[8];
     uint32_t endian; /* ENDIAN as written */
-    int32_t pass, ww, wh, nx, ny, ox, oy, w, h, has_pred, pad;
+    int32_t pass, ww, wh, nx, ny, ox, oy, w, h, has_pred, flags;
     uint64_t npairs, nsums, pred_hash, nblock, length;
 } file_header;
 
@@ -222,7 +237,7 @@ static void layout_of(const rpiv_piv *pv, int pass, file_header *hd)
     hd->oy = ps->oy;
     hd->w = pv->w;
     hd->h = pv->h;
-    hd->nsums = ps->nwin * ((size_t)ps->ww * (size_t)ps->wh + 2);
+    hd->nsums = ps->nwin * ((size_t)ps->ww * (size_t)ps->wh + 2) + ens_unc_floats(pv, pass);
 }
 
 /* Sequential writing and reading with a running hash of the bytes. */
@@ -259,9 +274,16 @@ rpiv_status rpiv_ensemble_save_block(const rpiv_ensemble *e, const void *block, 
     hd.pred_hash = e->pred_hash;
     hd.nblock = nblock;
     size_t npred = f ? (size_t)f->nx * (size_t)f->ny : 0;
+    const float *psu = NULL, *psv = NULL;
+    if (f) {
+        psu = unc_quantity((rpiv_field *)f, "sigma_u");
+        psv = unc_quantity((rpiv_field *)f, "sigma_v");
+        hd.flags = psu && psv ? CK_PRED_SIGMA : 0;
+    }
     hd.length = sizeof hd + nblock + e->n * sizeof *e->data + sizeof(uint64_t);
     if (f)
-        hd.length += 2 * sizeof(int32_t) + 6 * sizeof(double) + npred * (4 * sizeof(float) + 1);
+        hd.length += 2 * sizeof(int32_t) + 6 * sizeof(double) + npred * (4 * sizeof(float) + 1) +
+                     (hd.flags & CK_PRED_SIGMA ? 2 * npred * sizeof(float) : 0);
     atomic_file af;
     rpiv_status st = atomic_begin(&af, path, 1);
     if (st)
@@ -280,6 +302,10 @@ rpiv_status rpiv_ensemble_save_block(const rpiv_ensemble *e, const void *block, 
         put(&io, f->peak_ratio, n * sizeof *f->peak_ratio);
         put(&io, f->corr, n * sizeof *f->corr);
         put(&io, f->flag, n);
+        if (hd.flags & CK_PRED_SIGMA) {
+            put(&io, psu, n * sizeof *psu);
+            put(&io, psv, n * sizeof *psv);
+        }
     }
     put(&io, e->data, e->n * sizeof *e->data);
     uint64_t sum = io.h;
@@ -354,6 +380,13 @@ static rpiv_status read_head(reader *r, const char *path, rpiv_ensemble_block_fn
 static rpiv_status check_layout(const reader *r, const file_header *want)
 {
     const file_header *hd = &r->hd;
+    if (hd->nsums != want->nsums &&
+        hd->nsums - (uint64_t)hd->nx * (uint64_t)hd->ny * ENS_UNC_SUMS == want->nsums)
+        return rpiv_fail(RPIV_EFORMAT, "%s: sums made with piv.uncertainty on; this run has it off",
+                         r->path);
+    if (hd->nsums + (uint64_t)want->nx * (uint64_t)want->ny * ENS_UNC_SUMS == want->nsums)
+        return rpiv_fail(RPIV_EFORMAT, "%s: sums made with piv.uncertainty off; this run has it on",
+                         r->path);
     if (hd->w != want->w || hd->h != want->h || hd->pass != want->pass || hd->ww != want->ww ||
         hd->wh != want->wh || hd->nx != want->nx || hd->ny != want->ny || hd->ox != want->ox ||
         hd->oy != want->oy || hd->nsums != want->nsums)
@@ -387,8 +420,17 @@ static rpiv_status read_pred(reader *r, rpiv_field **f)
     size_t n = (size_t)dims[0] * (size_t)dims[1];
     if (get(&r->io, p->u, n * sizeof *p->u) && get(&r->io, p->v, n * sizeof *p->v) &&
         get(&r->io, p->peak_ratio, n * sizeof *p->peak_ratio) &&
-        get(&r->io, p->corr, n * sizeof *p->corr) && get(&r->io, p->flag, n))
-        return RPIV_OK;
+        get(&r->io, p->corr, n * sizeof *p->corr) && get(&r->io, p->flag, n)) {
+        if (!(r->hd.flags & CK_PRED_SIGMA))
+            return RPIV_OK;
+        float *su, *sv;
+        rpiv_status st = unc_add(p, &su, &sv);
+        if (!st && get(&r->io, su, n * sizeof *su) && get(&r->io, sv, n * sizeof *sv))
+            return RPIV_OK;
+        rpiv_field_free(p);
+        *f = NULL;
+        return st ? st : truncated(r);
+    }
     rpiv_field_free(p);
     *f = NULL;
     return truncated(r);

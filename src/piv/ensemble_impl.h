@@ -6,6 +6,7 @@
 
 #include "rpiv/deform.h"
 #include "rpiv/ensemble.h"
+#include "rpiv/xcorr.h"
 
 #include <stdint.h>
 
@@ -20,6 +21,24 @@ struct rpiv_ensemble {
     size_t n;    /* floats in data      */
     float *data; /* planes, then energies */
     size_t npairs;
+    float *scratch; /* with piv.uncertainty: two planes per thread (ensemble_unc.c), else NULL */
 };
+
+/* Floats per window of the uncertainty's sums (ensemble_unc.c), after the energies. */
+#define ENS_UNC_SUMS 8
+
+/* The floats the uncertainty adds to pass `pass`'s sums: 0 with piv.uncertainty off. */
+size_t ens_unc_floats(const rpiv_piv *pv, int pass);
+
+/* One pair's sums of window win's correlation statistics (plane: its raw plane; xs: the
+ * window pair as correlated; scratch: two planes of floats). */
+void ens_unc_pair(const rpiv_ensemble *e, const float *plane, const rpiv_xcorr_src *xs,
+                  float *scratch, double sums[ENS_UNC_SUMS]);
+
+/* Add one pair's sums of window win to e's, in the order of the pairs. */
+void ens_unc_add(rpiv_ensemble *e, size_t win, const double sums[ENS_UNC_SUMS]);
+
+/* sigma_u, sigma_v of the finished field f of e (validated). */
+RPIV_NODISCARD rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f);
 
 #endif /* RPIV_SRC_ENSEMBLE_IMPL_H */

@@ -35,6 +35,8 @@ typedef struct pair_slot {
     char msg[1024]; /* its message                                              */
     float *planes;  /* nwin planes                                              */
     double *energy; /* 2 nwin energies                                          */
+    double *unc;    /* with the uncertainty: ENS_UNC_SUMS per window, else NULL */
+    float *scratch; /* with the uncertainty: two planes                        */
 } pair_slot;
 
 typedef struct slot_ctx {
@@ -49,7 +51,8 @@ static void slot_plane(void *ctx, const float *plane, const float *colmax, size_
     (void)colmax;
     (void)pu;
     (void)pv_;
-    (void)xs;
+    if (c->s->unc)
+        ens_unc_pair(c->e, plane, xs, c->s->scratch, c->s->unc + win * ENS_UNC_SUMS);
     memcpy(c->s->planes + win * c->e->plane, plane, c->e->plane * sizeof *plane);
     c->s->energy[2 * win] = ea;
     c->s->energy[2 * win + 1] = eb;
@@ -69,6 +72,8 @@ static void slot_add(rpiv_ensemble *e, const pair_slot *s)
             sum[i] += p[i];
         energy[2 * win] += (float)s->energy[2 * win];
         energy[2 * win + 1] += (float)s->energy[2 * win + 1];
+        if (s->unc)
+            ens_unc_add(e, win, s->unc + win * ENS_UNC_SUMS);
     }
     e->npairs++;
 }
@@ -234,7 +239,12 @@ rpiv_status rpiv_ensemble_add_pairs(rpiv_ensemble *e, size_t n, rpiv_ensemble_lo
     for (size_t j = 0; j < m; j++) {
         r.slots[j].planes = malloc(e->nwin * e->plane * sizeof *r.slots[j].planes);
         r.slots[j].energy = calloc(2 * e->nwin, sizeof *r.slots[j].energy);
-        if (!r.slots[j].planes || !r.slots[j].energy) {
+        if (e->scratch) {
+            r.slots[j].unc = malloc(e->nwin * ENS_UNC_SUMS * sizeof *r.slots[j].unc);
+            r.slots[j].scratch = malloc(2 * e->plane * sizeof *r.slots[j].scratch);
+        }
+        if (!r.slots[j].planes || !r.slots[j].energy ||
+            (e->scratch && (!r.slots[j].unc || !r.slots[j].scratch))) {
             st = rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory for the pair slots");
             goto out_free;
         }
@@ -286,6 +296,8 @@ out_free:
     for (size_t j = 0; r.slots && j < m; j++) {
         free(r.slots[j].planes);
         free(r.slots[j].energy);
+        free(r.slots[j].unc);
+        free(r.slots[j].scratch);
     }
     free(r.slots);
     free(r.ready);

@@ -41,6 +41,7 @@ void rpiv_piv_free(rpiv_piv *pv)
     free(pv->ia);
     free(pv->ib);
     free(pv->prep);
+    unc_chain_free(pv->unc);
     free(pv);
 }
 
@@ -428,14 +429,8 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
             f->flag[k] = RPIV_FLAG_VALID;
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise) */
     const int denoise = pv->p.refine_denoise && piv_pred_repeats(pv, predictor);
-    const rpiv_quantity *su = rpiv_field_quantity(f, "sigma_u"),
-                        *sv = rpiv_field_quantity(f, "sigma_v");
-    const float *sig[2] = {su ? su->data : NULL, sv ? sv->data : NULL};
-    const int adapt = filter > 0 && pv->p.refine_adapt > 0 && sig[0] && sig[1];
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
-        !(filter > 0 && (st = adapt ? deform_pred_filter_adapt(f, filter, pv->p.refine_adapt, sig)
-                                    : pred_filter(f, filter))) &&
-        !(denoise && (st = piv_pred_denoise(f))))
+        !(filter > 0 && (st = pred_filter(f, filter))) && !(denoise && (st = piv_pred_denoise(f))))
         st = rpiv_deform_pred_new(f, pv->w, pv->h, shift, out);
     rpiv_field_free(f);
     return st;
@@ -706,7 +701,7 @@ typedef struct step_ctx {
     const piv_pass *ps;
     rpiv_field *f;
     float *su, *sv; /* sigma_u, sigma_v of f; NULL: no uncertainty   */
-    float *scratch; /* ww * wh floats per thread for the uncertainty */
+    float *scratch; /* 2 ww wh floats per thread for the uncertainty */
 } step_ctx;
 
 static void step_vector(void *ctx, const float *plane, const float *colmax, size_t win, double ea,
@@ -717,7 +712,8 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
     if (c->su && c->f->flag[win] == RPIV_FLAG_VALID) {
         const piv_pass *ps = c->ps;
         double su, sv;
-        float *scr = c->scratch + (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
+        float *scr =
+            c->scratch + 2 * (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
         unc_cs(xs->a, xs->stride_a, xs->b, xs->stride_b, ps->ww, ps->wh,
                (int)lround((double)c->f->u[win] - pu), (int)lround((double)c->f->v[win] - pv_), scr,
                &su, &sv);
@@ -750,7 +746,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     const piv_pass *ps = &pv->pass[pass];
     rpiv_deform_pred *pred = NULL;
     rpiv_field *f = NULL;
-    float *scratch = NULL;
+    float *scratch = NULL, *cs = NULL; /* cs: the windows' own sigmas, u then v */
     rpiv_status st;
     /* a repeat of the window size before it (a refinement): its predictor low-passed */
     const int refines = piv_repeats(pv, pass);
@@ -763,22 +759,17 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
         if (ps->masked[win])
             f->flag[win] = RPIV_FLAG_MASKED;
     step_ctx c = {pv, ps, f, NULL, NULL, NULL};
-    /* the adaptive predictor filter (refine_adapt) reads the uncertainty of the passes of the
-     * final size that feed a repeat: every one before the last, the last when it repeats */
-    const piv_pass *fin = &pv->pass[pv->npass - 1];
-    const int adapt_unc = pv->p.refine_adapt > 0 && pv->p.refine_filter > 0 && pv->deforms &&
-                          pass > 0 && ps->ww == fin->ww && ps->wh == fin->wh &&
-                          (pass < pv->npass - 1 || pv->p.refine_max > 0);
-    if ((pv->p.uncertainty && pass == pv->npass - 1) || adapt_unc) {
-        /* the final window size: sigma_u, sigma_v of every vector (docs/uncertainty.md) */
-        if ((st = unc_add(f, &c.su, &c.sv)))
-            goto out_free;
-        const size_t nscr = (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
+    if (pv->p.uncertainty) {
+        /* every pass: the final vectors carry the predictors' noise (docs/uncertainty.md) */
+        const size_t nscr = 2 * (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
         c.scratch = scratch = malloc(nscr * sizeof *scratch);
-        if (!scratch) {
+        cs = calloc(2 * ps->nwin, sizeof *cs);
+        if (!scratch || !cs) {
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
             goto out_free;
         }
+        c.su = cs;
+        c.sv = cs + ps->nwin;
     }
     if ((st = pass_run(pv, pass, pred, step_vector, &c, 1)))
         goto out_free;
@@ -792,10 +783,12 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
             }
     } else if ((st = piv_validate(pv, f)))
         goto out_free;
-    unc_replaced(f);
+    if (cs && (st = piv_step_uncertainty(pv, pass, piv_shift(pv, pass), predictor, refines, f, cs)))
+        goto out_free;
     *out = f;
     f = NULL;
 out_free:
+    free(cs);
     free(scratch);
     rpiv_field_free(f);
     rpiv_deform_pred_free(pred);

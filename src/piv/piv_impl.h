@@ -29,15 +29,16 @@ struct rpiv_piv {
     int w, h, nthreads, npass;
     int roi[4];
     piv_pass pass[RPIV_PIV_MAX_PASSES];
-    unsigned char *mask;  /* w*h, 1 = masked pixel; NULL = no mask                */
-    float *bga, *bgb;     /* backgrounds, NULL = none                             */
-    float *ia, *ib;       /* loaded frames, then their B-spline coefficients      */
-    float *prep;          /* a frame being preprocessed; NULL without preprocessing */
-    int deforms;          /* passes after the first deform the frames             */
-    float fill_a, fill_b; /* mean grey level of the loaded frames                 */
-    int state;            /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
-    size_t bytes;         /* memory held                                          */
-    rpiv_progress cancel; /* asked between passes and rows of windows (fn NULL: never) */
+    unsigned char *mask;   /* w*h, 1 = masked pixel; NULL = no mask                */
+    float *bga, *bgb;      /* backgrounds, NULL = none                             */
+    float *ia, *ib;        /* loaded frames, then their B-spline coefficients      */
+    float *prep;           /* a frame being preprocessed; NULL without preprocessing */
+    int deforms;           /* passes after the first deform the frames             */
+    float fill_a, fill_b;  /* mean grey level of the loaded frames                 */
+    int state;             /* PIV_EMPTY, PIV_RAW or PIV_COEF                       */
+    size_t bytes;          /* memory held                                          */
+    rpiv_progress cancel;  /* asked between passes and rows of windows (fn NULL: never) */
+    struct unc_chain *unc; /* the passes' uncertainty (uncertainty_impl.h), or NULL */
 };
 
 /* What a pass correlates: frames (stride w) whose first row is image row row0, and the
@@ -126,5 +127,13 @@ int piv_repeats(const rpiv_piv *pv, int pass);
  * replaced. */
 RPIV_NODISCARD rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int defer,
                                     rpiv_field **out);
+
+/* The uncertainty of the vectors of pass `pass` (f, validated; cs its windows' own sigmas, u
+ * then v; shift: piv_shift's): the level joins the chain of the passes before it when its
+ * predictor is the field the last one returned (`refines`: a repeat, its predictor
+ * low-passed); the final pass gets sigma_u, sigma_v (unc_step.c). */
+RPIV_NODISCARD rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift,
+                                                const rpiv_field *predictor, int refines,
+                                                rpiv_field *f, const float *cs);
 
 #endif /* RPIV_SRC_PIV_IMPL_H */

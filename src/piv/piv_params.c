@@ -33,7 +33,6 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_denoise = 1,
                              .refine_stop = 1,
                              .refine_defer = 0,
-                             .refine_adapt = 0,
                              .prep = rpiv_preprocess_params_default()};
 }
 
@@ -78,8 +77,6 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
     if (!(p->refine_filter >= 0 && p->refine_filter <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "piv.refine_filter: %g outside 0..0.5", p->refine_filter);
-    if (!(p->refine_adapt >= 0 && p->refine_adapt <= 100))
-        return rpiv_fail(RPIV_EINVAL, "piv.refine_adapt: %g outside 0..100", p->refine_adapt);
     if (!(p->peak_ratio_min >= 0 && p->peak_ratio_min <= 100))
         return rpiv_fail(RPIV_EINVAL, "piv.peak_ratio_min: %g outside 0..100", p->peak_ratio_min);
     if (!isfinite(p->u_min_px) || !isfinite(p->u_max_px) || !isfinite(p->v_min_px) ||
@@ -94,9 +91,6 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.smooth: %g outside 0..1e6", p->smooth);
     if (p->uncertainty != 0 && p->uncertainty != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.uncertainty: %d is not 0 or 1", p->uncertainty);
-    if (p->uncertainty && p->ensemble)
-        return rpiv_fail(RPIV_EINVAL,
-                         "piv.uncertainty: not available for ensemble runs (piv.ensemble = 1)");
     if (!(p->max_mem_mb > 0))
         return rpiv_fail(RPIV_EINVAL, "piv.max_mem_mb: %g must be > 0", p->max_mem_mb);
     return RPIV_OK;

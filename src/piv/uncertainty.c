@@ -12,48 +12,83 @@
  * (particle images up to ~4 px: their products decorrelate within 2 px). */
 #define UNC_LAG 2
 
-/* One direction (dx, dy = (1, 0) or (0, 1)) of unc_cs. */
-static double cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix,
-                     int iy, double ma, double mb, int dx, int dy, float *dc)
+/* Widest window the uncertainty handles (the engine's limit, piv.windows). */
+#define UNC_MAX_W 1024
+
+static int wrap(int i, int n)
+{
+    return ((i % n) + n) % n;
+}
+
+/* One direction (dx, dy = (1, 0) or (0, 1)) of unc_cs_sums: C0, C+, C-, var(C+ - C-). */
+static void cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix,
+                   int iy, double ma, double mb, int dx, int dy, float *dc, double out[4])
 {
     double c0 = 0, cp = 0, cm = 0, sum = 0;
     const size_t n = (size_t)w * (size_t)h;
+    int xo[UNC_MAX_W], xp[UNC_MAX_W], xm[UNC_MAX_W], xa[UNC_MAX_W];
+    for (int x = 0; x < w; x++) {
+        xo[x] = wrap(x + ix, w);
+        xp[x] = wrap(xo[x] + dx, w);
+        xm[x] = wrap(xo[x] - dx, w);
+        xa[x] = wrap(x + dx, w);
+    }
     for (int y = 0; y < h; y++) {
-        const int y0 = ((y + iy) % h + h) % h, y1 = ((y0 + dy) % h + h) % h;
-        const int ym = ((y0 - dy) % h + h) % h, ya = (y + dy) % h;
+        const int y0 = wrap(y + iy, h);
+        const float *ar = a + (size_t)y * sa, *an = a + (size_t)wrap(y + dy, h) * sa;
+        const float *b0 = b + (size_t)y0 * sb, *bp = b + (size_t)wrap(y0 + dy, h) * sb;
+        const float *bm = b + (size_t)wrap(y0 - dy, h) * sb;
+        float *d = dc + (size_t)y * (size_t)w;
         for (int x = 0; x < w; x++) {
-            const int x0 = ((x + ix) % w + w) % w, x1 = ((x0 + dx) % w + w) % w;
-            const int xm = ((x0 - dx) % w + w) % w, xa = (x + dx) % w;
-            const double av = (double)a[(size_t)y * sa + (size_t)x] - ma;
-            const double an = (double)a[(size_t)ya * sa + (size_t)xa] - ma;
-            const double b0 = (double)b[(size_t)y0 * sb + (size_t)x0] - mb;
-            const double bp = (double)b[(size_t)y1 * sb + (size_t)x1] - mb;
-            const double bm = (double)b[(size_t)ym * sb + (size_t)xm] - mb;
-            c0 += av * b0;
-            cp += av * bp;
-            cm += av * bm;
+            const double av = (double)ar[x] - ma, anv = (double)an[xa[x]] - ma;
+            const double v0 = (double)b0[xo[x]] - mb, vp = (double)bp[xp[x]] - mb;
+            const double vm = (double)bm[xm[x]] - mb;
+            c0 += av * v0;
+            cp += av * vp;
+            cm += av * vm;
             /* this pixel's share of C(+1) - C(-1): a(x) b(x+s+1) - a(x+1) b(x+s) */
-            const double d = av * bp - an * b0;
-            dc[(size_t)y * (size_t)w + (size_t)x] = (float)d;
-            sum += d;
+            const double e = av * vp - anv * v0;
+            d[x] = (float)e;
+            sum += e;
         }
     }
     const float mean = (float)(sum / (double)n);
     for (size_t k = 0; k < n; k++)
         dc[k] -= mean;
-    /* variance of the sum of the differences: their covariance summed over nearby lags */
-    double var = 0;
-    for (int y = 0; y < h; y++)
+    /* variance of the sum of the differences: their covariance summed over nearby lags,
+     * sum_x dc(x) sum_{|k|,|l| <= UNC_LAG} dc(x + (k, l)), the inner sum a separable box */
+    float *row = dc + n;
+    for (int y = 0; y < h; y++) {
+        const float *d = dc + (size_t)y * (size_t)w;
+        float *r = row + (size_t)y * (size_t)w;
         for (int x = 0; x < w; x++) {
-            const double d0 = (double)dc[(size_t)y * (size_t)w + (size_t)x];
-            double s = 0;
-            for (int l = -UNC_LAG; l <= UNC_LAG; l++) {
-                const float *row = dc + (size_t)(((y + l) % h + h) % h) * (size_t)w;
-                for (int k = -UNC_LAG; k <= UNC_LAG; k++)
-                    s += (double)row[((x + k) % w + w) % w];
-            }
-            var += d0 * s;
+            double t = 0;
+            for (int k = -UNC_LAG; k <= UNC_LAG; k++)
+                t += (double)d[x + k >= 0 && x + k < w ? x + k : wrap(x + k, w)];
+            r[x] = (float)t;
         }
+    }
+    double var = 0;
+    const float *rr[2 * UNC_LAG + 1];
+    for (int y = 0; y < h; y++) {
+        for (int l = -UNC_LAG; l <= UNC_LAG; l++)
+            rr[l + UNC_LAG] = row + (size_t)wrap(y + l, h) * (size_t)w;
+        const float *d = dc + (size_t)y * (size_t)w;
+        for (int x = 0; x < w; x++) {
+            double t = 0;
+            for (int l = 0; l <= 2 * UNC_LAG; l++)
+                t += (double)rr[l][x];
+            var += (double)d[x] * t;
+        }
+    }
+    out[0] = c0;
+    out[1] = cp;
+    out[2] = cm;
+    out[3] = var > 0 ? var : 0;
+}
+
+double unc_cs_sigma(double c0, double cp, double cm, double var)
+{
     if (!(var > 0))
         return 0;
     const double sd = sqrt(var), cpm = 0.5 * (cp + cm);
@@ -65,8 +100,8 @@ static double cs_dir(const float *a, size_t sa, const float *b, size_t sb, int w
     return s < UNC_SIGMA_MAX ? s : UNC_SIGMA_MAX;
 }
 
-void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
-            float *scratch, double *su, double *sv)
+void unc_cs_sums(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
+                 float *scratch, double sums[8])
 {
     double ma = 0, mb = 0;
     for (int y = 0; y < h; y++)
@@ -76,11 +111,20 @@ void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, 
         }
     ma /= (double)w * h;
     mb /= (double)w * h;
-    *su = cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 1, 0, scratch);
-    *sv = cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 0, 1, scratch);
+    cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 1, 0, scratch, sums);
+    cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 0, 1, scratch, sums + 4);
 }
 
-static float *quantity_data(rpiv_field *f, const char *name)
+void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
+            float *scratch, double *su, double *sv)
+{
+    double s[8];
+    unc_cs_sums(a, sa, b, sb, w, h, ix, iy, scratch, s);
+    *su = unc_cs_sigma(s[0], s[1], s[2], s[3]);
+    *sv = unc_cs_sigma(s[4], s[5], s[6], s[7]);
+}
+
+float *unc_quantity(rpiv_field *f, const char *name)
 {
     for (size_t k = 0; k < f->nq; k++)
         if (!strcmp(f->q[k].name, name))
@@ -95,7 +139,7 @@ rpiv_status unc_add(rpiv_field *f, float **su, float **sv)
     const char *names[2] = {"sigma_u", "sigma_v"};
     float **out[2] = {su, sv};
     for (int c = 0; c < 2; c++) {
-        *out[c] = quantity_data(f, names[c]);
+        *out[c] = unc_quantity(f, names[c]);
         if (*out[c])
             memset(*out[c], 0, n * sizeof **out[c]);
         else if ((st = rpiv_field_add_quantity(f, names[c], RPIV_UNIT_PX_PER_DT, out[c])))
@@ -106,7 +150,7 @@ rpiv_status unc_add(rpiv_field *f, float **su, float **sv)
 
 void unc_replaced(rpiv_field *f)
 {
-    float *g[2] = {quantity_data(f, "sigma_u"), quantity_data(f, "sigma_v")};
+    float *g[2] = {unc_quantity(f, "sigma_u"), unc_quantity(f, "sigma_v")};
     if (!g[0] || !g[1])
         return;
     const int nx = f->nx, ny = f->ny;

@@ -7,6 +7,7 @@
 #include "rpiv/field.h"
 
 #include <stddef.h>
+#include <stdint.h>
 
 /* The largest sigma reported, px: where the statistics cannot be propagated through the
  * peak fit (the noise of the correlation difference as large as the neighbours of the peak),
@@ -15,10 +16,23 @@
 
 /* The standard uncertainty (1 sigma, px) of the displacement measured on a window pair: a
  * (rows sa floats apart) and b (sb), w x h, the pair as it was correlated (deformed), the
- * correlation peak at the integer shift (ix, iy). scratch holds w * h floats. Writes *su, *sv
+ * correlation peak at the integer shift (ix, iy). scratch holds 2 w h floats. Writes *su, *sv
  * in 0..UNC_SIGMA_MAX. */
 void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
             float *scratch, double *su, double *sv);
+
+/* The sums unc_cs propagates, for one pair: per direction (x, then y) the correlation at the
+ * peak's integer shift C0, at +1 and -1 px, and the variance of C+ - C- (sums[8]); scratch
+ * as unc_cs's. An
+ * ensemble adds them over its pairs (independent pairs: their variances add). */
+void unc_cs_sums(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
+                 float *scratch, double sums[8]);
+
+/* The peak fit's sigma (px, 0..UNC_SIGMA_MAX) from C0, C+, C- and var(C+ - C-). */
+double unc_cs_sigma(double c0, double cp, double cm, double var);
+
+/* The data of quantity `name` of f, or NULL. */
+float *unc_quantity(rpiv_field *f, const char *name);
 
 /* Add (or find) the quantities sigma_u and sigma_v of f, zeroed; their data to *su, *sv. */
 RPIV_NODISCARD rpiv_status unc_add(rpiv_field *f, float **su, float **sv);
@@ -27,5 +41,51 @@ RPIV_NODISCARD rpiv_status unc_add(rpiv_field *f, float **su, float **sv);
  * replacement interpolates them), or the largest sigma of the field's valid vectors when it
  * has none; a masked vector has 0. No-op if f has no sigma_u. */
 void unc_replaced(rpiv_field *f);
+
+/* ---- the predictor's noise carried through the passes (unc_chain.c) ---- */
+
+/* The levels (passes run on one pair) whose errors reach the newest vectors. */
+typedef struct unc_chain unc_chain;
+
+/* A pass's windows: window (i, j) covers pixels [wx0 + i sx, + ww) x [wy0 + j sy, + wh); a
+ * deforming pass samples its predictor at pixel + shift; the image is img_w x img_h. denoise:
+ * its predictor went through the refinement's denoiser (refine_filter.c), whose effect on
+ * noise is taken as the smoothing it keeps when it drops the detail (below the threshold). */
+typedef struct unc_geom {
+    int wx0, wy0, sx, sy, ww, wh, img_w, img_h;
+    double shift;
+    int denoise;
+} unc_geom;
+
+void unc_chain_free(unc_chain *c); /* NULL is a no-op */
+
+/* Add the level of a pass that returned field f with windows g and correlation-statistics
+ * sigmas su, sv (valid vectors'; the others take their RMS). linked = 1: the pass deformed
+ * by the predictor built from the newest level's field, low-passed with weight `filter`; 0:
+ * the chain restarts at this level (no predictor, window offsets, or a predictor from
+ * elsewhere, taken as exact). Creates *chain if NULL. */
+RPIV_NODISCARD rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g,
+                                          double filter, const rpiv_field *f, const float *su,
+                                          const float *sv);
+
+/* Remember f as the field the newest level returned (unc_chain_links compares with it). */
+void unc_chain_set_hash(unc_chain *c, const rpiv_field *f);
+
+/* Is predictor the field the newest level of c returned? */
+int unc_chain_links(const unc_chain *c, const rpiv_field *predictor);
+
+uint64_t unc_field_hash(const rpiv_field *f);
+
+/* The total random uncertainty of the valid vectors of f (the newest level's field): its own
+ * window noise and the predictors' noise carried through the levels, into su, sv. */
+RPIV_NODISCARD rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su,
+                                           float *sv, int nthreads);
+
+/* The bias of the vectors on the grid's edge rows and columns, added to their sigma (in
+ * quadrature): a top-hat window of ww x wh px measures the window mean, u + ww^2/24 u_xx +
+ * wh^2/24 u_yy + ..., which the deformation compensates inside the grid, but not across its
+ * edge, where the predictor is continued linearly; u_xx, u_yy from the field's second
+ * differences inward. f: the final field (grid steps dx, dy px). */
+void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv);
 
 #endif /* RPIV_SRC_UNCERTAINTY_IMPL_H */

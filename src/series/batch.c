@@ -413,6 +413,8 @@ static rpiv_status solo_done(void *user, size_t k, rpiv_status st, int loaded, r
     solo_ctx *c = user;
     rpiv_batch *b = c->b;
     size_t i = c->idx[k];
+    if (st == RPIV_EINTR) /* the plan's cancel hook, inside the pair: not done */
+        return rpiv_fail(RPIV_EINTR, "piv: interrupted after %zu of %zu pairs", c->done, c->n);
     if (st && loaded) {
         char msg[768];
         snprintf(msg, sizeof msg, "%s", rpiv_errmsg());

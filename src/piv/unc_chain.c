@@ -1,0 +1,488 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/piv/unc_chain.c - the predictor's random error carried into each vector of a deforming
+ * pass (docs/uncertainty.md, "The predictor's noise"). A vector of a deforming pass is
+ * p(c) + r: the predictor at the window's centre plus the residual peak, and the residual
+ * measures the window mean of the truth minus the predictor. The predictor's own error e_p
+ * therefore enters as e_p(c) - <e_p>_W, which the spline of the previous field, its filter
+ * and the window fix as a linear map G of the previous level's errors:
+ *   e_i = n_i + sum_k G_ik e'_k,   G_ik = eta_k(c_i) - <eta_k>_{W_i},
+ * eta_k the predictor of a unit impulse at node k (separable: eta_k(x, y) = eta_kx(x)
+ * eta_ky(y)). Every level's window noise n comes from the same pixels, so two windows (of any
+ * level) sharing pixels share noise: cov(n_a, n_b) = s_a s_b |W_a & W_b| / sqrt(|W_a| |W_b|),
+ * s the windows' correlation-statistics sigmas. The error of a vector is expanded back through
+ * the levels into the window noises and its variance summed with these covariances. */
+#include "uncertainty_impl.h"
+
+#include "rpiv/deform.h"
+
+#include "base/hash.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Levels kept: an older level's error reaches the newest only through the product of the
+ * maps of the levels between, each |G| < 1 and of zero sum: beyond 8 it is negligible. */
+#define UNC_LEVELS 8
+/* Nodes of the previous level taken either side of a window's span (the cubic spline's
+ * impulse response decays by 2 - sqrt(3) = 0.27 a node: 3 nodes, 2 %). */
+#define UNC_RADIUS 3
+/* Terms of the expansion with a smaller coefficient are dropped. */
+#define UNC_TINY 1e-4
+
+typedef struct unc_level {
+    int nx, ny;
+    double x0, y0, dx, dy;        /* the field's node positions           */
+    int wx0, wy0, sx, sy, ww, wh; /* window 0's first pixel, steps, sizes  */
+    double shift;                 /* pixel x samples the predictor at x+shift */
+    float *s[2];                  /* correlation-statistics sigma, u and v */
+    /* the map from the level before: per axis, eta_k at window i's centre and its mean over
+     * window i ([k * n + i]); NULL when the level before does not reach this one */
+    double *hx, *ax, *hy, *ay;
+    int pnx, pny; /* the grid of the level before */
+} unc_level;
+
+struct unc_chain {
+    int n;
+    unc_level lv[UNC_LEVELS];
+    uint64_t hash; /* of the field the newest level returned */
+};
+
+static void level_free(unc_level *l)
+{
+    free(l->s[0]);
+    free(l->s[1]);
+    free(l->hx);
+    free(l->ax);
+    free(l->hy);
+    free(l->ay);
+    memset(l, 0, sizeof *l);
+}
+
+void unc_chain_free(unc_chain *c)
+{
+    if (!c)
+        return;
+    for (int k = 0; k < c->n; k++)
+        level_free(&c->lv[k]);
+    free(c);
+}
+
+uint64_t unc_field_hash(const rpiv_field *f)
+{
+    size_t n = (size_t)f->nx * (size_t)f->ny;
+    int dims[2] = {f->nx, f->ny};
+    uint64_t h = hash_bytes(HASH0, dims, sizeof dims);
+    h = hash_bytes(h, f->u, n * sizeof *f->u);
+    return hash_bytes(h, f->v, n * sizeof *f->v);
+}
+
+/* The refinement's denoiser (refine_filter.c) on a line of pure noise: every detail falls
+ * below its universal threshold and is dropped, leaving the [1/4, 1/2, 1/4] smoothing inside
+ * and, at an end, the least-squares line through the first three samples, (5 U0 + 2 U1 - U2) / 6.
+ * Linear, so it carries the predictor's noise as the engine's nonlinear denoiser does where
+ * the field is smooth. */
+static void denoise_line(float *u, int n)
+{
+    float *t = malloc((size_t)n * sizeof *t);
+    if (!t)
+        return; /* the map without the denoiser: a larger, not a smaller, sigma */
+    memcpy(t, u, (size_t)n * sizeof *t);
+    for (int i = 1; i < n - 1; i++)
+        u[i] = 0.25f * t[i - 1] + 0.5f * t[i] + 0.25f * t[i + 1];
+    u[0] = (5 * t[0] + 2 * t[1] - t[2]) / 6;
+    u[n - 1] = (5 * t[n - 1] + 2 * t[n - 2] - t[n - 3]) / 6;
+    free(t);
+}
+
+/* One axis of the map: the previous grid has pn nodes at p0 + k pd; this level's n windows
+ * start at pixel w0 + i st and are ww wide; the predictor is the spline of the previous field
+ * filtered by [a/2, 1 - a, a/2] (the engine's pred_filter: edge nodes unfiltered), sampled at
+ * pixel + shift. Fills h and m ([k * n + i]). */
+static rpiv_status axis_map(int pn, double p0, double pd, int n, int w0, int st, int ww,
+                            double shift, double filter, int denoise, int img, double *h, double *m)
+{
+    rpiv_status s = RPIV_OK;
+    for (int k = 0; k < pn && !s; k++) {
+        rpiv_field *f = NULL;
+        rpiv_deform_pred *p = NULL;
+        if ((s = rpiv_field_new(pn, 1, p0, 0, pd, 1, &f)))
+            break;
+        memset(f->u, 0, (size_t)pn * sizeof *f->u);
+        memset(f->v, 0, (size_t)pn * sizeof *f->v);
+        f->u[k] = 1;
+        if (filter > 0 && pn > 2) {
+            const float c0 = (float)(1 - filter), c1 = (float)(0.5 * filter);
+            if (k >= 1 && k <= pn - 2)
+                f->u[k] = c0;
+            if (k - 1 >= 1)
+                f->u[k - 1] = c1;
+            if (k + 1 <= pn - 2)
+                f->u[k + 1] = c1;
+        }
+        if (denoise && pn > 2)
+            denoise_line(f->u, pn);
+        if (!(s = rpiv_deform_pred_new(f, img, 1, shift, &p))) {
+            for (int i = 0; i < n; i++) {
+                double u, v, sum = 0;
+                const int x0 = w0 + i * st;
+                rpiv_deform_pred_eval(p, x0 + 0.5 * (ww - 1) + shift, 0, &u, &v);
+                h[(size_t)k * (size_t)n + (size_t)i] = u;
+                for (int x = x0; x < x0 + ww; x++) {
+                    rpiv_deform_pred_eval(p, x + shift, 0, &u, &v);
+                    sum += u;
+                }
+                m[(size_t)k * (size_t)n + (size_t)i] = sum / ww;
+            }
+        }
+        rpiv_deform_pred_free(p);
+        rpiv_field_free(f);
+    }
+    return s;
+}
+
+rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, double filter,
+                           const rpiv_field *f, const float *su, const float *sv)
+{
+    if (!*chain && !(*chain = calloc(1, sizeof **chain)))
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+    unc_chain *c = *chain;
+    if (!linked || !c->n) {
+        for (int k = 0; k < c->n; k++)
+            level_free(&c->lv[k]);
+        c->n = 0;
+        linked = 0;
+    }
+    if (c->n == UNC_LEVELS) { /* drop the oldest level */
+        level_free(&c->lv[0]);
+        memmove(&c->lv[0], &c->lv[1], (UNC_LEVELS - 1) * sizeof c->lv[0]);
+        memset(&c->lv[UNC_LEVELS - 1], 0, sizeof c->lv[0]);
+        c->n--;
+        free(c->lv[0].hx);
+        free(c->lv[0].ax);
+        free(c->lv[0].hy);
+        free(c->lv[0].ay);
+        c->lv[0].hx = c->lv[0].ax = c->lv[0].hy = c->lv[0].ay = NULL;
+    }
+    unc_level *l = &c->lv[c->n];
+    memset(l, 0, sizeof *l);
+    *l = (unc_level){.nx = f->nx,
+                     .ny = f->ny,
+                     .x0 = f->x0,
+                     .y0 = f->y0,
+                     .dx = f->dx,
+                     .dy = f->dy,
+                     .wx0 = g->wx0,
+                     .wy0 = g->wy0,
+                     .sx = g->sx,
+                     .sy = g->sy,
+                     .ww = g->ww,
+                     .wh = g->wh,
+                     .shift = g->shift};
+    const size_t n = (size_t)f->nx * (size_t)f->ny;
+    l->s[0] = malloc(n * sizeof *l->s[0]);
+    l->s[1] = malloc(n * sizeof *l->s[1]);
+    if (!l->s[0] || !l->s[1]) {
+        level_free(l);
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+    }
+    /* vectors without their own statistics (replaced): the RMS of the valid ones */
+    const float *src[2] = {su, sv};
+    for (int q = 0; q < 2; q++) {
+        double ss = 0;
+        size_t m = 0;
+        for (size_t k = 0; k < n; k++)
+            if (f->flag[k] == RPIV_FLAG_VALID) {
+                ss += (double)src[q][k] * (double)src[q][k];
+                m++;
+            }
+        const float fill = m ? (float)sqrt(ss / (double)m) : (float)UNC_SIGMA_MAX;
+        for (size_t k = 0; k < n; k++)
+            l->s[q][k] = f->flag[k] == RPIV_FLAG_VALID      ? src[q][k]
+                         : f->flag[k] == RPIV_FLAG_REPLACED ? fill
+                                                            : 0;
+    }
+    if (linked) {
+        const unc_level *p = &c->lv[c->n - 1];
+        l->pnx = p->nx;
+        l->pny = p->ny;
+        const size_t mx = (size_t)p->nx * (size_t)f->nx, my = (size_t)p->ny * (size_t)f->ny;
+        l->hx = malloc(mx * sizeof *l->hx);
+        l->ax = malloc(mx * sizeof *l->ax);
+        l->hy = malloc(my * sizeof *l->hy);
+        l->ay = malloc(my * sizeof *l->ay);
+        rpiv_status st = RPIV_OK;
+        if (!l->hx || !l->ax || !l->hy || !l->ay)
+            st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+        if (!st)
+            st = axis_map(p->nx, p->x0, p->dx, f->nx, g->wx0, g->sx, g->ww, g->shift, filter,
+                          g->denoise, g->img_w, l->hx, l->ax);
+        if (!st)
+            st = axis_map(p->ny, p->y0, p->dy, f->ny, g->wy0, g->sy, g->wh, g->shift, filter,
+                          g->denoise, g->img_h, l->hy, l->ay);
+        if (st) {
+            level_free(l);
+            return st;
+        }
+    }
+    c->n++;
+    return RPIV_OK;
+}
+
+void unc_chain_set_hash(unc_chain *c, const rpiv_field *f)
+{
+    if (c)
+        c->hash = unc_field_hash(f);
+}
+
+int unc_chain_links(const unc_chain *c, const rpiv_field *predictor)
+{
+    return c && c->n && predictor && c->lv[c->n - 1].nx == predictor->nx &&
+           c->lv[c->n - 1].ny == predictor->ny && c->hash == unc_field_hash(predictor);
+}
+
+/* One term of a vector's expansion: a window of some level, its coefficient. */
+typedef struct term {
+    int x0, y0, x1, y1; /* the window's pixels [x0, x1) x [y0, y1) */
+    double q[2];        /* coefficient * sigma / sqrt(area), u and v */
+} term;
+
+static int gcd(int a, int b)
+{
+    a = a < 0 ? -a : a;
+    b = b < 0 ? -b : b;
+    while (b) {
+        int r = a % b;
+        a = b;
+        b = r;
+    }
+    return a;
+}
+
+/* Cells beyond which the variance is summed over pairs of terms instead. */
+#define UNC_MAX_CELLS 262144
+
+/* var[0], var[1] = sum over pixels of (sum of the q of the windows holding it)^2. Returns 0,
+ * or -1 when out of memory. */
+static int terms_var(const term *t, size_t nt, double var[2])
+{
+    int X0 = t[0].x0, Y0 = t[0].y0, X1 = t[0].x1, Y1 = t[0].y1, gx = 0, gy = 0;
+    for (size_t a = 1; a < nt; a++) {
+        X0 = t[a].x0 < X0 ? t[a].x0 : X0;
+        Y0 = t[a].y0 < Y0 ? t[a].y0 : Y0;
+        X1 = t[a].x1 > X1 ? t[a].x1 : X1;
+        Y1 = t[a].y1 > Y1 ? t[a].y1 : Y1;
+    }
+    for (size_t a = 0; a < nt; a++) {
+        gx = gcd(gcd(gx, t[a].x0 - X0), t[a].x1 - X0);
+        gy = gcd(gcd(gy, t[a].y0 - Y0), t[a].y1 - Y0);
+    }
+    const size_t cx = (size_t)((X1 - X0) / gx), cy = (size_t)((Y1 - Y0) / gy);
+    if (cx * cy <= UNC_MAX_CELLS) {
+        double *cell = calloc(2 * cx * cy, sizeof *cell);
+        if (!cell)
+            return -1;
+        for (size_t a = 0; a < nt; a++)
+            for (int y = (t[a].y0 - Y0) / gy; y < (t[a].y1 - Y0) / gy; y++)
+                for (int x = (t[a].x0 - X0) / gx; x < (t[a].x1 - X0) / gx; x++) {
+                    double *c = cell + 2 * ((size_t)y * cx + (size_t)x);
+                    c[0] += t[a].q[0];
+                    c[1] += t[a].q[1];
+                }
+        for (size_t k = 0; k < cx * cy; k++) {
+            var[0] += cell[2 * k] * cell[2 * k];
+            var[1] += cell[2 * k + 1] * cell[2 * k + 1];
+        }
+        var[0] *= (double)gx * gy;
+        var[1] *= (double)gx * gy;
+        free(cell);
+        return 0;
+    }
+    for (size_t a = 0; a < nt; a++)
+        for (size_t b = a; b < nt; b++) {
+            const int x0 = t[a].x0 > t[b].x0 ? t[a].x0 : t[b].x0;
+            const int x1 = t[a].x1 < t[b].x1 ? t[a].x1 : t[b].x1;
+            const int y0 = t[a].y0 > t[b].y0 ? t[a].y0 : t[b].y0;
+            const int y1 = t[a].y1 < t[b].y1 ? t[a].y1 : t[b].y1;
+            if (x1 <= x0 || y1 <= y0)
+                continue;
+            const double ov = (double)(x1 - x0) * (y1 - y0) * (a == b ? 1 : 2);
+            var[0] += ov * t[a].q[0] * t[b].q[0];
+            var[1] += ov * t[a].q[1] * t[b].q[1];
+        }
+    return 0;
+}
+
+/* The node range of the level before (pn nodes at p0 + k pd) that the windows i0..i1 of this
+ * level reach. */
+static void reach(int i0, int i1, int w0, int st, int ww, double shift, double p0, double pd,
+                  int pn, int *k0, int *k1)
+{
+    const double half = 0.5 * ww / pd + UNC_RADIUS;
+    const double c0 = (w0 + i0 * st + 0.5 * (ww - 1) + shift - p0) / pd;
+    const double c1 = (w0 + i1 * st + 0.5 * (ww - 1) + shift - p0) / pd;
+    *k0 = (int)floor(c0 - half);
+    *k1 = (int)ceil(c1 + half);
+    *k0 = *k0 < 0 ? 0 : *k0;
+    *k1 = *k1 > pn - 1 ? pn - 1 : *k1;
+}
+
+/* The variance of vector (ix, iy) of the newest level, u and v. Returns 0, or -1 when out of
+ * memory. */
+static int vector_var(const unc_chain *c, int ix, int iy, double var[2])
+{
+    int L = c->n - 1;
+    int bx0 = ix, bx1 = ix, by0 = iy, by1 = iy;
+    double *cf = malloc(sizeof *cf), *nx_cf = NULL, *th = NULL, *ta = NULL;
+    term *t = NULL;
+    size_t nt = 0, cap = 0;
+    int bad = !cf;
+    if (!bad)
+        cf[0] = 1;
+    var[0] = var[1] = 0;
+    for (int lev = L; lev >= 0 && !bad; lev--) {
+        const unc_level *l = &c->lv[lev];
+        const int bw = bx1 - bx0 + 1, bh = by1 - by0 + 1;
+        /* this level's terms */
+        for (int j = 0; j < bh; j++)
+            for (int i = 0; i < bw; i++) {
+                const double a = cf[(size_t)j * (size_t)bw + (size_t)i];
+                if (fabs(a) < UNC_TINY)
+                    continue;
+                if (nt == cap) {
+                    cap = cap ? 2 * cap : 64;
+                    term *nt_ = realloc(t, cap * sizeof *t);
+                    if (!nt_) {
+                        bad = 1;
+                        break;
+                    }
+                    t = nt_;
+                }
+                const int gx = bx0 + i, gy = by0 + j;
+                const size_t k = (size_t)gy * (size_t)l->nx + (size_t)gx;
+                const double r = a / sqrt((double)l->ww * l->wh);
+                term *e = &t[nt++];
+                e->x0 = l->wx0 + gx * l->sx;
+                e->y0 = l->wy0 + gy * l->sy;
+                e->x1 = e->x0 + l->ww;
+                e->y1 = e->y0 + l->wh;
+                e->q[0] = r * (double)l->s[0][k];
+                e->q[1] = r * (double)l->s[1][k];
+            }
+        if (bad || !l->hx || lev == 0)
+            break;
+        /* back to the level before: c'[ky][kx] = sum hy[ky][iy] hx[kx][ix] c - ay ax c */
+        int kx0, kx1, ky0, ky1;
+        reach(bx0, bx1, l->wx0, l->sx, l->ww, l->shift, c->lv[lev - 1].x0, c->lv[lev - 1].dx,
+              l->pnx, &kx0, &kx1);
+        reach(by0, by1, l->wy0, l->sy, l->wh, l->shift, c->lv[lev - 1].y0, c->lv[lev - 1].dy,
+              l->pny, &ky0, &ky1);
+        const int kw = kx1 - kx0 + 1, kh = ky1 - ky0 + 1;
+        th = malloc((size_t)bh * (size_t)kw * sizeof *th);
+        ta = malloc((size_t)bh * (size_t)kw * sizeof *ta);
+        nx_cf = calloc((size_t)kh * (size_t)kw, sizeof *nx_cf);
+        if (!th || !ta || !nx_cf) {
+            bad = 1;
+            break;
+        }
+        for (int j = 0; j < bh; j++)
+            for (int k = 0; k < kw; k++) {
+                double sh = 0, sa = 0;
+                const size_t row = (size_t)(kx0 + k) * (size_t)l->nx;
+                for (int i = 0; i < bw; i++) {
+                    const double a = cf[(size_t)j * (size_t)bw + (size_t)i];
+                    sh += a * l->hx[row + (size_t)(bx0 + i)];
+                    sa += a * l->ax[row + (size_t)(bx0 + i)];
+                }
+                th[(size_t)j * (size_t)kw + (size_t)k] = sh;
+                ta[(size_t)j * (size_t)kw + (size_t)k] = sa;
+            }
+        for (int m = 0; m < kh; m++) {
+            const size_t row = (size_t)(ky0 + m) * (size_t)l->ny;
+            for (int j = 0; j < bh; j++) {
+                const double hy = l->hy[row + (size_t)(by0 + j)];
+                const double ay = l->ay[row + (size_t)(by0 + j)];
+                for (int k = 0; k < kw; k++)
+                    nx_cf[(size_t)m * (size_t)kw + (size_t)k] +=
+                        hy * th[(size_t)j * (size_t)kw + (size_t)k] -
+                        ay * ta[(size_t)j * (size_t)kw + (size_t)k];
+            }
+        }
+        free(th);
+        free(ta);
+        th = ta = NULL;
+        free(cf);
+        cf = nx_cf;
+        nx_cf = NULL;
+        bx0 = kx0;
+        bx1 = kx1;
+        by0 = ky0;
+        by1 = ky1;
+    }
+    /* the variance of the sum of the terms: window noises covary by their shared pixels,
+     * var = sum_a sum_b q_a q_b |W_a & W_b| = sum over pixels of (sum of q_a over the windows
+     * holding the pixel)^2, summed on cells of g pixels (g: the common divisor of the edges) */
+    if (!bad && nt)
+        bad = terms_var(t, nt, var);
+    free(cf);
+    free(nx_cf);
+    free(th);
+    free(ta);
+    free(t);
+    return bad ? -1 : 0;
+}
+
+rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, float *sv,
+                            int nthreads)
+{
+    const unc_level *l = &c->lv[c->n - 1];
+    const size_t n = (size_t)l->nx * (size_t)l->ny;
+    int bad = 0;
+#pragma omp parallel for schedule(dynamic, 8) num_threads(nthreads) reduction(| : bad)
+    for (size_t k = 0; k < n; k++) {
+        if (f->flag[k] != RPIV_FLAG_VALID)
+            continue;
+        double var[2];
+        if (vector_var(c, (int)(k % (size_t)l->nx), (int)(k / (size_t)l->nx), var)) {
+            bad = 1;
+            continue;
+        }
+        su[k] = (float)fmin(sqrt(var[0] > 0 ? var[0] : 0), UNC_SIGMA_MAX);
+        sv[k] = (float)fmin(sqrt(var[1] > 0 ? var[1] : 0), UNC_SIGMA_MAX);
+    }
+    return bad ? rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty") : RPIV_OK;
+}
+
+/* |second difference| of g along a line at the edge node k0 (inward step dk, stride st). */
+static double edge_curv(const float *g, size_t k0, ptrdiff_t st)
+{
+    return fabs((double)g[k0] - 2 * (double)g[(ptrdiff_t)k0 + st] +
+                (double)g[(ptrdiff_t)k0 + 2 * st]);
+}
+
+void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv)
+{
+    const int nx = f->nx, ny = f->ny;
+    const float *g[2] = {f->u, f->v};
+    float *s[2] = {su, sv};
+    for (int j = 0; j < ny; j++)
+        for (int i = 0; i < nx; i++) {
+            const size_t k = (size_t)j * (size_t)nx + (size_t)i;
+            const int ex = nx >= 3 && (i == 0 || i == nx - 1);
+            const int ey = ny >= 3 && (j == 0 || j == ny - 1);
+            if ((!ex && !ey) || f->flag[k] != RPIV_FLAG_VALID)
+                continue;
+            for (int c = 0; c < 2; c++) {
+                double b = 0;
+                if (ex)
+                    b += (double)ww * ww / 24 / (f->dx * f->dx) *
+                         edge_curv(g[c], k, i == 0 ? 1 : -1);
+                if (ey)
+                    b += (double)wh * wh / 24 / (f->dy * f->dy) *
+                         edge_curv(g[c], k, j == 0 ? (ptrdiff_t)nx : -(ptrdiff_t)nx);
+                const double t = sqrt((double)s[c][k] * (double)s[c][k] + b * b);
+                s[c][k] = (float)(t < UNC_SIGMA_MAX ? t : UNC_SIGMA_MAX);
+            }
+        }
+}

@@ -1,0 +1,33 @@
+/* SPDX-License-Identifier: GPL-3.0-or-later */
+/* src/piv/unc_step.c - the uncertainty of one pass of a pair (docs/uncertainty.md): the pass
+ * joins the chain of the passes before it (unc_chain.c), the final pass gets sigma_u,
+ * sigma_v. */
+#include "piv_impl.h"
+#include "uncertainty_impl.h"
+
+rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpiv_field *predictor,
+                                 int refines, rpiv_field *f, const float *cs)
+{
+    const piv_pass *ps = &pv->pass[pass];
+    const unc_geom g = {
+        ps->ox, ps->oy,
+        ps->sx, ps->sy,
+        ps->ww, ps->wh,
+        pv->w,  pv->h,
+        shift,  predictor && pv->p.refine_denoise && piv_pred_repeats(pv, predictor)};
+    const int linked = shift != 0 && unc_chain_links(pv->unc, predictor);
+    rpiv_status st = unc_chain_push(&pv->unc, linked, &g, refines ? pv->p.refine_filter : 0, f, cs,
+                                    cs + ps->nwin);
+    if (st)
+        return st;
+    if (pass == pv->npass - 1) {
+        float *su, *sv;
+        if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(pv->unc, f, su, sv, pv->nthreads)))
+            return st;
+        if (pv->deforms)
+            unc_edge_bias(f, ps->ww, ps->wh, su, sv);
+        unc_replaced(f);
+    }
+    unc_chain_set_hash(pv->unc, f);
+    return RPIV_OK;
+}
