@@ -124,7 +124,7 @@ static double lamb_oseen_at(double steps, double *err_max)
     rpiv_field *f = grid();
     CHECK(f != NULL);
     if (!f)
-        return NAN;
+        return (double)NAN;
     for (int j = 0; j < NY; j++)
         for (int i = 0; i < NX; i++) {
             double X = 8 + H * i - xc(), Y = -(8 + H * j - yc()), r2 = X * X + Y * Y;
