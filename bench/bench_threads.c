@@ -110,6 +110,49 @@ static int ensemble(int w, int h, int n, int threads, result *r)
     return bad;
 }
 
+/* The per-pair series' sink: the fields' checksum in pair order and their squared error. */
+typedef struct series_acc {
+    uint64_t sum;
+    double sq;
+    size_t n;
+} series_acc;
+
+static rpiv_status series_sink(void *user, size_t i, const rpiv_field *f)
+{
+    series_acc *a = user;
+    (void)i;
+    size_t nv = (size_t)f->nx * (size_t)f->ny;
+    a->sum = bench_checksum(bench_checksum(a->sum, f->u, nv), f->v, nv);
+    double e = rms_error(f);
+    a->sq += e * e;
+    a->n++;
+    return RPIV_OK;
+}
+
+/* One per-pair series run (a field per pair, rpiv_series_run): as ensemble(). */
+static int series(int w, int h, int n, int threads, result *r)
+{
+    rpiv_pairs *pairs = pairs_of(w, n);
+    rpiv_piv *pv = NULL;
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = threads;
+    series_acc acc = {0, 0, 0};
+    double t0 = bench_now(), c0 = bench_cpu();
+    int bad = !pairs || rpiv_piv_new(&prm, w, h, NULL, &pv) ||
+              rpiv_series_run(pv, pairs, series_sink, &acc, NULL);
+    if (bad)
+        fprintf(stderr, "bench_threads: %s\n", rpiv_errmsg());
+    else {
+        r->ms = 1e3 * (bench_now() - t0);
+        r->cpu_ms = 1e3 * (bench_cpu() - c0);
+        r->sum = acc.sum;
+        r->err = acc.n ? sqrt(acc.sq / (double)acc.n) : 1e9;
+    }
+    rpiv_piv_free(pv);
+    rpiv_pairs_free(pairs);
+    return bad;
+}
+
 /* Busy loops, one per core, in child processes; their pids into pids[]. */
 static int load_start(pid_t *pids, int n)
 {
@@ -155,7 +198,8 @@ int main(void)
                 fprintf(stderr, "bench_threads: %s\n", rpiv_errmsg());
                 return 1;
             }
-    printf("# ensembles of 4 distinct synthetic 16-bit pairs listed repeatedly, 64 -> 32 -> 32; "
+    printf("# ensembles (ens) and per-pair series (pairs, half as many pairs) of 4 distinct "
+           "synthetic 16-bit pairs listed repeatedly, default passes; "
            "ref = the 1-thread run just before (ratio = 2 threads / 1 thread; > 1: slower); "
            "loaded = %d busy loop(s) in the background, one per core\n",
            ncores);
@@ -168,18 +212,20 @@ int main(void)
             fprintf(stderr, "bench_threads: cannot start the background load\n");
             return 1;
         }
-        for (int s = 0; s < 3; s++) {
+        for (int q = 0; q < 6; q++) {
+            const int s = q % 3, per_pair = q >= 3;
             const int w = sizes[s][0], h = sizes[s][1];
-            const int n = (int)fmax(2, sizes[s][2] * scale);
+            const int n = (int)fmax(2, sizes[s][2] * scale / (per_pair ? 2 : 1));
             result r1 = {0}, r2 = {0};
             /* 1, 2, 1, 2: the better of two of each, taken in one stretch */
             result t[4];
             for (int k = 0; k < 4; k++)
-                bad |= ensemble(w, h, n, k % 2 ? 2 : 1, &t[k]);
+                bad |= (per_pair ? series : ensemble)(w, h, n, k % 2 ? 2 : 1, &t[k]);
             r1 = t[0].ms < t[2].ms ? t[0] : t[2];
             r2 = t[1].ms < t[3].ms ? t[1] : t[3];
             char name[32];
-            snprintf(name, sizeof name, "ens%d_%s", n, loaded ? "loaded" : "idle");
+            snprintf(name, sizeof name, "%s%d_%s", per_pair ? "pairs" : "ens", n,
+                     loaded ? "loaded" : "idle");
             const int ok = t[0].sum == t[1].sum && t[0].sum == t[2].sum && t[1].sum == t[3].sum &&
                            r1.err <= 0.012 && r2.err <= 0.012;
             bench_line(name, w, h, 2, r2.ms, r1.ms, r2.sum);
