@@ -71,9 +71,10 @@ memcheck: build-memcheck
 	cd build-memcheck && ctest -L unit -T memcheck -j $(JOBS) --output-on-failure
 
 # The same over the unit programs that take seconds under valgrind (all but the demo, the
-# calibration, the CCM and the ensemble tests): about 1.5 minutes, part of `make test`.
+# calibration, the CCM, the ensemble, the uncertainty sweep and the noise sweep tests, which
+# the sanitizer run of `make test` covers): about 1.5 minutes, part of `make test`.
 memcheck-quick: build-memcheck
-	cd build-memcheck && ctest -L unit -E 'test_(demo|calib|ccm|ensemble)$$' -T memcheck \
+	cd build-memcheck && ctest -L unit -E 'test_(demo|calib|ccm|ensemble|uncertainty|noise)$$' -T memcheck \
 	    -j $(JOBS) --output-on-failure
 
 format:
