@@ -423,8 +423,11 @@ typedef struct rpiv_ccm_bias_params {
     double rel_thickness;        /* uncertainty: relative change of the sheet's thickness
                                     about its peak (0.1)                                    */
     double dz;                   /* uncertainty: shift of the sheet, z* (0.01)              */
-    double pixel_box;            /* the CCM's pixel integration, rpiv_ccm_model.pixel_box
-                                    (1; 0 = the paper's point-sampled images)               */
+    double pixel_box;            /* [bias] pixel_box: the CCM's pixel integration (1; 0 =
+                                    the paper's point-sampled images). Not read by
+                                    rpiv_ccm_bias_field (it uses base->pixel_box):
+                                    rpiv_config_ccm_model copies it into every model made
+                                    from a configuration (rpiv ccm, --sheet-bias, demo)    */
     int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
 } rpiv_ccm_bias_params;
 
