@@ -258,6 +258,23 @@ static void demo_converges_to_the_model(void)
     CHECK(res.conv_e1[res.nconv - 1] < res.conv_e1[0]);
     CHECK(res.e1_model == res.conv_e1[res.nconv - 1]);
     CHECK(res.e1_model < 0.10);
+    /* the sheet bias per vector on the run's field: four bands of x*, finite figures, and the
+     * corrected field against the truth recomputed from the bands' own errors */
+    printf("  sheet bias: E1 raw %.4f, corrected %.4f;", res.bias_e1_raw, res.bias_e1_corr);
+    for (int k = 0; k < res.nbias_bands; k++)
+        printf(" [%.2f, %.2f] %.4f -> %.4f (err %+.4f, bias %+.4f)", res.bias_x0[k], res.bias_x1[k],
+               res.bias_raw[k], res.bias_corr[k], res.bias_err[k], res.bias_mean[k]);
+    printf("\n");
+    CHECK(res.nbias_bands == RPIV_DEMO_BIAS_BANDS);
+    CHECK(isfinite(res.bias_e1_raw) && isfinite(res.bias_e1_corr));
+    CHECK(res.bias_e1_raw > 0 && res.bias_e1_raw < 0.2 && res.bias_e1_corr < 0.2);
+    for (int k = 0; k < res.nbias_bands; k++) {
+        CHECK(res.bias_x1[k] > res.bias_x0[k]);
+        /* near the floor the sheet's longer lower tail lights slower fluid: negative bias */
+        CHECK(isfinite(res.bias_mean[k]) && fabs(res.bias_mean[k]) < 0.2);
+    }
+    CHECK(res.bias_mean[0] < 0);
+    CHECK(res.bias_e1_corr < res.bias_e1_raw); /* the correction pays in this near-floor band */
 }
 
 static void demo_writes_report_and_valid_plots(void)
@@ -277,6 +294,7 @@ static void demo_writes_report_and_valid_plots(void)
     CHECK(file_has(md, "## Notation and equations") && file_has(html, "Notation and equations"));
     CHECK(file_has(md, "`e*` = `z*_sup - z*_inf`") && file_has(md, "Eq. statform"));
     CHECK(file_has(md, "The largest E1 at `z*_max` is"));
+    CHECK(file_has(md, "Sheet bias per vector") && file_has(md, "](bias_map.png)"));
     CHECK(res.nplots >= 14);
     for (size_t k = 0; k < res.nplots; k++) {
         unsigned w = 0, h = 0;

@@ -174,6 +174,7 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
             continue;
         rpiv_experiment ec = ex;
         ec.piv.subpixel = ms[q];
+        ec.bias.pixel_box = 0; /* the ideal: the paper's continuous images; ccm_peak blurs */
         double *m = res->m[q], ss = 0;
         int n = 0;
         for (int j = 0; j < f->ny; j++)

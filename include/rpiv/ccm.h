@@ -118,11 +118,16 @@ typedef struct rpiv_ccm_model {
     double zlo, zhi;        /* heights the particles occupy (0, 1)                           */
     double breaks[RPIV_CCM_MAX_BREAKS]; /* known kinks or narrow peaks of I0 or P (a thin  */
     size_t nbreaks;                     /* sheet's centre), where quadrature intervals split */
+    double pixel_box; /* side of the square each pixel integrates the image over, px: 1 (a
+                       * full-fill sensor, as rpiv synth renders), 0 (point samples: the
+                       * paper's continuous images); adds pixel_box^2/12 px^2 to each image's
+                       * variance per axis, at constant volume (docs/ccm.md, "Pixel
+                       * integration") */
 } rpiv_ccm_model;
 
 /* The paper's channel defaults: the camera of imaging.h, h = 8 mm, d_p = 10 um, scale_px of
  * dt = 1 ms at Re = 465 (3.50 px per U_b), I0 = 1 (volume illumination), U* = the duct at
- * y* = 0.5, uniform P on [0, 1]. */
+ * y* = 0.5, uniform P on [0, 1], pixel_box = 1 (pixel-integrated images). */
 rpiv_ccm_model rpiv_ccm_model_default(void);
 RPIV_NODISCARD rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m);
 
@@ -418,6 +423,11 @@ typedef struct rpiv_ccm_bias_params {
     double rel_thickness;        /* uncertainty: relative change of the sheet's thickness
                                     about its peak (0.1)                                    */
     double dz;                   /* uncertainty: shift of the sheet, z* (0.01)              */
+    double pixel_box;            /* [bias] pixel_box: the CCM's pixel integration (1; 0 =
+                                    the paper's point-sampled images). Not read by
+                                    rpiv_ccm_bias_field (it uses base->pixel_box):
+                                    rpiv_config_ccm_model copies it into every model made
+                                    from a configuration (rpiv ccm, --sheet-bias, demo)    */
     int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
 } rpiv_ccm_bias_params;
 

@@ -86,6 +86,8 @@ typedef struct rpiv_demo_log {
 /* What a run measured. Every number is computed in the run. E1 values are fractions (Eq.
  * "E1": RMS difference over the mean reference). NaN where a figure could not be computed
  * (e.g. no column in the range). */
+#define RPIV_DEMO_BIAS_BANDS 4
+
 typedef struct rpiv_demo_result {
     /* the run */
     double seconds;          /* wall-clock time of the whole run                     */
@@ -136,6 +138,16 @@ typedef struct rpiv_demo_result {
     double conv_e1[RPIV_DEMO_MAX_SNAP];
     double e1_assoc; /* inversion: the paper's association (U at z*_max) vs truth */
     double e1_corr;  /* inversion: the bias-corrected profile vs truth        */
+    /* the per-vector sheet bias (rpiv_ccm_bias_field: duct variation, against z*_max) and the
+     * corrected field vs the analytic U at z*_max(x*), over the compared vectors: the whole
+     * field and RPIV_DEMO_BIAS_BANDS equal bands of x* */
+    double bias_e1_raw, bias_e1_corr;
+    int nbias_bands;
+    double bias_x0[RPIV_DEMO_BIAS_BANDS], bias_x1[RPIV_DEMO_BIAS_BANDS];
+    double bias_raw[RPIV_DEMO_BIAS_BANDS], bias_corr[RPIV_DEMO_BIAS_BANDS]; /* E1 */
+    double bias_err[RPIV_DEMO_BIAS_BANDS];  /* mean U*_measured - U*_truth            */
+    double bias_mean[RPIV_DEMO_BIAS_BANDS]; /* mean predicted bias, U*                */
+    double bias_e[RPIV_DEMO_BIAS_BANDS];    /* mean z*_sup - z*_inf of the band's columns */
     /* 6. report */
     size_t nplots; /* PNG files written in DIR                             */
     char plots[RPIV_DEMO_MAX_PLOTS][64];

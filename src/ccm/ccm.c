@@ -92,6 +92,7 @@ rpiv_ccm_model rpiv_ccm_model_default(void)
     m.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, NULL};
     m.zlo = 0;
     m.zhi = 1;
+    m.pixel_box = 1;
     return m;
 }
 
@@ -113,6 +114,8 @@ rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m)
     if (!(m->zlo < m->zhi) || !isfinite(m->zlo) || !isfinite(m->zhi))
         return rpiv_fail(RPIV_EINVAL, "ccm: particle heights [%g, %g] are not an interval", m->zlo,
                          m->zhi);
+    if (!(m->pixel_box >= 0 && m->pixel_box <= 4))
+        return rpiv_fail(RPIV_EINVAL, "ccm: pixel_box %g px outside 0..4", m->pixel_box);
     if (m->nbreaks > RPIV_CCM_MAX_BREAKS)
         return rpiv_fail(RPIV_EINVAL, "ccm: %zu breakpoints, at most %d", m->nbreaks,
                          RPIV_CCM_MAX_BREAKS);
@@ -144,15 +147,23 @@ double rpiv_ccm_sheet_fn(const void *user, double zstar)
 
 /* ---- Eq. "CCM_gen" and Eq. "CCM_simp" ------------------------------------------------- */
 
-/* Peak and variance (px^2) of the image of Eq. "int" of a particle at z with intensity i. */
+/* Peak and variance (px^2) of the image of Eq. "int" of a particle at z with intensity i, as
+ * the pixels record it. A pixel integrates the image over a square of side b = pixel_box: the
+ * recorded image is the Gaussian convolved with a box of variance b^2/12 per axis, sampled at
+ * the pixel centres. Averaged over the particles' sub-pixel positions, the correlation of two
+ * such images is the continuous one convolved with the box's autocorrelation, a triangle of
+ * variance b^2/6: each image's variance grows by b^2/12, its volume (peak x 2 pi var) is
+ * unchanged. The triangle is replaced by the Gaussian of the same variance (its fourth
+ * cumulant, -b^4/60, is dropped; docs/ccm.md, "Pixel integration"). */
 static void image_of(const ccm_frame *f, double z, double i, double dp, double *peak, double *var)
 {
     const rpiv_camera *cam = &f->m->camera;
     double zd = rpiv_imaging_defocus_m(cam, f->m->h_m, z);
     double de = rpiv_imaging_de_m(cam, dp, zd);
     double s = rpiv_imaging_sigma_m(cam, de) / f->pixel_m;
-    *peak = rpiv_imaging_peak(cam, i * dp * dp, de, zd);
-    *var = s * s;
+    double v0 = s * s, b = f->m->pixel_box;
+    *var = v0 + b * b / 12;
+    *peak = rpiv_imaging_peak(cam, i * dp * dp, de, zd) * (v0 / *var);
 }
 
 void ccm_frame_init(ccm_frame *f, const rpiv_ccm_model *m)

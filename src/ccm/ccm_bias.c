@@ -25,6 +25,7 @@ rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void)
     bp.vary = RPIV_CCM_VARY_DUCT;
     bp.rel_thickness = 0.1;
     bp.dz = 0.01;
+    bp.pixel_box = 1;
     bp.threads = 0;
     return bp;
 }
@@ -43,6 +44,8 @@ rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params *bp)
         return rpiv_fail(RPIV_EINVAL, "bias: rel_thickness %g outside 0..0.9", bp->rel_thickness);
     if (!(bp->dz >= 0 && bp->dz <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "bias: dz %g outside 0..0.5", bp->dz);
+    if (!(bp->pixel_box >= 0 && bp->pixel_box <= 4))
+        return rpiv_fail(RPIV_EINVAL, "bias: pixel_box %g px outside 0..4", bp->pixel_box);
     if (bp->threads < 0 || bp->threads > 1024)
         return rpiv_fail(RPIV_EINVAL, "bias: %d threads outside 0..1024", bp->threads);
     return RPIV_OK;

@@ -265,6 +265,10 @@ static const key_spec keys[] = {
     {"bias", "rel_thickness", KEY_DOUBLE, OFF(bias.rel_thickness), 0, 0.9, 1, "-",
      "uncertainty: relative change of the sheet's thickness", 0},
     {"bias", "dz", KEY_DOUBLE, OFF(bias.dz), 0, 0.5, 1, "h", "uncertainty: shift of the sheet", 0},
+    {"bias", "pixel_box", KEY_DOUBLE, OFF(bias.pixel_box), 0, 4, 1, "px",
+     "the CCM's pixel integration: side of the square a pixel integrates over (0 = the "
+     "paper's point-sampled images)",
+     0},
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
 };

@@ -34,6 +34,7 @@ rpiv_ccm_model rpiv_config_ccm_model(const rpiv_experiment *e, double dt_s)
     m.h_m = e->channel.h_m;
     m.dp_m = e->particles.dp_m;
     m.scale_px = rpiv_ccm_scale_px(&e->camera, &e->channel, dt_s);
+    m.pixel_box = e->bias.pixel_box;
     return m;
 }
 

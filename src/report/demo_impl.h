@@ -70,6 +70,7 @@ typedef struct demo_ctx {
     double *inv_z, *inv_u, *inv_sd;
     size_t ninvm;
     double *inv_zm, *inv_um; /* the association: measured U* at z*_max                */
+    rpiv_field *bfield;      /* the R-PIV field with bias_u, u_corrected, z_ref (sheet bias) */
 } demo_ctx;
 
 /* Steps (demo_optics.c, demo_series.c, demo_compare.c, demo_report.c), in this order. Each

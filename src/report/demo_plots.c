@@ -248,8 +248,10 @@ static rpiv_status quiver(demo_ctx *c, const char *name, const char *title, cons
     return done(c, name);
 }
 
-/* U* of a field over the compared rows (a contiguous band of rows, no blank cell), in x*, y*. */
-static rpiv_status field_map(demo_ctx *c, const char *name, const char *title, const rpiv_field *f)
+/* data / bulk_px (U*) over the compared rows (a contiguous band of rows, no blank cell), in x*,
+ * y*, colours over [zmin, zmax]. */
+static rpiv_status grid_map(demo_ctx *c, const char *name, const char *title, const float *data,
+                            const char *zlabel, double zmin, double zmax)
 {
     int j0 = c->ny, j1 = -1;
     for (int j = 0; j < c->ny; j++)
@@ -269,16 +271,16 @@ static rpiv_status field_map(demo_ctx *c, const char *name, const char *title, c
     for (int j = j0; j <= j1; j++)
         for (int i = 0; i < nx; i++)
             z[(size_t)(j - j0) * (size_t)nx + (size_t)i] =
-                (double)f->u[(size_t)j * (size_t)nx + (size_t)i] / c->bulk_px;
+                (double)data[(size_t)j * (size_t)nx + (size_t)i] / c->bulk_px;
     double hx = 0.5 * c->gdx * c->spp, hy = 0.5 * c->gdy * c->spp;
     double ext[4] = {c->xs[0] - hx, c->xs[nx - 1] + hx, c->ys[j0] - hy, c->ys[j1] + hy};
     rpiv_plot_opts o = rpiv_plot_opts_default();
     band_size(c, &o);
     o.xlabel = "x*";
     o.ylabel = "y*";
-    o.zlabel = "U*";
-    o.zmin = 0;
-    o.zmax = 2.2;
+    o.zlabel = zlabel;
+    o.zmin = zmin;
+    o.zmax = zmax;
     char path[RPIV_PATH_MAX];
     rpiv_status st = demo_path(c, name, path, sizeof path);
     if (!st)
@@ -287,6 +289,27 @@ static rpiv_status field_map(demo_ctx *c, const char *name, const char *title, c
     if (st)
         return st;
     return done(c, name);
+}
+
+static rpiv_status field_map(demo_ctx *c, const char *name, const char *title, const rpiv_field *f)
+{
+    return grid_map(c, name, title, f->u, "U*", 0, 2.2);
+}
+
+/* The per-vector sheet bias (bias_u of rpiv_ccm_bias_field) in U*, symmetric colours. */
+static rpiv_status bias_map(demo_ctx *c)
+{
+    const rpiv_quantity *q = c->bfield ? rpiv_field_quantity(c->bfield, "bias_u") : NULL;
+    if (!q)
+        return RPIV_OK;
+    double m = 0;
+    for (size_t k = 0; k < (size_t)c->nx * (size_t)c->ny; k++)
+        if (c->fluid[k])
+            m = fmax(m, fabs((double)q->data[k]) / c->bulk_px);
+    m = m > 0 ? m : 1e-3;
+    return grid_map(c, "bias_map.png",
+                    "Sheet bias per vector (CCM, duct variation, against z*_max): bias U*", q->data,
+                    "bias U*", -m, m);
 }
 
 static rpiv_status plot_image(demo_ctx *c)
@@ -468,7 +491,7 @@ rpiv_status demo_plots(demo_ctx *c)
         (st = plot_image(c)) ||
         (st = quiver(c, "rpiv_field.png", "R-PIV vectors (sum of correlation)", c->rfield)) ||
         (st = field_map(c, "rpiv_map.png", "R-PIV: U* over the compared vectors", c->rfield)) ||
-        (st = plot_compare(c)))
+        (st = bias_map(c)) || (st = plot_compare(c)))
         return st;
     return RPIV_OK;
 }

@@ -66,6 +66,7 @@ static void ctx_free(demo_ctx *c)
     rpiv_image_free(c->sample);
     rpiv_field_free(c->ppiv_mid);
     rpiv_field_free(c->rfield);
+    rpiv_field_free(c->bfield);
     for (size_t k = 0; k < RPIV_DEMO_MAX_SNAP; k++)
         rpiv_field_free(c->snapf[k]);
     void *arrays[] = {c->mzinf,  c->mzmax,  c->mzsup,  c->me,        c->sweep_prof, c->xs,

@@ -17,17 +17,19 @@ maxerr() { grep "$2" "$1" | sed -n 's/.*max |err| = \([0-9.]*\) %.*/\1/p' | head
 within() { awk -v x="$1" -v a="$2" -v b="$3" 'BEGIN { exit !(x != "" && x >= a && x <= b) }'; }
 
 np="--set output.plots=0"
-"$bin" ccm ppiv-scan -q -o "$tmp" $np >"$tmp/scan.out" && ok || ko "ppiv-scan"
+# the paper's figures: its model of continuous (point-sampled) particle images
+paper="--set bias.pixel_box=0"
+"$bin" ccm ppiv-scan -q -o "$tmp" $np $paper >"$tmp/scan.out" && ok || ko "ppiv-scan"
 [ -s "$tmp/ccm_ppiv-scan_e0.05.txt" ] && [ -s "$tmp/ccm_ppiv-scan_e0.19.txt" ] && ok || ko "ppiv-scan tables"
 within "$(maxerr "$tmp/scan.out" 'e\*=0.05')" 0.02 0.1 && ok || ko "ppiv-scan e*=0.05: $(cat "$tmp/scan.out")"
 within "$(maxerr "$tmp/scan.out" 'e\*=0.19')" 3 8 && ok || ko "ppiv-scan e*=0.19"
 [ "$(grep -vc '^#' "$tmp/ccm_ppiv-scan_e0.05.txt")" -eq 15 ] && ok || ko "15 positions"
 grep -q '^# rpiv-ccm 1$' "$tmp/ccm_ppiv-scan_e0.05.txt" && ok || ko "table magic"
 
-"$bin" ccm ppiv-fixed -q -o "$tmp" --thickness 0.19 $np >"$tmp/fixed.out" && ok || ko "ppiv-fixed"
+"$bin" ccm ppiv-fixed -q -o "$tmp" --thickness 0.19 $np $paper >"$tmp/fixed.out" && ok || ko "ppiv-fixed"
 within "$(maxerr "$tmp/fixed.out" 'e\*=0.19')" 18 23 && ok || ko "ppiv-fixed e*=0.19: $(cat "$tmp/fixed.out")"
 
-"$bin" ccm rpiv -q -o "$tmp" >"$tmp/rpiv.out" && ok || ko "rpiv"
+"$bin" ccm rpiv -q -o "$tmp" $paper >"$tmp/rpiv.out" && ok || ko "rpiv"
 for f in ccm_rpiv_profile.png ccm_rpiv_error.png; do
     [ "$(head -c 4 "$tmp/$f" | od -An -c | tr -d ' ')" = '211PNG' ] && ok || ko "$f is not a PNG"
 done
@@ -40,9 +42,9 @@ within "$(maxerr "$tmp/rpiv.out" rpiv)" 7 9 && ok || ko "rpiv: $(cat "$tmp/rpiv.
 "$bin" ccm convergence -q -o "$tmp/t1" -j 1 --repeats 4 --nim 1,10,50 $np >/dev/null && \
     cmp -s "$tmp/ccm_convergence.txt" "$tmp/t1/ccm_convergence.txt" && ok || ko "convergence depends on threads"
 
-# invert the model's own prediction (object plane 0.5 as in the rpiv scenario)
+# invert the model's own prediction (object plane 0.5 as in the rpiv scenario; the same model)
 awk '!/^#/ && $8 == 0 { print $1, $4 }' "$tmp/ccm_rpiv.txt" >"$tmp/meas.txt"
-"$bin" ccm invert -q -o "$tmp" --input "$tmp/meas.txt" --zop 0.5 --symmetric --compare $np >"$tmp/inv.out" && ok || ko "invert"
+"$bin" ccm invert -q -o "$tmp" --input "$tmp/meas.txt" --zop 0.5 --symmetric --compare $np $paper >"$tmp/inv.out" && ok || ko "invert"
 e1c=$(sed -n 's/.*corrected \([0-9.]*\) %.*/\1/p' "$tmp/inv.out")
 e1a=$(sed -n 's/.*association (U at z\*_max) \([0-9.]*\) %.*/\1/p' "$tmp/inv.out")
 # (2.14 % with the geometric defocus of the paper, 1.96 % with the apparent depth, n_medium 1.33)
