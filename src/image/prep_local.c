@@ -186,24 +186,34 @@ static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
     if (!cell)
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
     float *g = cell + (size_t)gx * (size_t)gy;
+    float *rowmin = malloc((size_t)nt * (size_t)w * sizeof *rowmin);
+    if (!rowmin) {
+        free(cell);
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
+    }
     const float *px = im->px;
+    /* each band of c rows: the least of its rows, column by column (along memory, in vector
+     * registers), then of each cell's c columns */
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int j = 0; j < gy; j++) {
         int y0 = j * c, y1 = y0 + c < h ? y0 + c : h;
+        float *restrict o = rowmin + (size_t)omp_get_thread_num() * (size_t)w;
+        memcpy(o, px + (size_t)y0 * (size_t)w, (size_t)w * sizeof *o);
+        for (int y = y0 + 1; y < y1; y++) {
+            const float *restrict r = px + (size_t)y * (size_t)w;
+            for (int x = 0; x < w; x++)
+                o[x] = r[x] < o[x] ? r[x] : o[x];
+        }
         float *row = cell + (size_t)j * (size_t)gx;
-        for (int i = 0; i < gx; i++)
-            row[i] = px[(size_t)y0 * (size_t)w + (size_t)i * (size_t)c];
-        for (int y = y0; y < y1; y++) {
-            const float *r = px + (size_t)y * (size_t)w;
-            for (int i = 0; i < gx; i++) {
-                int x0 = i * c, x1 = x0 + c < w ? x0 + c : w;
-                float m = row[i];
-                for (int x = x0; x < x1; x++)
-                    m = r[x] < m ? r[x] : m;
-                row[i] = m;
-            }
+        for (int i = 0; i < gx; i++) {
+            int x0 = i * c, x1 = x0 + c < w ? x0 + c : w;
+            float m = o[x0];
+            for (int x = x0 + 1; x < x1; x++)
+                m = o[x] < m ? o[x] : m;
+            row[i] = m;
         }
     }
+    free(rowmin);
     for (int j = 0; j < gy; j++)
         for (int i = 0; i < gx; i++) {
             float m = cell[(size_t)j * (size_t)gx + (size_t)i];
@@ -219,16 +229,23 @@ static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
         }
     /* cell centres at (i + 0.5) c - 0.5; clamped outside the first and last centres. The
      * column weights are the same for every row: once */
-    int *ix = malloc(2 * (size_t)w * sizeof *ix);
+    int *ix = malloc(2 * (size_t)w * sizeof *ix), *span = malloc(((size_t)w + 1) * sizeof *span);
     float *fxs = malloc((size_t)w * sizeof *fxs);
-    if (!ix || !fxs) {
+    if (!ix || !fxs || !span) {
         free(ix);
+        free(span);
         free(fxs);
         free(cell);
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
     }
-    for (int x = 0; x < w; x++)
+    /* the spans of columns between the same two cell centres */
+    int nspan = 0;
+    for (int x = 0; x < w; x++) {
         lerp_at(x, c, gx, &ix[2 * x], &ix[2 * x + 1], &fxs[x]);
+        if (x == 0 || ix[2 * x] != ix[2 * x - 2] || ix[2 * x + 1] != ix[2 * x - 1])
+            span[nspan++] = x;
+    }
+    span[nspan] = w;
     float *out = im->px;
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int y = 0; y < h; y++) {
@@ -237,15 +254,18 @@ static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
         lerp_at(y, c, gy, &j0, &j1, &fy);
         const float *g0 = g + (size_t)j0 * (size_t)gx, *g1 = g + (size_t)j1 * (size_t)gx;
         float *r = out + (size_t)y * (size_t)w;
-        for (int x = 0; x < w; x++) {
-            int i0 = ix[2 * x], i1 = ix[2 * x + 1];
-            float fx = fxs[x];
-            float top = g0[i0] + fx * (g0[i1] - g0[i0]), bot = g1[i0] + fx * (g1[i1] - g1[i0]);
-            float d = r[x] - (top + fy * (bot - top));
-            r[x] = d > 0 ? d : 0;
+        for (int k = 0; k < nspan; k++) {
+            const int x0 = span[k], x1 = span[k + 1], i0 = ix[2 * x0], i1 = ix[2 * x0 + 1];
+            const float a0 = g0[i0], da = g0[i1] - g0[i0], b0 = g1[i0], db = g1[i1] - g1[i0];
+            for (int x = x0; x < x1; x++) {
+                float top = a0 + fxs[x] * da, bot = b0 + fxs[x] * db;
+                float d = r[x] - (top + fy * (bot - top));
+                r[x] = d > 0 ? d : 0;
+            }
         }
     }
     free(ix);
+    free(span);
     free(fxs);
     free(cell);
     return RPIV_OK;
@@ -282,7 +302,7 @@ rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_background how, in
 rpiv_status prep_normalize(rpiv_image *im, int size, int nt)
 {
     float lo, hi;
-    prep_range(im, &lo, &hi);
+    prep_range(im, &lo, &hi, nt);
     if (!(hi > lo))
         return RPIV_OK; /* one grey level: nothing to normalise */
     size_t n = (size_t)im->w * (size_t)im->h;
