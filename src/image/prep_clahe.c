@@ -57,18 +57,33 @@ void prep_clahe_clip(size_t *hist, size_t nbins, size_t limit)
 {
     size_t excess = 0;
     for (size_t b = 0; b < nbins; b++)
-        if (hist[b] > limit) {
+        if (hist[b] > limit)
             excess += hist[b] - limit;
+    /* the whole share of each bin first: a bin that it would lift above the limit is filled
+     * to the limit only, the rest of its share stays in the excess */
+    const size_t each = excess / nbins;
+    for (size_t b = 0; b < nbins; b++) {
+        if (hist[b] >= limit) {
+            hist[b] = limit; /* its excess is counted */
+        } else if (hist[b] + each >= limit) {
+            excess -= limit - hist[b];
             hist[b] = limit;
+        } else {
+            excess -= each;
+            hist[b] += each;
         }
-    /* spread the excess evenly, the remainder one count per bin at an even step */
-    size_t each = excess / nbins, rest = excess % nbins;
-    for (size_t b = 0; b < nbins; b++)
-        hist[b] += each;
-    if (rest) {
-        size_t step = nbins / rest;
-        for (size_t b = 0, k = 0; k < rest; b += step, k++)
-            hist[b]++;
+    }
+    /* what remains, one count at a time on the bins below the limit, every step-th bin from a
+     * start that moves on by one each round; the step grows as the excess shrinks. It ends:
+     * the limit is at least the uniform height, so the bins can hold the whole tile, and each
+     * bin is a start once every nbins rounds. */
+    for (size_t start = 0; excess > 0; start = start + 1 < nbins ? start + 1 : 0) {
+        size_t step = nbins / excess > 1 ? nbins / excess : 1;
+        for (size_t b = start; b < nbins && excess > 0; b += step)
+            if (hist[b] < limit) {
+                hist[b]++;
+                excess--;
+            }
     }
 }
 

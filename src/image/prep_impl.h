@@ -55,7 +55,13 @@ static inline void prep_range(const rpiv_image *im, float *lo, float *hi, int nt
     *hi = mx;
 }
 
-/* CLAHE's clipping of one histogram (nbins counts) at limit, the excess spread evenly. */
+/* CLAHE's clipping of one histogram (nbins counts) at limit, as MATLAB's adapthisteq and
+ * Zuiderveld 1994: the excess over the limit is redistributed so that no bin ends above the
+ * limit: first the whole share excess / nbins to every bin that it does not lift above the
+ * limit (the others filled to the limit), then one count at a time on the bins still below
+ * it, every step-th bin (step = nbins / what remains, at least 1) from a start that moves on
+ * by one bin each round. The total count is kept. The limit must be at least the total over
+ * nbins (rounded up), so that the bins can hold it. */
 void prep_clahe_clip(size_t *hist, size_t nbins, size_t limit);
 
 #endif /* RPIV_PREP_IMPL_H */
