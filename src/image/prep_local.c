@@ -368,24 +368,42 @@ static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
             span[nspan++] = x;
     }
     span[nspan] = w;
+    /* each grid row interpolated along x once (it does not depend on the image row): then
+     * every image row is a blend of two of these, vectorised */
+    float *along = malloc((size_t)gy * (size_t)w * sizeof *along);
+    if (!along) {
+        free(ix);
+        free(span);
+        free(fxs);
+        free(cell);
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
+    }
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (int j = 0; j < gy; j++) {
+        const float *gj = g + (size_t)j * (size_t)gx;
+        float *t = along + (size_t)j * (size_t)w;
+        for (int k = 0; k < nspan; k++) {
+            const int x0 = span[k], x1 = span[k + 1], i0 = ix[2 * x0], i1 = ix[2 * x0 + 1];
+            const float a0 = gj[i0], da = gj[i1] - gj[i0];
+            for (int x = x0; x < x1; x++)
+                t[x] = a0 + fxs[x] * da;
+        }
+    }
     float *out = im->px;
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int y = 0; y < h; y++) {
         int j0, j1;
         float fy;
         lerp_at(y, c, gy, &j0, &j1, &fy);
-        const float *g0 = g + (size_t)j0 * (size_t)gx, *g1 = g + (size_t)j1 * (size_t)gx;
-        float *r = out + (size_t)y * (size_t)w;
-        for (int k = 0; k < nspan; k++) {
-            const int x0 = span[k], x1 = span[k + 1], i0 = ix[2 * x0], i1 = ix[2 * x0 + 1];
-            const float a0 = g0[i0], da = g0[i1] - g0[i0], b0 = g1[i0], db = g1[i1] - g1[i0];
-            for (int x = x0; x < x1; x++) {
-                float top = a0 + fxs[x] * da, bot = b0 + fxs[x] * db;
-                float d = r[x] - (top + fy * (bot - top));
-                r[x] = d > 0 ? d : 0;
-            }
+        const float *restrict top = along + (size_t)j0 * (size_t)w;
+        const float *restrict bot = along + (size_t)j1 * (size_t)w;
+        float *restrict r = out + (size_t)y * (size_t)w;
+        for (int x = 0; x < w; x++) {
+            float d = r[x] - (top[x] + fy * (bot[x] - top[x]));
+            r[x] = d > 0 ? d : 0;
         }
     }
+    free(along);
     free(ix);
     free(span);
     free(fxs);
