@@ -2,7 +2,8 @@
 /* bench/bench_preprocess.c - the cost of each preprocessing operation on a 2560 x 2160 pair
  * (both frames), against the default PIV run of the same pair measured in the same process
  * (rpiv_piv_run, 64 -> 32 -> 32), at 1 and 2 threads. Target (issue 16): clahe + highpass
- * <= 15 % of the default run. Each case's checksum is of its output frames. */
+ * <= 15 % of the default run. Each case's checksum is of its output frames. Arguments, if
+ * any: the lists to time instead of the six (e.g. `bench_preprocess clahe,highpass`). */
 #include "bench.h"
 #include "rpiv/piv.h"
 #include "rpiv/preprocess.h"
@@ -71,7 +72,7 @@ static double time_piv(const rpiv_image *a, const rpiv_image *b, int nt)
     return bench_median(t, REPS);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
     rpiv_init();
     bench_header("bench_preprocess", omp_get_max_threads());
@@ -80,8 +81,11 @@ int main(void)
         return 1;
     ti_params tp = {W, H, 0.05, 2.5, 3000, 0.01, 100, 4242};
     ti_pair(&tp, uniform, (void *)DISP, a->px, b->px);
-    static const char *const lists[] = {"clahe", "highpass",  "clahe,highpass",
-                                        "cap",   "normalize", "invert"};
+    static const char *const all[] = {"clahe", "highpass",  "clahe,highpass",
+                                      "cap",   "normalize", "invert"};
+    /* arguments: the lists to time instead of all (e.g. for a profiler) */
+    const char *const *lists = argc > 1 ? (const char *const *)(argv + 1) : all;
+    size_t nlists = argc > 1 ? (size_t)(argc - 1) : sizeof all / sizeof all[0];
     int status = 0;
     printf("case                size       threads    rpiv_ms  piv_ms   ratio checksum\n");
     for (int nt = 1; nt <= 2; nt++) {
@@ -90,7 +94,7 @@ int main(void)
             fprintf(stderr, "bench_preprocess: piv: %s\n", rpiv_errmsg());
             return 1;
         }
-        for (size_t k = 0; k < sizeof lists / sizeof lists[0]; k++) {
+        for (size_t k = 0; k < nlists; k++) {
             uint64_t sum = 0;
             double ms = time_list(lists[k], a, b, nt, &sum);
             if (ms < 0) {

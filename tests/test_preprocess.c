@@ -3,6 +3,7 @@
  * point operations, backgrounds removed, local contrast equalised, the same bits for any
  * thread count, and the errors of the list's parser. */
 #include "check.h"
+#include "prep_impl.h" /* prep_clahe_clip */
 #include "rpiv/piv.h"
 #include "rpiv/preprocess.h"
 
@@ -225,7 +226,9 @@ static void clahe_spreads_a_dark_image(void)
     mean0 /= 160 * 128;
     mean1 /= 160 * 128;
     printf("    mean grey (0..1 of the range): %.4f before, %.4f after\n", mean0, mean1);
-    CHECK(mean0 < 0.1 && mean1 > 2 * mean0);
+    /* the mean grey rises by 1.96 times here (2.1 with the former spreading of the clipped
+     * excess, which pushed bins above the limit) */
+    CHECK(mean0 < 0.1 && mean1 > 1.8 * mean0);
     /* a constant image is left as it is */
     rpiv_image *flat = image(40, 40);
     for (int i = 0; i < 1600; i++)
@@ -238,29 +241,72 @@ static void clahe_spreads_a_dark_image(void)
     rpiv_image_free(im);
 }
 
-/* The same bits for 1 and 2 threads, every operation in one list; images smaller than the
+/* CLAHE's clipping as MATLAB's adapthisteq: the excess is redistributed so that no bin ends
+ * above the limit. A histogram of known counts, worked by hand: 8 bins, limit 5, counts
+ * {20, 0, 1, 4, 5, 0, 2, 0} (32). Clipping leaves 15 over; the share 15 / 8 = 1 goes to every
+ * bin below the limit, bin 3 (4) taking only 1 to reach it: {5, 1, 2, 5, 5, 1, 3, 1}, 9 left;
+ * then one count at a time on the bins below 5: step 8 / 9 -> 1 from bin 0 (bins 1, 2, 5, 6, 7:
+ * 4 left), step 8 / 4 = 2 from bin 1 (bins 1, 5, 7: 1 left), step 8 from bin 2 (bin 2). The
+ * old spreading (1 on every bin, then 1 on bins 0..6) gave {7, 2, 3, 6, 7, 2, 4, 1}: 4 bins
+ * above the limit. */
+static void clahe_clip_keeps_bins_at_the_limit(void)
+{
+    size_t h[8] = {20, 0, 1, 4, 5, 0, 2, 0};
+    const size_t want[8] = {5, 3, 4, 5, 5, 3, 4, 3};
+    prep_clahe_clip(h, 8, 5);
+    for (int b = 0; b < 8; b++)
+        CHECK(h[b] == want[b]);
+    /* pseudo-random histograms: the total kept, no bin above the limit, no bin below its
+     * clipped count */
+    unsigned s = 99;
+    for (int t = 0; t < 200; t++) {
+        size_t n = 16 + (size_t)(t % 5) * 60, before[316], hh[316], total = 0, mx = 0;
+        for (size_t b = 0; b < n; b++) {
+            s = s * 1103515245u + 12345u;
+            hh[b] = before[b] = (s >> 16) % 7 == 0 ? (s >> 8) % 3000 : (s >> 8) % 9;
+            total += hh[b];
+            mx = hh[b] > mx ? hh[b] : mx;
+        }
+        size_t minclip = (total + n - 1) / n;
+        size_t limit = minclip + (size_t)(t % 7) * (mx - minclip) / 7;
+        prep_clahe_clip(hh, n, limit);
+        size_t after = 0;
+        int ok = 1;
+        for (size_t b = 0; b < n; b++) {
+            after += hh[b];
+            ok &= hh[b] <= limit && hh[b] >= (before[b] < limit ? before[b] : limit);
+        }
+        CHECK(ok && after == total);
+    }
+}
+
+/* The same bits for 1, 2 and 3 threads, every operation in one list; images smaller than the
  * windows too. */
 static void any_thread_count_gives_the_same_bits(void)
 {
-    const int sizes[3][2] = {{200, 150}, {17, 9}, {3, 64}};
-    for (int s = 0; s < 3; s++) {
+    /* sizes off the filters' groups of 4 rows and strips of 64 columns, and below the windows */
+    const int sizes[4][2] = {{200, 150}, {203, 151}, {17, 9}, {3, 64}};
+    for (int s = 0; s < 4; s++) {
         int w = sizes[s][0], h = sizes[s][1];
-        rpiv_image *a = image(w, h), *b = NULL;
+        size_t bytes = (size_t)w * (size_t)h * sizeof(float);
+        rpiv_image *a = image(w, h), *b = NULL, *c = NULL;
         particles(a, 300, ramp, 3, w * h / 60 + 1);
         CHECK_OK(rpiv_image_copy(a, &b));
+        CHECK_OK(rpiv_image_copy(a, &c));
         rpiv_preprocess_params p = rpiv_preprocess_params_default();
         strcpy(p.ops, "clahe,highpass,cap,normalize,invert");
-        CHECK_OK(rpiv_preprocess_run(&p, a, 1));
-        CHECK_OK(rpiv_preprocess_run(&p, b, 2));
-        CHECK(!memcmp(a->px, b->px, (size_t)w * (size_t)h * sizeof *a->px));
-        p.highpass_method = RPIV_PREP_BG_BLUR;
-        CHECK_OK(rpiv_preprocess_run(&p, a, 1));
-        CHECK_OK(rpiv_preprocess_run(&p, b, 2));
-        CHECK(!memcmp(a->px, b->px, (size_t)w * (size_t)h * sizeof *a->px));
+        for (int how = 0; how < 2; how++) {
+            p.highpass_method = how ? RPIV_PREP_BG_BLUR : RPIV_PREP_BG_MIN;
+            CHECK_OK(rpiv_preprocess_run(&p, a, 1));
+            CHECK_OK(rpiv_preprocess_run(&p, b, 2));
+            CHECK_OK(rpiv_preprocess_run(&p, c, 3));
+            CHECK(!memcmp(a->px, b->px, bytes) && !memcmp(a->px, c->px, bytes));
+        }
         for (size_t i = 0; i < (size_t)w * (size_t)h; i++)
             CHECK(isfinite(a->px[i]));
         rpiv_image_free(a);
         rpiv_image_free(b);
+        rpiv_image_free(c);
     }
 }
 
@@ -322,6 +368,7 @@ int main(void)
     RUN_TEST(highpass_removes_the_background);
     RUN_TEST(normalize_equalises_local_contrast);
     RUN_TEST(clahe_spreads_a_dark_image);
+    RUN_TEST(clahe_clip_keeps_bins_at_the_limit);
     RUN_TEST(any_thread_count_gives_the_same_bits);
     RUN_TEST(the_plan_preprocesses_both_frames);
     return check_summary();

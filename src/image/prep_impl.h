@@ -6,18 +6,62 @@
 
 #include "rpiv/preprocess.h"
 
+#include <string.h>
+
 /* The operations, each on im in place with nt threads (nt >= 1). */
 RPIV_NODISCARD rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, int nt);
 RPIV_NODISCARD rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_background how,
                                          int nt);
 RPIV_NODISCARD rpiv_status prep_normalize(rpiv_image *im, int size, int nt);
 
-/* The smallest and largest value of im (rpiv_image_stats_of). */
-static inline void prep_range(const rpiv_image *im, float *lo, float *hi)
+/* The smallest and largest value of im (the same as rpiv_image_stats_of's, without its serial
+ * sum in double: threads over rows, exact whatever their number). */
+static inline void prep_range(const rpiv_image *im, float *lo, float *hi, int nt)
 {
-    rpiv_image_stats st = rpiv_image_stats_of(im);
-    *lo = (float)st.min;
-    *hi = (float)st.max;
+    const size_t w = (size_t)im->w, h = (size_t)im->h;
+    const float *px = im->px;
+    float mn = px[0], mx = px[0];
+#pragma omp parallel for schedule(static) num_threads(nt) reduction(min : mn) reduction(max : mx)
+    for (size_t y = 0; y < h; y++) {
+        const float *r = px + y * w;
+        size_t x = 0;
+        float a = r[0], b = r[0];
+#if defined(__GNUC__)
+        /* four lanes of GCC's (and clang's) vector extension, the choice by a mask: the
+         * compiler does not vectorise a float min reduction without -ffast-math */
+        typedef float v4f __attribute__((vector_size(16)));
+        typedef int v4i __attribute__((vector_size(16)));
+        v4f va = {r[0], r[0], r[0], r[0]}, vb = va;
+        for (; x + 4 <= w; x += 4) {
+            v4f v;
+            memcpy(&v, r + x, sizeof v);
+            v4i lt = v<va, gt = v> vb;
+            va = (v4f)(((v4i)v & lt) | ((v4i)va & ~lt));
+            vb = (v4f)(((v4i)v & gt) | ((v4i)vb & ~gt));
+        }
+        for (int k = 0; k < 4; k++) {
+            a = va[k] < a ? va[k] : a;
+            b = vb[k] > b ? vb[k] : b;
+        }
+#endif
+        for (; x < w; x++) {
+            a = r[x] < a ? r[x] : a;
+            b = r[x] > b ? r[x] : b;
+        }
+        mn = a < mn ? a : mn;
+        mx = b > mx ? b : mx;
+    }
+    *lo = mn;
+    *hi = mx;
 }
+
+/* CLAHE's clipping of one histogram (nbins counts) at limit, as MATLAB's adapthisteq and
+ * Zuiderveld 1994: the excess over the limit is redistributed so that no bin ends above the
+ * limit: first the whole share excess / nbins to every bin that it does not lift above the
+ * limit (the others filled to the limit), then one count at a time on the bins still below
+ * it, every step-th bin (step = nbins / what remains, at least 1) from a start that moves on
+ * by one bin each round. The total count is kept. The limit must be at least the total over
+ * nbins (rounded up), so that the bins can hold it. */
+void prep_clahe_clip(size_t *hist, size_t nbins, size_t limit);
 
 #endif /* RPIV_PREP_IMPL_H */

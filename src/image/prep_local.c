@@ -21,7 +21,7 @@
 
 typedef enum { OP_MIN, OP_MAX, OP_MEAN } line_op;
 
-enum { STRIP = 256 }; /* columns per strip in the column passes */
+enum { STRIP = 64 }; /* columns per strip in the column passes: their buffers fit in L2 */
 
 static inline float pick(line_op op, float a, float b)
 {
@@ -33,31 +33,150 @@ static inline size_t clampi(long i, size_t n)
     return i < 0 ? 0 : ((size_t)i >= n ? n - 1 : (size_t)i);
 }
 
-/* One row: y[0..n-1] = op over the window of K (odd) samples centred on each sample of x,
- * ends padded with the end values. scratch: 3 (n + K) floats. */
-static void row_pass(const float *x, float *y, size_t n, size_t K, line_op op, float *scratch)
+/* In place, a[i] = the least (OP_MIN) or greatest of a[i .. i+K-1], for i + K <= n, by
+ * doubling: the extremum over 2P samples is that of two overlapping windows of P, so
+ * log2(K) + 1 passes along memory, each vectorised; tmp: n floats. Extrema are exact: the
+ * result is that of any other order. */
+static void doubling(float *a, size_t n, size_t K, line_op op, float *tmp)
 {
-    const size_t r = K / 2, N = n + 2 * r;
+    float *src = a, *dst = tmp;
+    size_t P = 1;
+    for (; 2 * P <= K; P *= 2) {
+        const float *restrict s = src;
+        float *restrict d = dst;
+        const size_t m = n - P;
+        if (op == OP_MIN)
+            for (size_t i = 0; i < m; i++)
+                d[i] = s[i + P] < s[i] ? s[i + P] : s[i];
+        else
+            for (size_t i = 0; i < m; i++)
+                d[i] = s[i + P] > s[i] ? s[i + P] : s[i];
+        float *t = src;
+        src = dst;
+        dst = t;
+    }
+    /* the window K from two windows of P (P <= K < 2P), into a */
+    const size_t m = n - K + 1, off = K - P;
+    if (src == a) { /* an even number of passes: the last level is in a, read it from a copy */
+        memcpy(tmp, a, n * sizeof *a);
+        src = tmp;
+    }
+    const float *restrict s = src;
+    float *restrict d = a;
+    if (op == OP_MIN)
+        for (size_t i = 0; i < m; i++)
+            d[i] = s[i + off] < s[i] ? s[i + off] : s[i];
+    else
+        for (size_t i = 0; i < m; i++)
+            d[i] = s[i + off] > s[i] ? s[i + off] : s[i];
+}
+
+/* The padded row p[0..n+K-2] = x[clamp(i - r)]. */
+static void pad_row(const float *x, float *p, size_t n, size_t K)
+{
+    const size_t r = K / 2;
+    for (size_t i = 0; i < r; i++)
+        p[i] = x[clampi((long)i - (long)r, n)];
+    memcpy(p + r, x, n * sizeof *x);
+    for (size_t i = n + r; i < n + 2 * r; i++)
+        p[i] = x[clampi((long)i - (long)r, n)];
+}
+
+enum { LANES = 4 }; /* rows whose running means advance together */
+#if defined(__has_builtin)
+#if __has_builtin(__builtin_convertvector)
+#define LANES_V 1
+#endif
+#endif
+#ifndef LANES_V
+#define LANES_V 0
+#endif
+
+/* The mean over K (odd) of LANES rows x[k * stride ...] (n samples each) into the same rows,
+ * ends padded with the end values: per row the running sum in double of the original
+ * row-by-row pass (the same operations in the same order, so the same bits), the rows
+ * interleaved so that the sums advance in vector registers. scratch: 3 LANES (n + K) floats'
+ * worth. */
+static void row_means(float *x, size_t stride, size_t n, size_t K, float *scratch)
+{
+    const size_t N = n + K - 1;
+    float *q = scratch;                 /* N x LANES, interleaved */
+    float *row = scratch + N * LANES;   /* one padded row */
+    float *o = scratch + N * LANES + N; /* n x LANES results */
+    for (size_t k = 0; k < LANES; k++) {
+        pad_row(x + k * stride, row, n, K);
+        for (size_t i = 0; i < N; i++)
+            q[i * LANES + k] = row[i];
+    }
+#if defined(__GNUC__) && LANES_V
+    /* the four lanes as two vectors of two doubles (GCC's and clang's vector extension):
+     * the same IEEE operations lane by lane, two at a time */
+    typedef double v2d __attribute__((vector_size(16)));
+    typedef float v2f __attribute__((vector_size(8)));
+    v2d s0 = {0, 0}, s1 = {0, 0};
+    const v2d kk = {(double)K, (double)K};
+    for (size_t i = 0; i < K; i++) {
+        v2f a, b;
+        memcpy(&a, q + i * LANES, sizeof a);
+        memcpy(&b, q + i * LANES + 2, sizeof b);
+        s0 += __builtin_convertvector(a, v2d);
+        s1 += __builtin_convertvector(b, v2d);
+    }
+    for (size_t j = 0; j < n; j++) {
+        if (j > 0) {
+            v2f i0, i1, o0, o1;
+            memcpy(&i0, q + (j + K - 1) * LANES, sizeof i0);
+            memcpy(&i1, q + (j + K - 1) * LANES + 2, sizeof i1);
+            memcpy(&o0, q + (j - 1) * LANES, sizeof o0);
+            memcpy(&o1, q + (j - 1) * LANES + 2, sizeof o1);
+            s0 += __builtin_convertvector(i0, v2d) - __builtin_convertvector(o0, v2d);
+            s1 += __builtin_convertvector(i1, v2d) - __builtin_convertvector(o1, v2d);
+        }
+        v2f r0 = __builtin_convertvector(s0 / kk, v2f), r1 = __builtin_convertvector(s1 / kk, v2f);
+        memcpy(o + j * LANES, &r0, sizeof r0);
+        memcpy(o + j * LANES + 2, &r1, sizeof r1);
+    }
+#else
+    double s[LANES] = {0};
+    for (size_t i = 0; i < K; i++)
+        for (size_t k = 0; k < LANES; k++)
+            s[k] += (double)q[i * LANES + k];
+    for (size_t k = 0; k < LANES; k++)
+        o[k] = (float)(s[k] / (double)K);
+    for (size_t j = 1; j < n; j++) {
+        const float *in = q + (j + K - 1) * LANES, *out = q + (j - 1) * LANES;
+        for (size_t k = 0; k < LANES; k++) {
+            s[k] += (double)in[k] - (double)out[k];
+            o[j * LANES + k] = (float)(s[k] / (double)K);
+        }
+    }
+#endif
+    for (size_t k = 0; k < LANES; k++)
+        for (size_t j = 0; j < n; j++)
+            x[k * stride + j] = o[j * LANES + k];
+}
+
+/* One row in place: op over the window of K (odd) samples centred on each sample, ends
+ * padded with the end values; scratch: 3 (n + K) floats. The mean of a single row (the
+ * rows left over by row_means), in double as row_means. */
+static void row_pass(float *x, size_t n, size_t K, line_op op, float *scratch)
+{
+    const size_t N = n + K - 1;
+    float *p = scratch, *tmp = scratch + N + 1;
+    pad_row(x, p, n, K);
     if (op == OP_MEAN) {
         double s = 0;
         for (size_t i = 0; i < K; i++)
-            s += (double)x[clampi((long)i - (long)r, n)];
-        y[0] = (float)(s / (double)K);
+            s += (double)p[i];
+        x[0] = (float)(s / (double)K);
         for (size_t j = 1; j < n; j++) {
-            s += (double)x[clampi((long)(j + r), n)] - (double)x[clampi((long)j - (long)r - 1, n)];
-            y[j] = (float)(s / (double)K);
+            s += (double)p[j + K - 1] - (double)p[j - 1];
+            x[j] = (float)(s / (double)K);
         }
         return;
     }
-    float *p = scratch, *g = scratch + N, *h = scratch + 2 * N;
-    for (size_t i = 0; i < N; i++)
-        p[i] = x[clampi((long)i - (long)r, n)];
-    for (size_t i = 0; i < N; i++)
-        g[i] = i % K == 0 ? p[i] : pick(op, g[i - 1], p[i]);
-    for (size_t i = N; i-- > 0;)
-        h[i] = (i % K == K - 1 || i == N - 1) ? p[i] : pick(op, h[i + 1], p[i]);
-    for (size_t j = 0; j < n; j++)
-        y[j] = pick(op, h[j], g[j + K - 1]);
+    doubling(p, N, K, op, tmp);
+    memcpy(x, p, n * sizeof *x);
 }
 
 /* The columns c0..c1-1 of the w x h array a, in place: op over K rows centred on each row.
@@ -128,21 +247,24 @@ static rpiv_status separable(float *a, int w, int h, int size, line_op op, int n
 {
     const size_t W = (size_t)w, H = (size_t)h;
     const size_t Kx = window(size, W), Ky = window(size, H);
-    const size_t per_row = 3 * (W + Kx) + W, per_col = 3 * (H + Ky) * STRIP + 2 * STRIP;
+    const size_t per_row = 3 * LANES * (W + Kx) + 2 * (W + Kx),
+                 per_col = 3 * (H + Ky) * STRIP + 2 * STRIP;
     const size_t per = per_row > per_col ? per_row : per_col;
     float *scr = malloc((size_t)nt * per * sizeof *scr);
     if (!scr)
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the %dx%d filter", size, size);
     const size_t nstrips = (W + STRIP - 1) / STRIP;
+    /* the means by groups of LANES rows, the rows left over one by one */
+    const size_t ngroups = op == OP_MEAN ? H / LANES : 0, rest0 = ngroups * LANES;
 #pragma omp parallel num_threads(nt)
     {
         float *mine = scr + (size_t)omp_get_thread_num() * per;
 #pragma omp for schedule(static)
-        for (size_t j = 0; j < H; j++) {
-            float *row = a + j * W, *tmp = mine + 3 * (W + Kx);
-            row_pass(row, tmp, W, Kx, op, mine);
-            memcpy(row, tmp, W * sizeof *row);
-        }
+        for (size_t g = 0; g < ngroups; g++)
+            row_means(a + g * LANES * W, W, W, Kx, mine);
+#pragma omp for schedule(static)
+        for (size_t j = rest0; j < H; j++)
+            row_pass(a + j * W, W, Kx, op, mine);
 #pragma omp for schedule(static)
         for (size_t s = 0; s < nstrips; s++) {
             size_t c0 = s * STRIP, c1 = c0 + STRIP < W ? c0 + STRIP : W;
@@ -186,24 +308,34 @@ static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
     if (!cell)
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
     float *g = cell + (size_t)gx * (size_t)gy;
+    float *rowmin = malloc((size_t)nt * (size_t)w * sizeof *rowmin);
+    if (!rowmin) {
+        free(cell);
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
+    }
     const float *px = im->px;
+    /* each band of c rows: the least of its rows, column by column (along memory, in vector
+     * registers), then of each cell's c columns */
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int j = 0; j < gy; j++) {
         int y0 = j * c, y1 = y0 + c < h ? y0 + c : h;
+        float *restrict o = rowmin + (size_t)omp_get_thread_num() * (size_t)w;
+        memcpy(o, px + (size_t)y0 * (size_t)w, (size_t)w * sizeof *o);
+        for (int y = y0 + 1; y < y1; y++) {
+            const float *restrict r = px + (size_t)y * (size_t)w;
+            for (int x = 0; x < w; x++)
+                o[x] = r[x] < o[x] ? r[x] : o[x];
+        }
         float *row = cell + (size_t)j * (size_t)gx;
-        for (int i = 0; i < gx; i++)
-            row[i] = px[(size_t)y0 * (size_t)w + (size_t)i * (size_t)c];
-        for (int y = y0; y < y1; y++) {
-            const float *r = px + (size_t)y * (size_t)w;
-            for (int i = 0; i < gx; i++) {
-                int x0 = i * c, x1 = x0 + c < w ? x0 + c : w;
-                float m = row[i];
-                for (int x = x0; x < x1; x++)
-                    m = r[x] < m ? r[x] : m;
-                row[i] = m;
-            }
+        for (int i = 0; i < gx; i++) {
+            int x0 = i * c, x1 = x0 + c < w ? x0 + c : w;
+            float m = o[x0];
+            for (int x = x0 + 1; x < x1; x++)
+                m = o[x] < m ? o[x] : m;
+            row[i] = m;
         }
     }
+    free(rowmin);
     for (int j = 0; j < gy; j++)
         for (int i = 0; i < gx; i++) {
             float m = cell[(size_t)j * (size_t)gx + (size_t)i];
@@ -219,33 +351,61 @@ static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
         }
     /* cell centres at (i + 0.5) c - 0.5; clamped outside the first and last centres. The
      * column weights are the same for every row: once */
-    int *ix = malloc(2 * (size_t)w * sizeof *ix);
+    int *ix = malloc(2 * (size_t)w * sizeof *ix), *span = malloc(((size_t)w + 1) * sizeof *span);
     float *fxs = malloc((size_t)w * sizeof *fxs);
-    if (!ix || !fxs) {
+    if (!ix || !fxs || !span) {
         free(ix);
+        free(span);
         free(fxs);
         free(cell);
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
     }
-    for (int x = 0; x < w; x++)
+    /* the spans of columns between the same two cell centres */
+    int nspan = 0;
+    for (int x = 0; x < w; x++) {
         lerp_at(x, c, gx, &ix[2 * x], &ix[2 * x + 1], &fxs[x]);
+        if (x == 0 || ix[2 * x] != ix[2 * x - 2] || ix[2 * x + 1] != ix[2 * x - 1])
+            span[nspan++] = x;
+    }
+    span[nspan] = w;
+    /* each grid row interpolated along x once (it does not depend on the image row): then
+     * every image row is a blend of two of these, vectorised */
+    float *along = malloc((size_t)gy * (size_t)w * sizeof *along);
+    if (!along) {
+        free(ix);
+        free(span);
+        free(fxs);
+        free(cell);
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
+    }
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (int j = 0; j < gy; j++) {
+        const float *gj = g + (size_t)j * (size_t)gx;
+        float *t = along + (size_t)j * (size_t)w;
+        for (int k = 0; k < nspan; k++) {
+            const int x0 = span[k], x1 = span[k + 1], i0 = ix[2 * x0], i1 = ix[2 * x0 + 1];
+            const float a0 = gj[i0], da = gj[i1] - gj[i0];
+            for (int x = x0; x < x1; x++)
+                t[x] = a0 + fxs[x] * da;
+        }
+    }
     float *out = im->px;
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int y = 0; y < h; y++) {
         int j0, j1;
         float fy;
         lerp_at(y, c, gy, &j0, &j1, &fy);
-        const float *g0 = g + (size_t)j0 * (size_t)gx, *g1 = g + (size_t)j1 * (size_t)gx;
-        float *r = out + (size_t)y * (size_t)w;
+        const float *restrict top = along + (size_t)j0 * (size_t)w;
+        const float *restrict bot = along + (size_t)j1 * (size_t)w;
+        float *restrict r = out + (size_t)y * (size_t)w;
         for (int x = 0; x < w; x++) {
-            int i0 = ix[2 * x], i1 = ix[2 * x + 1];
-            float fx = fxs[x];
-            float top = g0[i0] + fx * (g0[i1] - g0[i0]), bot = g1[i0] + fx * (g1[i1] - g1[i0]);
-            float d = r[x] - (top + fy * (bot - top));
+            float d = r[x] - (top[x] + fy * (bot[x] - top[x]));
             r[x] = d > 0 ? d : 0;
         }
     }
+    free(along);
     free(ix);
+    free(span);
     free(fxs);
     free(cell);
     return RPIV_OK;
@@ -282,7 +442,7 @@ rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_background how, in
 rpiv_status prep_normalize(rpiv_image *im, int size, int nt)
 {
     float lo, hi;
-    prep_range(im, &lo, &hi);
+    prep_range(im, &lo, &hi, nt);
     if (!(hi > lo))
         return RPIV_OK; /* one grey level: nothing to normalise */
     size_t n = (size_t)im->w * (size_t)im->h;

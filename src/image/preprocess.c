@@ -141,7 +141,7 @@ static void cap(rpiv_image *im, double k, int nt)
 static void invert(rpiv_image *im, int nt)
 {
     float lo, hi;
-    prep_range(im, &lo, &hi);
+    prep_range(im, &lo, &hi, nt);
     size_t n = (size_t)im->w * (size_t)im->h;
     float *px = im->px;
 #pragma omp parallel for schedule(static) num_threads(nt)
