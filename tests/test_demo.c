@@ -295,6 +295,14 @@ static void demo_writes_report_and_valid_plots(void)
     CHECK(file_has(md, "`e*` = `z*_sup - z*_inf`") && file_has(md, "Eq. statform"));
     CHECK(file_has(md, "The largest E1 at `z*_max` is"));
     CHECK(file_has(md, "Sheet bias per vector") && file_has(md, "](bias_map.png)"));
+    /* the R-PIV ensemble's uncertainty and its coverage against the synthetic truth */
+    printf("  uncertainty: %zu vectors, coverage raw %.3f, after the bias correction %.3f, "
+           "median sigma %.4f U*, RMS error %.4f / %.4f U*\n",
+           res.unc_n, res.unc_cov_raw, res.unc_cov_corr, res.unc_med_sigma, res.unc_rms_raw,
+           res.unc_rms_corr);
+    CHECK(file_has(md, "Random uncertainty per vector") && file_has(md, "](uncertainty_map.png)"));
+    CHECK(res.unc_n > 100 && res.unc_cov_raw > 0 && res.unc_cov_raw < 1);
+    CHECK(res.unc_med_sigma > 0 && res.unc_med_sigma < res.unc_rms_raw);
     CHECK(res.nplots >= 14);
     for (size_t k = 0; k < res.nplots; k++) {
         unsigned w = 0, h = 0;

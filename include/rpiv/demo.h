@@ -148,6 +148,11 @@ typedef struct rpiv_demo_result {
     double bias_err[RPIV_DEMO_BIAS_BANDS];  /* mean U*_measured - U*_truth            */
     double bias_mean[RPIV_DEMO_BIAS_BANDS]; /* mean predicted bias, U*                */
     double bias_e[RPIV_DEMO_BIAS_BANDS];    /* mean z*_sup - z*_inf of the band's columns */
+    /* the R-PIV ensemble's random uncertainty (sigma_u, --uncertainty) against its error at
+     * the compared vectors, in U*: the share within sigma of the raw error and of the error
+     * left after the sheet-bias correction, the median sigma and the RMS errors */
+    size_t unc_n;
+    double unc_cov_raw, unc_cov_corr, unc_med_sigma, unc_rms_raw, unc_rms_corr;
     /* 6. report */
     size_t nplots; /* PNG files written in DIR                             */
     char plots[RPIV_DEMO_MAX_PLOTS][64];

@@ -312,6 +312,22 @@ static rpiv_status bias_map(demo_ctx *c)
                     "bias U*", -m, m);
 }
 
+/* The R-PIV ensemble's random uncertainty sigma_u per vector, U*. */
+static rpiv_status unc_map(demo_ctx *c)
+{
+    const rpiv_quantity *q = c->rfield ? rpiv_field_quantity(c->rfield, "sigma_u") : NULL;
+    if (!q)
+        return RPIV_OK;
+    double m = 0;
+    for (size_t k = 0; k < (size_t)c->nx * (size_t)c->ny; k++)
+        if (c->fluid[k] && c->rfield->flag[k] == RPIV_FLAG_VALID)
+            m = fmax(m, (double)q->data[k] / c->bulk_px);
+    m = m > 0 ? m : 1e-3;
+    return grid_map(c, "uncertainty_map.png",
+                    "Random uncertainty per vector of the R-PIV ensemble: sigma_u U*", q->data,
+                    "sigma_u U*", 0, m);
+}
+
 static rpiv_status plot_image(demo_ctx *c)
 {
     if (!c->sample)
@@ -491,7 +507,7 @@ rpiv_status demo_plots(demo_ctx *c)
         (st = plot_image(c)) ||
         (st = quiver(c, "rpiv_field.png", "R-PIV vectors (sum of correlation)", c->rfield)) ||
         (st = field_map(c, "rpiv_map.png", "R-PIV: U* over the compared vectors", c->rfield)) ||
-        (st = bias_map(c)) || (st = plot_compare(c)))
+        (st = bias_map(c)) || (st = unc_map(c)) || (st = plot_compare(c)))
         return st;
     return RPIV_OK;
 }

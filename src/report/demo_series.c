@@ -478,6 +478,7 @@ rpiv_status demo_rpiv(demo_ctx *c)
               "%g, sum of correlation",
               c->p.rpiv_pairs, c->e.camera.zop_star);
     series sr = {.label = "rpiv", .e = c->e, .npairs = c->p.rpiv_pairs};
+    sr.e.piv.uncertainty = 1; /* sigma_u, sigma_v of the ensemble: the report's coverage */
     sr.e.sheet = c->sheet_p;
     sr.snap = c->snap;
     sr.nsnap = c->nsnap;
