@@ -14,6 +14,7 @@
  *   themselves as coefficients: interpolation by the (smoothing) B-spline approximation)
  *   rfilter=A (params refine_filter: the repeat's predictor low-passed by [A/2, 1-A, A/2])
  *   mode=estimators: the sub-pixel estimators on the planes of single 32 px windows instead */
+#include "../tests/peak_locking.h"
 #include "../tests/piv_testimg.h"
 #include "rpiv/peak.h"
 #include "rpiv/piv.h"
@@ -90,49 +91,6 @@ static int parse_passes(const char *s, rpiv_piv_params *p)
     }
     p->npass = n;
     return n;
-}
-
-/* Least-squares fit of e(f) = a0 + sum_{h=1,2} a_h sin(2 pi h f) + b_h cos(2 pi h f) to n
- * points (Gauss-Jordan on the 5 x 5 normal equations); the largest |periodic part| over f. */
-static double locking(const double *f, const double *e, int n)
-{
-    double A[5][6] = {{0}};
-    for (int i = 0; i < n; i++) {
-        double b[5] = {1, sin(2 * M_PI * f[i]), cos(2 * M_PI * f[i]), sin(4 * M_PI * f[i]),
-                       cos(4 * M_PI * f[i])};
-        for (int r = 0; r < 5; r++) {
-            for (int c = 0; c < 5; c++)
-                A[r][c] += b[r] * b[c];
-            A[r][5] += b[r] * e[i];
-        }
-    }
-    for (int c = 0; c < 5; c++) {
-        int piv = c;
-        for (int r = c + 1; r < 5; r++)
-            if (fabs(A[r][c]) > fabs(A[piv][c]))
-                piv = r;
-        for (int k = 0; k < 6; k++) {
-            double t = A[c][k];
-            A[c][k] = A[piv][k];
-            A[piv][k] = t;
-        }
-        for (int r = 0; r < 5; r++)
-            if (r != c) {
-                double m = A[r][c] / A[c][c];
-                for (int k = 0; k < 6; k++)
-                    A[r][k] -= m * A[c][k];
-            }
-    }
-    double co[5], amp = 0;
-    for (int r = 0; r < 5; r++)
-        co[r] = A[r][5] / A[r][r];
-    for (int k = 0; k < 200; k++) {
-        double t = k / 200.0;
-        double v = co[1] * sin(2 * M_PI * t) + co[2] * cos(2 * M_PI * t) +
-                   co[3] * sin(4 * M_PI * t) + co[4] * cos(4 * M_PI * t);
-        amp = fmax(amp, fabs(v));
-    }
-    return amp;
 }
 
 /* The plane value at circular shift (sx, sy). */
@@ -354,8 +312,8 @@ int main(int argc, char **argv)
         }
         printf("ppp %.3f: RMS %.4f px, peak-locking %.4f px, worst |mean| %.4f px, replaced "
                "%.2f %%, off by > 0.5 px %.2f %% (RMS without them %.4f px)\n",
-               o.ppp[q], sqrt(sq / (2.0 * (double)cnt)), locking(fr, me, 2 * ns), worst_mean,
-               100.0 * (double)repl / (double)cnt, 100.0 * (double)out / (double)cnt,
+               o.ppp[q], sqrt(sq / (2.0 * (double)cnt)), ti_peak_locking(fr, me, 2 * ns),
+               worst_mean, 100.0 * (double)repl / (double)cnt, 100.0 * (double)out / (double)cnt,
                sqrt(sq_in / (2.0 * (double)(cnt - out))));
         fflush(stdout);
     }

@@ -18,6 +18,7 @@
  * Environment: BENCH_ENSEMBLE_PAIRS=N (default 100), BENCH_REPEATS=R (default 5, at most 16),
  * BENCH_ONLY=1 (only the one-thread run, for a profiler). */
 #include "bench.h"
+#include "bench_field.h"
 
 #include "../tests/piv_testimg.h"
 #include "rpiv/ensemble.h"
@@ -87,19 +88,6 @@ static rpiv_pairs *pairs_of(int n)
         free(args[i]);
     free(args);
     return p;
-}
-
-/* RMS error of a field against DISP, worst component. */
-static double rms_error(const rpiv_field *f)
-{
-    double su = 0, sv = 0;
-    size_t n = (size_t)f->nx * (size_t)f->ny;
-    for (size_t k = 0; k < n; k++) {
-        double eu = (double)f->u[k] - DISP[0], ev = (double)f->v[k] - DISP[1];
-        su += eu * eu;
-        sv += ev * ev;
-    }
-    return sqrt(fmax(su, sv) / (double)n);
 }
 
 static uint64_t field_sum(const rpiv_field *f)
@@ -268,7 +256,7 @@ static int case_run(int threads)
         fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
         return 1;
     }
-    double err = rms_error(f);
+    double err = bench_field_rms(f, DISP);
     uint64_t sum = field_sum(f);
     rpiv_field_free(f);
     double t[16], tc[16], ph[4][16];
@@ -323,7 +311,7 @@ typedef struct sink_ctx {
 static rpiv_status sink(void *user, size_t i, const rpiv_field *f)
 {
     (void)i;
-    ((sink_ctx *)user)->err = rms_error(f);
+    ((sink_ctx *)user)->err = bench_field_rms(f, DISP);
     return RPIV_OK;
 }
 
@@ -366,7 +354,7 @@ static int case_ensemble(int threads, int n)
         fprintf(stderr, "bench_piv: %s\n", rpiv_errmsg());
         return 1;
     }
-    double ms = 1e3 * (bench_now() - t0), err = rms_error(f);
+    double ms = 1e3 * (bench_now() - t0), err = bench_field_rms(f, DISP);
     char name[32];
     snprintf(name, sizeof name, "ensemble_%d", n);
     bench_line(name, W, H, threads, ms, n * fft_bound(pv, threads, 1, 0, NULL), field_sum(f));

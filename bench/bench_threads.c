@@ -9,6 +9,7 @@
  * and the RMS error against the known displacement <= 0.012 px, else the line is FAILED.
  * Environment: BENCH_THREADS_SCALE=S multiplies the pair counts (default 1). */
 #include "bench.h"
+#include "bench_field.h"
 
 #include "../tests/piv_testimg.h"
 #include "rpiv/image.h"
@@ -66,18 +67,6 @@ static rpiv_pairs *pairs_of(int w, int n)
     return p;
 }
 
-static double rms_error(const rpiv_field *f)
-{
-    double su = 0, sv = 0;
-    size_t n = (size_t)f->nx * (size_t)f->ny;
-    for (size_t k = 0; k < n; k++) {
-        double eu = (double)f->u[k] - DISP[0], ev = (double)f->v[k] - DISP[1];
-        su += eu * eu;
-        sv += ev * ev;
-    }
-    return sqrt(fmax(su, sv) / (double)n);
-}
-
 /* One ensemble run: wall and CPU time (ms), checksum, RMS error. */
 typedef struct result {
     double ms, cpu_ms, err;
@@ -102,7 +91,7 @@ static int ensemble(int w, int h, int n, int threads, result *r)
         r->cpu_ms = 1e3 * (bench_cpu() - c0);
         size_t nv = (size_t)f->nx * (size_t)f->ny;
         r->sum = bench_checksum(bench_checksum(0, f->u, nv), f->v, nv);
-        r->err = rms_error(f);
+        r->err = bench_field_rms(f, DISP);
     }
     rpiv_field_free(f);
     rpiv_piv_free(pv);
@@ -123,7 +112,7 @@ static rpiv_status series_sink(void *user, size_t i, const rpiv_field *f)
     (void)i;
     size_t nv = (size_t)f->nx * (size_t)f->ny;
     a->sum = bench_checksum(bench_checksum(a->sum, f->u, nv), f->v, nv);
-    double e = rms_error(f);
+    double e = bench_field_rms(f, DISP);
     a->sq += e * e;
     a->n++;
     return RPIV_OK;

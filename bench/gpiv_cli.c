@@ -1,14 +1,16 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* bench/gpiv_cli.c - libgpiv as a whole process, for bench_gpiv_ref's whole-process
- * comparison (issue 15): reads a double-frame image (PGM or PNG) with libgpiv's own reader (frame A on top,
- * frame B below, as libgpiv's cross-correlation images are stored), runs its single-pass FFT
- * interrogation (32 px windows, 50 % overlap, Gaussian fit, no deformation: the parameters of
+ * comparison (issue 15): reads a double-frame image (PGM or PNG) with libgpiv's own reader (frame A
+ * on top, frame B below, as libgpiv's cross-correlation images are stored), runs its single-pass
+ * FFT interrogation (32 px windows, 50 % overlap, Gaussian fit, no deformation: the parameters of
  * bench/gpiv_ref.c) and writes the vectors as text with libgpiv's writer. Debian has no
  * libgpiv command-line tools, so this stands for one.
  *
  *     gpiv_cli IN.png OUT.txt
  *
  * Exit 0 on success, 1 with a one-line message on stderr otherwise. */
+#include "gpiv_params.h"
+
 #include <gpiv.h>
 #include <omp.h>
 #include <stdio.h>
@@ -28,27 +30,8 @@ int main(int argc, char **argv)
     }
     int w = (int)img->header->ncolumns, h = (int)img->header->nrows;
     GpivPivPar ppar;
-    memset(&ppar, 0, sizeof ppar);
-    gpiv_piv_default_parameters(&ppar, TRUE);
-    ppar.col_start = 0;
-    ppar.col_end = w - 1;
-    ppar.row_start = 0;
-    ppar.row_end = h - 1;
-    ppar.int_geo = GPIV_AOI;
-    ppar.int_size_f = 32;
-    ppar.int_size_i = 32;
-    ppar.int_shift = 16;
-    ppar.ifit = GPIV_GAUSS;
-    ppar.peak = 1;
-    ppar.pre_shift_col = ppar.pre_shift_row = 0;
-    ppar.int_scheme = GPIV_NO_CORR;
-    ppar.int_deform = FALSE;
-    ppar.gauss_weight_ia = FALSE;
-    ppar.spof_filter = FALSE;
-    ppar.print_par = ppar.print_piv = 0;
     GpivValidPar vpar;
-    memset(&vpar, 0, sizeof vpar);
-    gpiv_valid_default_parameters(&vpar, TRUE);
+    bench_gpiv_params(w, h, FALSE, &ppar, &vpar);
     const char *gt = getenv("BENCH_GPIV_THREADS");
     omp_set_num_threads(gt && atoi(gt) > 0 ? atoi(gt) : 1);
     GpivPivData *pd = gpiv_piv_interrogate_img(img, &ppar, &vpar, FALSE);

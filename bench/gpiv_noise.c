@@ -20,54 +20,16 @@ int main(void)
 }
 #else
 
+#include "../tests/peak_locking.h"
 #include "../tests/piv_testimg.h"
 #include "rpiv/piv.h"
+
+#include "gpiv_params.h"
 
 #include <gpiv.h>
 #include <omp.h>
 
 enum { N = 512, NS = 21 };
-
-/* Largest |periodic part| of the least-squares fit a0 + sum_{h=1,2} a_h sin(2 pi h f) +
- * b_h cos(2 pi h f) to (f[i], e[i]) (as bench_noise). */
-static double locking(const double *f, const double *e, int n)
-{
-    double A[5][6] = {{0}};
-    for (int i = 0; i < n; i++) {
-        double b[5] = {1, sin(2 * M_PI * f[i]), cos(2 * M_PI * f[i]), sin(4 * M_PI * f[i]),
-                       cos(4 * M_PI * f[i])};
-        for (int r = 0; r < 5; r++) {
-            for (int c = 0; c < 5; c++)
-                A[r][c] += b[r] * b[c];
-            A[r][5] += b[r] * e[i];
-        }
-    }
-    for (int c = 0; c < 5; c++) {
-        int p = c;
-        for (int r = c + 1; r < 5; r++)
-            if (fabs(A[r][c]) > fabs(A[p][c]))
-                p = r;
-        for (int k = 0; k < 6; k++) {
-            double t = A[c][k];
-            A[c][k] = A[p][k];
-            A[p][k] = t;
-        }
-        for (int r = 0; r < 5; r++)
-            if (r != c) {
-                double m = A[r][c] / A[c][c];
-                for (int k = 0; k < 6; k++)
-                    A[r][k] -= m * A[c][k];
-            }
-    }
-    double amp = 0;
-    for (int k = 0; k < 200; k++) {
-        double t = k / 200.0;
-        double v = A[1][5] / A[1][1] * sin(2 * M_PI * t) + A[2][5] / A[2][2] * cos(2 * M_PI * t) +
-                   A[3][5] / A[3][3] * sin(4 * M_PI * t) + A[4][5] / A[4][4] * cos(4 * M_PI * t);
-        amp = fmax(amp, fabs(v));
-    }
-    return amp;
-}
 
 /* Sums of one method over a sweep. */
 typedef struct acc {
@@ -99,7 +61,7 @@ static void report(const char *name, double ppp, const acc *c)
     }
     printf("ppp %.3f %-28s RMS %.4f px, peak-locking %.4f px; %.2f %% off by > 0.5 px, RMS "
            "without them %.4f px (%ld vectors, %ld without a peak left out)\n",
-           ppp, name, sqrt(c->sq / (2.0 * (double)c->n)), locking(fr, me, 2 * NS),
+           ppp, name, sqrt(c->sq / (2.0 * (double)c->n)), ti_peak_locking(fr, me, 2 * NS),
            100.0 * (double)c->out / (double)c->n, sqrt(c->sq_in / (2.0 * (double)(c->n - c->out))),
            c->n, c->dropped);
 }
@@ -126,27 +88,8 @@ static int run_gpiv(const float *a, const float *b, int deform, int k, const dou
             img->frame2[y][x] = (guint16)b[(size_t)y * N + (size_t)x];
         }
     GpivPivPar ppar;
-    memset(&ppar, 0, sizeof ppar);
-    gpiv_piv_default_parameters(&ppar, TRUE);
-    ppar.col_start = 0;
-    ppar.col_end = N - 1;
-    ppar.row_start = 0;
-    ppar.row_end = N - 1;
-    ppar.int_geo = GPIV_AOI;
-    ppar.int_size_f = 32;
-    ppar.int_size_i = deform ? 64 : 32;
-    ppar.int_shift = 16;
-    ppar.ifit = GPIV_GAUSS;
-    ppar.peak = 1;
-    ppar.pre_shift_col = ppar.pre_shift_row = 0;
-    ppar.int_scheme = deform ? GPIV_IMG_DEFORM : GPIV_NO_CORR;
-    ppar.int_deform = deform;
-    ppar.gauss_weight_ia = FALSE;
-    ppar.spof_filter = FALSE;
-    ppar.print_par = ppar.print_piv = 0;
     GpivValidPar vpar;
-    memset(&vpar, 0, sizeof vpar);
-    gpiv_valid_default_parameters(&vpar, TRUE);
+    bench_gpiv_params(N, N, deform, &ppar, &vpar);
     GpivPivData *pd = gpiv_piv_interrogate_img(img, &ppar, &vpar, FALSE);
     if (!pd) {
         gpiv_free_img(img);

@@ -12,6 +12,7 @@
  * libgpiv runs with BENCH_GPIV_THREADS OpenMP threads (default 1: its parallel regions are
  * small, and on a loaded machine their spin-waiting, not the work, dominates its time). */
 #include "bench.h"
+#include "bench_field.h"
 
 #ifndef RPIV_HAVE_GPIV
 
@@ -27,6 +28,8 @@ int main(void)
 
 #include "rpiv/field.h"
 #include "rpiv/image.h"
+
+#include "gpiv_params.h"
 
 #include <gpiv.h>
 #include <omp.h>
@@ -80,27 +83,8 @@ static int run_gpiv(const float *a, const float *b, int deform, double *ms, doub
     if (!img)
         return 1;
     GpivPivPar ppar;
-    memset(&ppar, 0, sizeof ppar);
-    gpiv_piv_default_parameters(&ppar, TRUE);
-    ppar.col_start = 0;
-    ppar.col_end = W - 1;
-    ppar.row_start = 0;
-    ppar.row_end = H - 1;
-    ppar.int_geo = GPIV_AOI;
-    ppar.int_size_f = 32;
-    ppar.int_size_i = deform ? 64 : 32;
-    ppar.int_shift = 16;
-    ppar.ifit = GPIV_GAUSS;
-    ppar.peak = 1;
-    ppar.pre_shift_col = ppar.pre_shift_row = 0;
-    ppar.int_scheme = deform ? GPIV_IMG_DEFORM : GPIV_NO_CORR;
-    ppar.int_deform = deform;
-    ppar.gauss_weight_ia = FALSE;
-    ppar.spof_filter = FALSE;
-    ppar.print_par = ppar.print_piv = 0;
     GpivValidPar vpar;
-    memset(&vpar, 0, sizeof vpar);
-    gpiv_valid_default_parameters(&vpar, TRUE);
+    bench_gpiv_params(W, H, deform, &ppar, &vpar);
 
     const char *gt = getenv("BENCH_GPIV_THREADS");
     int saved = omp_get_max_threads();
@@ -162,13 +146,7 @@ static int run_rpiv(float *a, float *b, int threads, double *ms, double *err, ui
     printf("#   rpiv, %d thread%s: CPU time %.0f ms (wall %.0f ms)\n", threads,
            threads > 1 ? "s" : "", bench_median(tc, 3), *ms);
     size_t n = (size_t)f->nx * (size_t)f->ny;
-    double su = 0, sv = 0;
-    for (size_t k = 0; k < n; k++) {
-        double eu = (double)f->u[k] - DISP[0], ev = (double)f->v[k] - DISP[1];
-        su += eu * eu;
-        sv += ev * ev;
-    }
-    *err = sqrt(fmax(su, sv) / (double)n);
+    *err = bench_field_rms(f, DISP);
     *sum = bench_checksum(bench_checksum(0, f->u, n), f->v, n);
     rpiv_field_free(f);
     rpiv_piv_free(pv);
@@ -222,13 +200,9 @@ static double rpiv_text_error(const char *path, size_t *n)
     if (rpiv_field_load_txt(path, &f))
         return 1e9;
     *n = (size_t)f->nx * (size_t)f->ny;
-    double su = 0, sv = 0;
-    for (size_t k = 0; k < *n; k++) {
-        su += ((double)f->u[k] - DISP[0]) * ((double)f->u[k] - DISP[0]);
-        sv += ((double)f->v[k] - DISP[1]) * ((double)f->v[k] - DISP[1]);
-    }
+    double e = bench_field_rms(f, DISP);
     rpiv_field_free(f);
-    return sqrt(fmax(su, sv) / (double)*n);
+    return e;
 }
 
 /* The whole-process comparison (issue 15): each program reads the pair from files, processes

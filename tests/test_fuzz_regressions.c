@@ -6,6 +6,7 @@
  * expectation written down. The loaded results are also checked as the fuzzers check them:
  * sane sizes, finite values, nothing returned on failure. */
 #include "check.h"
+#include "child_rss.h"
 
 #include "rpiv/config.h"
 #include "rpiv/field.h"
@@ -310,24 +311,21 @@ static void png_size_check_keeps_highly_compressed_images(void)
     remove(path);
 }
 
+static int load_one(void *path)
+{
+    rpiv_image *im = NULL;
+    rpiv_status s = rpiv_image_load(path, 0, &im, NULL);
+    rpiv_image_free(im);
+    return (int)s;
+}
+
 /* Peak RSS (KB) of a child process that loads path, and its status. */
 static long child_load_rss_kb(const char *path, rpiv_status *st)
 {
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid == 0) {
-        rpiv_image *im = NULL;
-        rpiv_status s = rpiv_image_load(path, 0, &im, NULL);
-        rpiv_image_free(im);
-        _exit((int)s);
-    }
-    int status = 0;
-    struct rusage ru;
-    memset(&ru, 0, sizeof ru);
-    if (pid < 0 || wait4(pid, &status, 0, &ru) != pid || !WIFEXITED(status))
-        return -1;
-    *st = (rpiv_status)WEXITSTATUS(status);
-    return ru.ru_maxrss;
+    int code = 0;
+    long kb = ti_child_rss_kb(load_one, (void *)path, &code);
+    *st = (rpiv_status)code;
+    return kb;
 }
 
 /* Issue 20 item 4: a 4 KB PNG whose tEXt chunk declares 0x7ffffff0 bytes made libpng

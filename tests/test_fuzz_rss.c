@@ -8,6 +8,7 @@
  * with that of a child that reads nothing. `make fuzz` runs the image targets with libFuzzer's
  * -rss_limit_mb=100 for the same rule on the inputs it makes (docs/fuzzing.md). */
 #include "check.h"
+#include "child_rss.h"
 
 #include "rpiv/image.h"
 
@@ -26,30 +27,27 @@ static int nfiles;
 static long worst_kb;
 static char worst[1024];
 
+/* Read every page (up to four) of path; nothing for NULL. */
+static int read_pages(void *arg)
+{
+    const char *path = arg;
+    if (path) {
+        int pages = 1;
+        if (rpiv_image_count_pages(path, &pages) != RPIV_OK || pages < 1)
+            pages = 1;
+        for (int p = 0; p < pages && p < 4; p++) {
+            rpiv_image *im = NULL;
+            if (rpiv_image_load(path, p, &im, NULL) == RPIV_OK)
+                rpiv_image_free(im);
+        }
+    }
+    return 0;
+}
+
 /* Peak RSS (KiB) of a child that reads path (NULL: nothing); -1 if it did not exit. */
 static long child_rss_kb(const char *path)
 {
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid == 0) {
-        if (path) {
-            int pages = 1;
-            if (rpiv_image_count_pages(path, &pages) != RPIV_OK || pages < 1)
-                pages = 1;
-            for (int p = 0; p < pages && p < 4; p++) {
-                rpiv_image *im = NULL;
-                if (rpiv_image_load(path, p, &im, NULL) == RPIV_OK)
-                    rpiv_image_free(im);
-            }
-        }
-        _exit(0);
-    }
-    int status = 0;
-    struct rusage ru;
-    memset(&ru, 0, sizeof ru);
-    if (pid < 0 || wait4(pid, &status, 0, &ru) != pid || !WIFEXITED(status))
-        return -1;
-    return ru.ru_maxrss;
+    return ti_child_rss_kb(read_pages, (void *)path, NULL);
 }
 
 static void check_file(const char *path)

@@ -7,6 +7,7 @@
  * harmonics, period 1 px) fitted to the mean error against the shift. docs/deform.md,
  * "Noisy small particles", gives the study these figures come from (bench/bench_noise.c). */
 #include "check.h"
+#include "peak_locking.h"
 #include "piv_testimg.h"
 #include "rpiv/piv.h"
 
@@ -16,47 +17,6 @@
 #include <string.h>
 
 enum { N = 512 };
-
-/* Largest |periodic part| of the least-squares fit a0 + sum_{h=1,2} a_h sin(2 pi h f) +
- * b_h cos(2 pi h f) to (f[i], e[i]). */
-static double locking(const double *f, const double *e, int n)
-{
-    double A[5][6] = {{0}};
-    for (int i = 0; i < n; i++) {
-        double b[5] = {1, sin(2 * M_PI * f[i]), cos(2 * M_PI * f[i]), sin(4 * M_PI * f[i]),
-                       cos(4 * M_PI * f[i])};
-        for (int r = 0; r < 5; r++) {
-            for (int c = 0; c < 5; c++)
-                A[r][c] += b[r] * b[c];
-            A[r][5] += b[r] * e[i];
-        }
-    }
-    for (int c = 0; c < 5; c++) {
-        int p = c;
-        for (int r = c + 1; r < 5; r++)
-            if (fabs(A[r][c]) > fabs(A[p][c]))
-                p = r;
-        for (int k = 0; k < 6; k++) {
-            double t = A[c][k];
-            A[c][k] = A[p][k];
-            A[p][k] = t;
-        }
-        for (int r = 0; r < 5; r++)
-            if (r != c) {
-                double m = A[r][c] / A[c][c];
-                for (int k = 0; k < 6; k++)
-                    A[r][k] -= m * A[c][k];
-            }
-    }
-    double amp = 0;
-    for (int k = 0; k < 200; k++) {
-        double t = k / 200.0;
-        double v = A[1][5] / A[1][1] * sin(2 * M_PI * t) + A[2][5] / A[2][2] * cos(2 * M_PI * t) +
-                   A[3][5] / A[3][3] * sin(4 * M_PI * t) + A[4][5] / A[4][4] * cos(4 * M_PI * t);
-        amp = fmax(amp, fabs(v));
-    }
-    return amp;
-}
 
 typedef struct sweep {
     double rms, locking;
@@ -101,7 +61,7 @@ static sweep run_sweep(const rpiv_piv_params *prm, double ppp, double smax)
         rpiv_field_free(f);
     }
     r.rms = sqrt(sq / (2.0 * (double)cnt));
-    r.locking = locking(fr, me, 2 * ns);
+    r.locking = ti_peak_locking(fr, me, 2 * ns);
 out_free:
     rpiv_piv_free(pv);
     free(a);

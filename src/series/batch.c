@@ -222,11 +222,8 @@ static rpiv_status files_done(void *user, size_t k, rpiv_status st, int loaded)
     pass_run *c = user;
     rpiv_batch *b = c->b;
     size_t i = c->idx[k];
-    if (st && loaded) {
-        char msg[768];
-        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-        st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
-    }
+    if (st && loaded)
+        st = batch_pair_error(b, i, st);
     if (!st)
         b->state[i] |= DONE;
     else if (b->p.skip_bad && batch_unreadable(st))
@@ -375,9 +372,7 @@ static rpiv_status run_pair(rpiv_batch *b, rpiv_piv *pv, size_t i, rpiv_field **
         if (!st)
             st = rpiv_piv_passes(pv, &prev, NULL);
         if (st) {
-            char msg[768];
-            snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-            st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+            st = batch_pair_error(b, i, st);
             rpiv_field_free(prev);
             prev = NULL;
         }
@@ -415,11 +410,8 @@ static rpiv_status solo_done(void *user, size_t k, rpiv_status st, int loaded, r
     size_t i = c->idx[k];
     if (st == RPIV_EINTR) /* the plan's cancel hook, inside the pair: not done */
         return rpiv_fail(RPIV_EINTR, "piv: interrupted after %zu of %zu pairs", c->done, c->n);
-    if (st && loaded) {
-        char msg[768];
-        snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-        st = rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
-    }
+    if (st && loaded)
+        st = batch_pair_error(b, i, st);
     if (st && b->p.skip_bad && batch_unreadable(st)) {
         batch_mark_bad(b, i, 1);
         st = RPIV_OK;

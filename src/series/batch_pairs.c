@@ -27,6 +27,13 @@ void batch_mark_bad(rpiv_batch *b, size_t i, int notify)
         b->p.on_skip(b->p.user, i, rpiv_errmsg());
 }
 
+rpiv_status batch_pair_error(const rpiv_batch *b, size_t i, rpiv_status st)
+{
+    char msg[768];
+    snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
+    return rpiv_fail(st, "pair %zu (%s): %s", i + 1, b->pairs->pair[i].path_a, msg);
+}
+
 /* Load pair i; frames of another size than w x h (w > 0) are an error naming the pair. */
 rpiv_status batch_load_pair(const rpiv_batch *b, size_t i, int w, int h, rpiv_image **a,
                             rpiv_image **bb)

@@ -55,6 +55,9 @@ void batch_mark_bad(rpiv_batch *b, size_t i, int notify);
 /* Load pair i; frames of another size than w x h (w > 0) are an error naming the pair. */
 RPIV_NODISCARD rpiv_status batch_load_pair(const rpiv_batch *b, size_t i, int w, int h,
                                            rpiv_image **a, rpiv_image **bb);
+/* The current error st of pair i's processing, its message prefixed by the pair's number and
+ * first file: "pair N (FILE): message". Returns st. */
+rpiv_status batch_pair_error(const rpiv_batch *b, size_t i, rpiv_status st);
 /* Release the pair kept by rpiv_batch_size, if any. */
 void batch_first_free(rpiv_batch *b);
 /* Merge the BAD marks of all ranks and rebuild the list of skipped pairs. Collective. */
