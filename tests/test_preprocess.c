@@ -280,6 +280,56 @@ static void clahe_clip_keeps_bins_at_the_limit(void)
     }
 }
 
+/* CLAHE's bins between percentiles (PIVlab's auto contrast stretch): on the values 0..999,
+ * once each, the 1st percentile is 10 (the first value whose cumulative count exceeds 10 of
+ * 1000) and the 99.5th is 994 (the first whose count reaches 995): with one tile (one map),
+ * 0..10 fall in the first bin and 994..999 in the last, whose map value is the top of the
+ * range, the upper edge of 994's fine bin (4096 bins over 0..999). Without percentiles, 0 and 10
+ * are apart and the top is 999. An image of one level but for a few pixels keeps its whole range.
+ */
+static void clahe_percentiles_saturate_the_tails(void)
+{
+    const int w = 40, h = 25;
+    rpiv_image *im = image(w, h);
+    float out[2][1000];
+    for (int pct = 0; pct < 2; pct++) {
+        for (int i = 0; i < w * h; i++)
+            im->px[i] = (float)((i * 7) % 1000); /* a permutation of 0..999 */
+        rpiv_preprocess_params p = rpiv_preprocess_params_default();
+        strcpy(p.ops, "clahe:64"); /* one tile over the whole image */
+        if (pct) {
+            p.clahe_low_pct = 1;
+            p.clahe_high_pct = 99.5;
+        }
+        CHECK_OK(rpiv_preprocess_run(&p, im, 2));
+        for (int i = 0; i < w * h; i++)
+            out[pct][(i * 7) % 1000] = im->px[i];
+    }
+    const double fine = 999.0 / 4096;
+    for (int v = 0; v <= 10; v++)
+        CHECK(out[1][v] == out[1][10]);
+    for (int v = 994; v <= 999; v++)
+        CHECK(out[1][v] == out[1][999]);
+    CHECK(out[1][9] != out[1][14] && out[1][990] != out[1][994]);
+    CHECK_NEAR(out[1][999], (floor(994 / fine) + 1) * fine, 1e-3); /* 994.122 */
+    CHECK(out[0][0] < out[0][10]);
+    CHECK_NEAR(out[0][999], 999, 1e-3);
+    /* zeros but for 3 pixels (0.3 %): both percentiles in the first fine bin: whole range */
+    for (int i = 0; i < w * h; i++)
+        im->px[i] = i % 300 == 7 ? 100.0f : 0.0f;
+    rpiv_preprocess_params p = rpiv_preprocess_params_default();
+    strcpy(p.ops, "clahe:64");
+    p.clahe_low_pct = 1;
+    p.clahe_high_pct = 99.5;
+    CHECK_OK(rpiv_preprocess_run(&p, im, 1));
+    CHECK_NEAR(im->px[7], 100, 1e-3);
+    CHECK(im->px[0] < im->px[7]);
+    p.clahe_low_pct = 99.5;
+    CHECK_FAILS(rpiv_preprocess_run(&p, im, 1), RPIV_EINVAL);
+    CHECK(strstr(rpiv_errmsg(), "clahe_low_pct") != NULL);
+    rpiv_image_free(im);
+}
+
 /* The same bits for 1, 2 and 3 threads, every operation in one list; images smaller than the
  * windows too. */
 static void any_thread_count_gives_the_same_bits(void)
@@ -295,8 +345,12 @@ static void any_thread_count_gives_the_same_bits(void)
         CHECK_OK(rpiv_image_copy(a, &c));
         rpiv_preprocess_params p = rpiv_preprocess_params_default();
         strcpy(p.ops, "clahe,highpass,cap,normalize,invert");
-        for (int how = 0; how < 2; how++) {
-            p.highpass_method = how ? RPIV_PREP_BG_BLUR : RPIV_PREP_BG_MIN;
+        for (int how = 0; how < 3; how++) {
+            p.highpass_method = how == 1 ? RPIV_PREP_BG_BLUR : RPIV_PREP_BG_MIN;
+            if (how == 2) { /* CLAHE's bins between percentiles */
+                p.clahe_low_pct = 1;
+                p.clahe_high_pct = 99.5;
+            }
             CHECK_OK(rpiv_preprocess_run(&p, a, 1));
             CHECK_OK(rpiv_preprocess_run(&p, b, 2));
             CHECK_OK(rpiv_preprocess_run(&p, c, 3));
@@ -369,6 +423,7 @@ int main(void)
     RUN_TEST(normalize_equalises_local_contrast);
     RUN_TEST(clahe_spreads_a_dark_image);
     RUN_TEST(clahe_clip_keeps_bins_at_the_limit);
+    RUN_TEST(clahe_percentiles_saturate_the_tails);
     RUN_TEST(any_thread_count_gives_the_same_bits);
     RUN_TEST(the_plan_preprocesses_both_frames);
     return check_summary();

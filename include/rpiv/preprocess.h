@@ -46,6 +46,7 @@ typedef struct rpiv_preprocess_params {
     int clahe_tile_px;                    /* default tile side (64)                 */
     double clahe_clip;                    /* clip limit, 0..1 of a tile (0.01)      */
     int clahe_bins;                       /* histogram bins (256)                   */
+    double clahe_low_pct, clahe_high_pct; /* the bins' range: percentiles (1, 99.5) */
     int highpass_px;                      /* default background window (15)         */
     rpiv_prep_background highpass_method; /* (min)                                  */
     double cap_k;                         /* capping level: mean + k std (2)        */
@@ -56,7 +57,8 @@ typedef struct rpiv_preprocess_params {
 rpiv_preprocess_params rpiv_preprocess_params_default(void);
 
 /* RPIV_EINVAL naming the field and its range: ops a list rpiv_preprocess_parse reads, sizes
- * 3..1024 px, clip 0..1, bins 16..65536, cap_k 0.1..100. */
+ * 3..1024 px, clip 0..1, bins 16..65536, 0 <= clahe_low_pct < clahe_high_pct <= 100,
+ * cap_k 0.1..100. */
 RPIV_NODISCARD rpiv_status rpiv_preprocess_params_check(const rpiv_preprocess_params *p);
 
 /* Parse a list "clahe[:TILE],highpass[:SIZE],cap,normalize[:SIZE],invert" (any order, at

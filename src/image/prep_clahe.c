@@ -194,12 +194,74 @@ static void blend_span(float *restrict row, const uint16_t *restrict bin, const 
     }
 }
 
-rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, int nt)
+enum { PCT_BINS = 4096 }; /* the fine histogram of the percentiles */
+
+/* The range of the CLAHE bins: [*a, *b] from the low-th to the high-th percentile (in %) of
+ * im, whose range is lo < hi, as MATLAB's stretchlim finds them (the auto contrast stretch
+ * that PIVlab applies before CLAHE by default): on a histogram of PCT_BINS bins over
+ * [lo, hi], *a the lower edge of the first bin whose cumulative count exceeds low % of the
+ * pixels, *b the upper edge of the first bin whose cumulative count reaches high %; if both
+ * are the same bin (an image of one level but for a few pixels), the whole range. Counts in
+ * integers, per thread then summed: exact for any thread count. */
+static rpiv_status pct_range(const rpiv_image *im, float lo, float hi, double low, double high,
+                             int nt, float *a, float *b)
+{
+    *a = lo;
+    *b = hi;
+    if (low <= 0 && high >= 100)
+        return RPIV_OK;
+    const size_t w = (size_t)im->w, h = (size_t)im->h, n = w * h;
+    uint32_t *cnt = calloc((size_t)nt * 4 * PCT_BINS, sizeof *cnt);
+    if (!cnt)
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for CLAHE's percentiles");
+    const float scale = (float)PCT_BINS / (hi - lo), top = (float)(PCT_BINS - 1);
+    const float *px = im->px;
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (size_t y = 0; y < h; y++) {
+        /* four sub-histograms in turn: a dark image puts most pixels in a few bins */
+        uint32_t *c = cnt + (size_t)omp_get_thread_num() * 4 * PCT_BINS;
+        const float *r = px + y * w;
+        for (size_t x = 0; x < w; x++) {
+            float v = (r[x] - lo) * scale;
+            v = v >= 0 ? v : 0;
+            v = v < top ? v : top;
+            c[(x & 3) * PCT_BINS + (size_t)(int32_t)v]++;
+        }
+    }
+    size_t k = 0, klo = 0, khi = PCT_BINS - 1;
+    double cum = 0, tlo = low / 100 * (double)n, thi = high / 100 * (double)n;
+    int have_lo = 0;
+    for (; k < PCT_BINS; k++) {
+        for (size_t t = 0; t < 4 * (size_t)nt; t++)
+            cum += (double)cnt[t * PCT_BINS + k];
+        if (!have_lo && cum > tlo) {
+            klo = k;
+            have_lo = 1;
+        }
+        if (cum >= thi) {
+            khi = k;
+            break;
+        }
+    }
+    free(cnt);
+    if (khi > klo) {
+        const double step = ((double)hi - (double)lo) / PCT_BINS;
+        *a = (float)((double)lo + step * (double)klo);
+        *b = khi + 1 >= PCT_BINS ? hi : (float)((double)lo + step * (double)(khi + 1));
+    }
+    return RPIV_OK;
+}
+
+rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, double low_pct,
+                       double high_pct, int nt)
 {
     float lo, hi;
     prep_range(im, &lo, &hi, nt);
     if (!(hi > lo))
         return RPIV_OK; /* one grey level: no contrast to equalise */
+    rpiv_status st = pct_range(im, lo, hi, low_pct, high_pct, nt, &lo, &hi);
+    if (st)
+        return st;
     tiling g = {im->w,
                 im->h,
                 tile,
@@ -209,7 +271,6 @@ rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, int nt)
                 lo,
                 (float)bins / (hi - lo)};
     const size_t ntiles = (size_t)g.ntx * (size_t)g.nty, B = (size_t)bins, W = (size_t)g.w;
-    rpiv_status st = RPIV_OK;
     float *maps = malloc(ntiles * B * sizeof *maps);
     uint32_t *h4 = malloc((size_t)nt * 4 * B * sizeof *h4);
     const size_t band = (size_t)(tile < g.h ? tile : g.h) * W;

@@ -9,7 +9,10 @@
 #include <string.h>
 
 /* The operations, each on im in place with nt threads (nt >= 1). */
-RPIV_NODISCARD rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, int nt);
+/* clahe: the bins span the low_pct-th to the high_pct-th percentile of im (values outside
+ * saturate to the end bins); 0 and 100: im's min and max. */
+RPIV_NODISCARD rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins,
+                                      double low_pct, double high_pct, int nt);
 RPIV_NODISCARD rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_background how,
                                          int nt);
 RPIV_NODISCARD rpiv_status prep_normalize(rpiv_image *im, int size, int nt);

@@ -22,6 +22,8 @@ rpiv_preprocess_params rpiv_preprocess_params_default(void)
     p.clahe_tile_px = 64;
     p.clahe_clip = 0.01;
     p.clahe_bins = 256;
+    p.clahe_low_pct = 0.0;
+    p.clahe_high_pct = 100.0;
     p.highpass_px = 15;
     p.highpass_method = RPIV_PREP_BG_MIN;
     p.cap_k = 2.0;
@@ -52,6 +54,12 @@ rpiv_status rpiv_preprocess_params_check(const rpiv_preprocess_params *p)
     if (p->clahe_bins < 16 || p->clahe_bins > 65536)
         return rpiv_fail(RPIV_EINVAL, "preprocess.clahe_bins = %d outside 16..65536",
                          p->clahe_bins);
+    if (!(p->clahe_low_pct >= 0 && p->clahe_low_pct < p->clahe_high_pct &&
+          p->clahe_high_pct <= 100))
+        return rpiv_fail(RPIV_EINVAL,
+                         "preprocess.clahe_low_pct = %g, clahe_high_pct = %g: need 0 <= low < "
+                         "high <= 100",
+                         p->clahe_low_pct, p->clahe_high_pct);
     if (!size_ok(p->highpass_px))
         return rpiv_fail(RPIV_EINVAL, "preprocess.highpass_px = %d outside 3..1024",
                          p->highpass_px);
@@ -162,7 +170,7 @@ rpiv_status rpiv_preprocess_run(const rpiv_preprocess_params *p, rpiv_image *im,
         switch (o->kind) {
         case RPIV_PREP_CLAHE:
             st = prep_clahe(im, o->size_px ? o->size_px : p->clahe_tile_px, p->clahe_clip,
-                            p->clahe_bins, nt);
+                            p->clahe_bins, p->clahe_low_pct, p->clahe_high_pct, nt);
             break;
         case RPIV_PREP_HIGHPASS:
             st =
