@@ -15,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 enum { W = 2560, H = 2160, REPS = 7 };
 static const double DISP[2] = {3.3187, -1.7421};
@@ -28,17 +29,27 @@ static void uniform(void *user, double x, double y, double *u, double *v)
     *v = d[1];
 }
 
-/* Wall time (ms) of one run of list on copies of a and b; *sum the checksum of the result. */
+/* The process's CPU time (all threads), s. */
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Wall time (ms) of one run of list on copies of a and b, *cpu its CPU time (ms, all
+ * threads); *sum the checksum of the result. */
 static double time_list(const rpiv_preprocess_params *p, const rpiv_image *a, const rpiv_image *b,
-                        int nt, uint64_t *sum)
+                        int nt, uint64_t *sum, double *cpu)
 {
     rpiv_image *ca = NULL, *cb = NULL;
     if (rpiv_image_copy(a, &ca) || rpiv_image_copy(b, &cb))
         return -1;
-    double t0 = bench_now();
+    double t0 = bench_now(), c0 = cpu_now();
     if (rpiv_preprocess_run(p, ca, nt) || rpiv_preprocess_run(p, cb, nt))
         return -1;
     double ms = (bench_now() - t0) * 1e3;
+    *cpu = (cpu_now() - c0) * 1e3;
     *sum = bench_checksum(bench_checksum(1469598103934665603ULL, ca->px, (size_t)W * H), cb->px,
                           (size_t)W * H);
     rpiv_image_free(ca);
@@ -46,14 +57,15 @@ static double time_list(const rpiv_preprocess_params *p, const rpiv_image *a, co
     return ms;
 }
 
-/* Wall time (ms) of one default PIV run of the pair. */
-static double time_piv(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b)
+/* Wall time (ms) of one default PIV run of the pair, *cpu its CPU time (ms). */
+static double time_piv(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b, double *cpu)
 {
     rpiv_field *f = NULL;
-    double t0 = bench_now();
+    double t0 = bench_now(), c0 = cpu_now();
     if (rpiv_piv_run(pv, a, b, &f))
         return -1;
     double ms = (bench_now() - t0) * 1e3;
+    *cpu = (cpu_now() - c0) * 1e3;
     rpiv_field_free(f);
     return ms;
 }
@@ -91,9 +103,11 @@ int main(int argc, char **argv)
     }
     /* A B A B: each repetition times the PIV run, then every list once, so that a change of
      * the machine's load (it is shared) falls on all of them alike. The median and the least
-     * of the REPS times are printed: the least is the estimate of an unloaded machine. */
+     * of the REPS times are printed: the least is the estimate of an unloaded machine; cpu_rat
+     * the ratio of the median CPU times (all threads; with OMP_WAIT_POLICY=passive the threads
+     * waiting at a barrier burn none, so it is the ratio of the work). */
     printf("case                size       threads    med_ms  piv_med   ratio    min_ms  piv_min "
-           "  ratio checksum\n");
+           "  ratio cpu_rat checksum\n");
     for (int nt = 1; nt <= 2; nt++) {
         rpiv_piv_params p = rpiv_piv_params_default();
         p.threads = nt;
@@ -102,16 +116,16 @@ int main(int argc, char **argv)
             fprintf(stderr, "bench_preprocess: piv: %s\n", rpiv_errmsg());
             return 1;
         }
-        double piv[REPS], t[16][REPS];
+        double piv[REPS], t[16][REPS], cpiv[REPS], ct[16][REPS];
         uint64_t sum[16] = {0};
         for (int r = 0; r < REPS; r++) {
-            piv[r] = time_piv(pv, a, b);
+            piv[r] = time_piv(pv, a, b, &cpiv[r]);
             if (piv[r] < 0) {
                 fprintf(stderr, "bench_preprocess: piv: %s\n", rpiv_errmsg());
                 return 1;
             }
             for (size_t k = 0; k < nlists; k++) {
-                t[k][r] = time_list(&pp[k], a, b, nt, &sum[k]);
+                t[k][r] = time_list(&pp[k], a, b, nt, &sum[k], &ct[k][r]);
                 if (t[k][r] < 0) {
                     fprintf(stderr, "bench_preprocess: %s: %s\n", lists[k], rpiv_errmsg());
                     return 1;
@@ -119,15 +133,19 @@ int main(int argc, char **argv)
             }
         }
         rpiv_piv_free(pv);
-        double pmin = least(piv, REPS), pmed = bench_median(piv, REPS);
+        double pmin = least(piv, REPS), pmed = bench_median(piv, REPS),
+               pcpu = bench_median(cpiv, REPS);
         for (size_t k = 0; k < nlists; k++) {
-            double mn = least(t[k], REPS), md = bench_median(t[k], REPS);
-            printf("%-19s %dx%d %7d %9.1f %8.1f %7.3f %9.1f %8.1f %7.3f %016llx\n", lists[k], W, H,
-                   nt, md, pmed, md / pmed, mn, pmin, mn / pmin, (unsigned long long)sum[k]);
+            double mn = least(t[k], REPS), md = bench_median(t[k], REPS),
+                   cpu = bench_median(ct[k], REPS);
+            printf("%-19s %dx%d %7d %9.1f %8.1f %7.3f %9.1f %8.1f %7.3f %7.3f %016llx\n", lists[k],
+                   W, H, nt, md, pmed, md / pmed, mn, pmin, mn / pmin, cpu / pcpu,
+                   (unsigned long long)sum[k]);
             if (!strcmp(lists[k], "clahe,highpass"))
                 printf("#   clahe + highpass of the pair, %d thread%s: %.1f %% (medians), %.1f %% "
-                       "(least times) of the default PIV run (target <= 15 %%)\n",
-                       nt, nt > 1 ? "s" : "", 100 * md / pmed, 100 * mn / pmin);
+                       "(least times), %.1f %% (CPU times) of the default PIV run (target <= "
+                       "15 %%)\n",
+                       nt, nt > 1 ? "s" : "", 100 * md / pmed, 100 * mn / pmin, 100 * cpu / pcpu);
         }
     }
     rpiv_image_free(a);
