@@ -342,7 +342,8 @@ static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const rp
             100.0 * (double)r->nreplaced / (double)r->nvec, med);
     if (med < 1.5)
         fprintf(stderr, "the correlation peaks are weak (peak ratio below 1.5): dark, sparse or "
-                        "uneven images; try --preprocess clahe,highpass (docs/preprocess.md)\n");
+                        "uneven images; try --preprocess clahe, and larger final windows if the "
+                        "particles are sparse (--window 64,64,64; docs/preprocess.md)\n");
     else
         fprintf(stderr, "the peaks are clear, so the flow likely varies too much within a "
                         "window (strong gradients): try smaller windows (--window 64,32,16) or "
