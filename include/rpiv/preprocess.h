@@ -46,7 +46,7 @@ typedef struct rpiv_preprocess_params {
     int clahe_tile_px;                    /* default tile side (64)                 */
     double clahe_clip;                    /* clip limit, 0..1 of a tile (0.01)      */
     int clahe_bins;                       /* histogram bins (256)                   */
-    double clahe_low_pct, clahe_high_pct; /* the bins' range: percentiles (1, 99.5) */
+    double clahe_low_pct, clahe_high_pct; /* the bins' range: percentiles (0, 100) */
     int highpass_px;                      /* default background window (15)         */
     rpiv_prep_background highpass_method; /* (min)                                  */
     double cap_k;                         /* capping level: mean + k std (2)        */
