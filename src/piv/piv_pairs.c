@@ -20,6 +20,7 @@ typedef struct pairs_ctx {
     rpiv_piv_done_fn done;
     void *user;
     field_slot *slots;
+    int give; /* one pair: its frames are given to the plan (piv_load_take) */
 } pairs_ctx;
 
 /* Load pair k and run every pass on plan c: *f its field or NULL, *loaded as for done. */
@@ -32,7 +33,7 @@ static rpiv_status one_pair(const pairs_ctx *c, rpiv_piv *plan, size_t k, rpiv_f
     rpiv_status st = c->load(c->user, k, &a, &b);
     if (!st) {
         *loaded = 1;
-        st = rpiv_piv_load(plan, a, b);
+        st = c->give ? piv_load_take(plan, a, b) : rpiv_piv_load(plan, a, b);
     }
     rpiv_image_free(a);
     rpiv_image_free(b);
@@ -64,7 +65,7 @@ static rpiv_status take(void *ctx, size_t k, size_t slot)
 rpiv_status rpiv_piv_run_pairs(rpiv_piv *pv, size_t n, rpiv_piv_load_fn load, rpiv_piv_done_fn done,
                                void *user)
 {
-    pairs_ctx c = {load, done, user, NULL};
+    pairs_ctx c = {load, done, user, NULL, n == 1};
     /* a slot holds one field: nx ny (u, v, peak ratio, correlation, flag) */
     const piv_pass *last = &pv->pass[pv->npass - 1];
     size_t m = pool_slots(pv, n, (double)last->nwin * 4 * sizeof(float) * 2, 0);
