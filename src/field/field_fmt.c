@@ -72,7 +72,14 @@ static int digits(double v, int p, u128 *q, int *x)
     uint64_t m;
     int e;
     split_double(a, &m, &e);
-    int X = (int)floor(log10(a)), up = 0;
+    /* X from the binary exponent: floor(E log10 2) is X or X - 1; the loop checks exactly */
+    static const double p10[] = {1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1e0,  1e1,
+                                 1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,
+                                 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17};
+    const int E = e + 52; /* a = (m / 2^52) 2^E, 1 <= m / 2^52 < 2 */
+    int X = E >= 0 ? (E * 78913) >> 18 : -((-E * 78913 + (1 << 18) - 1) >> 18), up = 0;
+    if (X + 7 >= 0 && X + 7 < (int)(sizeof p10 / sizeof *p10) && a >= p10[X + 7])
+        X++;
     const u128 lo = pow10u(p - 1), hi = pow10u(p);
     for (int tries = 0; tries < 4; tries++) {
         u128 t = scaled(m, e, p - 1 - X, &up);
