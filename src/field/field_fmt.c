@@ -38,8 +38,8 @@ static void split_double(double v, uint64_t *m, int *e)
     *e = be - 1075;
 }
 
-/* t = floor(m 2^e 10^s); *up = 1 when rounding half to even goes up to t + 1. */
-static u128 scaled(uint64_t m, int e, int s, int *up)
+/* t = floor(m 2^e 10^s); *sticky = 1 when the remainder is not zero. */
+static u128 scaled(uint64_t m, int e, int s, int *sticky)
 {
     u128 num = m, den = 1;
     if (s >= 0)
@@ -49,25 +49,43 @@ static u128 scaled(uint64_t m, int e, int s, int *up)
     if (e >= 0) {
         num <<= e;
     } else if (s >= 0) { /* a division by 2^-e: a shift */
-        int k = -e;
-        u128 q = num >> k, r = num & (((u128)1 << k) - 1), half = (u128)1 << (k - 1);
-        *up = r > half || (r == half && (q & 1));
-        return q;
+        *sticky = (num & (((u128)1 << -e) - 1)) != 0;
+        return num >> -e;
     } else {
         den <<= -e;
     }
-    u128 q = num / den, r = num - q * den;
-    *up = 2 * r > den || (2 * r == den && (q & 1));
+    u128 q = num / den;
+    *sticky = num != q * den;
     return q;
 }
 
-/* The P significant digits q (10^(P-1) <= q < 10^P) and decimal exponent X of |v| as "%.Pe"
- * rounds them; 0 outside the fast range. The truncated value decides the decade exactly
- * (floor(y 10^s) >= 10^k iff y 10^s >= 10^k); a rounding up to 10^P moves to the next. */
-static int digits(double v, int p, u128 *q, int *x)
+static const uint64_t POW10[19] = {1u,
+                                   10u,
+                                   100u,
+                                   1000u,
+                                   10000u,
+                                   100000u,
+                                   1000000u,
+                                   10000000u,
+                                   100000000u,
+                                   1000000000u,
+                                   10000000000u,
+                                   100000000000u,
+                                   1000000000000u,
+                                   10000000000000u,
+                                   100000000000000u,
+                                   1000000000000000u,
+                                   10000000000000000u,
+                                   100000000000000000u,
+                                   1000000000000000000u};
+
+/* The first P significant digits of |v| truncated, t (10^(P-1) <= t < 10^P), whether digits
+ * follow (*sticky), and the decimal exponent X; 0 outside the fast range. The truncated
+ * value decides the decade exactly (floor(y 10^s) >= 10^k iff y 10^s >= 10^k). */
+static int digits_trunc(double v, int P, uint64_t *t, int *sticky, int *x)
 {
     double a = fabs(v);
-    if (!(a >= 1e-5 && a <= 1e15) || p < 1 || p > 17)
+    if (!(a >= 1e-5 && a <= 1e15) || P < 2 || P > 18)
         return 0;
     uint64_t m;
     int e;
@@ -77,32 +95,41 @@ static int digits(double v, int p, u128 *q, int *x)
                                  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,
                                  1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17};
     const int E = e + 52; /* a = (m / 2^52) 2^E, 1 <= m / 2^52 < 2 */
-    int X = E >= 0 ? (E * 78913) >> 18 : -((-E * 78913 + (1 << 18) - 1) >> 18), up = 0;
+    int X = E >= 0 ? (E * 78913) >> 18 : -((-E * 78913 + (1 << 18) - 1) >> 18);
     if (X + 7 >= 0 && X + 7 < (int)(sizeof p10 / sizeof *p10) && a >= p10[X + 7])
         X++;
-    const u128 lo = pow10u(p - 1), hi = pow10u(p);
     for (int tries = 0; tries < 4; tries++) {
-        u128 t = scaled(m, e, p - 1 - X, &up);
-        if (t < lo) {
+        u128 q = scaled(m, e, P - 1 - X, sticky);
+        if (q < POW10[P - 1]) {
             X--;
-        } else if (t >= hi) {
+        } else if (q >= POW10[P]) {
             X++;
         } else {
-            t += (u128)up;
-            *q = t == hi ? lo : t;
-            *x = t == hi ? X + 1 : X;
+            *t = (uint64_t)q;
+            *x = X;
             return 1;
         }
     }
     return 0;
 }
 
+/* p < P digits from the truncated P digits t (digits follow if sticky), rounded half to even
+ * as "%.pe" rounds the exact value: *q (10^(p-1) <= q < 10^p) and the exponent *x. */
+static void round_to(uint64_t t, int sticky, int X, int P, int p, uint64_t *q, int *x)
+{
+    const uint64_t d = POW10[P - p], r = t % d;
+    uint64_t k = t / d;
+    k += 2 * r > d || (2 * r == d && (sticky || (k & 1)));
+    *x = k == POW10[p] ? X + 1 : X;
+    *q = k == POW10[p] ? POW10[p - 1] : k;
+}
+
 /* Decimal digits of q (< 10^17) into d (most significant first); their count. */
-static int digit_string(u128 q, char *d)
+static int digit_string(uint64_t q, char *d)
 {
     char tmp[40];
     int n = 0;
-    uint64_t v = (uint64_t)q;
+    uint64_t v = q;
     do {
         tmp[n++] = (char)('0' + v % 10);
         v /= 10;
@@ -113,7 +140,7 @@ static int digit_string(u128 q, char *d)
 }
 
 /* "%.Pg" of the digits q (P of them) and exponent X, with sign; length written to out. */
-static int format_g(char *out, int neg, u128 q, int X, int p)
+static int format_g(char *out, int neg, uint64_t q, int X, int p)
 {
     char d[40];
     int n = digit_string(q, d), len = 0; /* n == p */
@@ -164,20 +191,22 @@ static int format_g(char *out, int neg, u128 q, int X, int p)
 
 int field_fmt_g(char *out, double v, int p)
 {
-    u128 q;
-    int X;
-    if (digits(v, p, &q, &X))
+    uint64_t t, q;
+    int X, sticky;
+    if (p >= 1 && p <= 17 && digits_trunc(v, p + 1, &t, &sticky, &X)) {
+        round_to(t, sticky, X, p + 1, p, &q, &X);
         return format_g(out, v < 0, q, X, p);
+    }
     return snprintf(out, FIELD_FMT_MAX, "%.*g", p, v);
 }
 
 /* Whether the decimal q 10^t reads back (strtof, correctly rounded, ties to even) as the
  * float f = mf 2^ef (2^23 <= mf < 2^24): q 10^t within half a spacing of f, the bounds
  * included when mf is even. Everything is scaled by 10^max(0,-t) 2^max(0,2-ef). */
-static int reads_back(uint32_t mf, int ef, u128 q, int t)
+static int reads_back(uint32_t mf, int ef, uint64_t q, int t)
 {
     int s10 = t < 0 ? -t : 0, s2 = ef < 2 ? 2 - ef : 0;
-    u128 Q = q * pow10u(t > 0 ? t : 0) << s2;
+    u128 Q = (u128)q * pow10u(t > 0 ? t : 0) << s2;
     u128 F = (u128)mf * pow10u(s10) << (ef + s2);
     u128 up = pow10u(s10) << (ef - 1 + s2);
     u128 down = mf == (UINT32_C(1) << 23) ? pow10u(s10) << (ef - 2 + s2) : up;
@@ -195,14 +224,16 @@ int field_fmt_float(char *out, float v)
         memcpy(&bits, &v, sizeof bits);
         uint32_t mf = (bits & ((UINT32_C(1) << 23) - 1)) | (UINT32_C(1) << 23);
         int ef = (int)((bits >> 23) & 0xff) - 150;
-        for (int p = 6; p <= 9; p++) {
-            u128 q;
-            int X;
-            if (!digits((double)v, p, &q, &X))
-                break;
-            if (p == 9 || reads_back(mf, ef, q, X - p + 1))
-                return format_g(out, v < 0, q, X, p);
-        }
+        uint64_t t;
+        int X10, sticky;
+        if (digits_trunc((double)v, 10, &t, &sticky, &X10))
+            for (int p = 6; p <= 9; p++) {
+                uint64_t q;
+                int X;
+                round_to(t, sticky, X10, 10, p, &q, &X);
+                if (p == 9 || reads_back(mf, ef, q, X - p + 1))
+                    return format_g(out, v < 0, q, X, p);
+            }
     }
     /* zero, tiny, huge, NaN, infinite: printf and strtof, as the writers did before */
     int len = 0;

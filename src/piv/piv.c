@@ -295,7 +295,7 @@ static float load_frame(const rpiv_piv *pv, const float *src, const float *bg, f
         if (b)
             for (int x = 0; x < w; x++)
                 out[x] = in[x] - b[x];
-        else if (out != in) /* in == out: a frame taken over (piv_load_take) */
+        else if (out != in) /* in == out: frames given to the plan (piv_pairs.c) */
             memcpy(out, in, (size_t)w * sizeof *out);
         double s = 0;
         long c = 0;
@@ -368,27 +368,6 @@ rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b
     free(rows);
     if (st)
         return st;
-    pv->state = PIV_RAW;
-    return RPIV_OK;
-}
-
-rpiv_status piv_load_take(rpiv_piv *pv, rpiv_image *a, rpiv_image *b)
-{
-    if (pv->prep || pv->bga || a->w != pv->w || a->h != pv->h || b->w != pv->w || b->h != pv->h)
-        return rpiv_piv_load(pv, a, b);
-    double *rows = malloc((size_t)pv->h * (sizeof(double) + sizeof(long)));
-    if (!rows)
-        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory");
-    long *counts = (long *)(rows + pv->h);
-    float *t = pv->ia;
-    pv->ia = a->px;
-    a->px = t;
-    t = pv->ib;
-    pv->ib = b->px;
-    b->px = t;
-    pv->fill_a = load_frame(pv, pv->ia, NULL, pv->ia, rows, counts);
-    pv->fill_b = load_frame(pv, pv->ib, NULL, pv->ib, rows, counts);
-    free(rows);
     pv->state = PIV_RAW;
     return RPIV_OK;
 }

@@ -58,13 +58,6 @@ typedef struct piv_source {
 typedef void (*piv_win_fn)(void *ctx, const float *plane, const float *colmax, size_t win,
                            double ea, double eb, double pu, double pv_, const rpiv_xcorr_src *xs);
 
-/* rpiv_piv_load of a pair the caller frees next: without background or preprocessing the
- * images' pixel buffers become the plan's frames and the plan's go to the images, swapped
- * instead of copied (44 MB of copy and first touches saved on a 2560 x 2160 pair, issue 15).
- * The same frames and fills as rpiv_piv_load. a->px and b->px must come from malloc (any
- * image rpiv_image_free frees). */
-RPIV_NODISCARD rpiv_status piv_load_take(rpiv_piv *pv, rpiv_image *a, rpiv_image *b);
-
 /* Correlate every unmasked window of pass k on the loaded pair with predictor pred (may be
  * NULL), calling fn for each. A deforming pass works strip by strip: the rows under one row
  * of windows are deformed into a thread's buffer of a window's height (the overlap with the
