@@ -3,6 +3,7 @@
  * (POINT zone) and legacy VTK (ASCII structured grid, the arrays as FIELD data so that VTK's
  * default reader settings load all of them). All three write the same columns, from
  * field_columns(), with their units in the header. */
+#include "field_fmt.h"
 #include "field_impl.h"
 
 #include <errno.h>
@@ -17,75 +18,68 @@ static rpiv_status write_check(FILE *fp, const char *path)
     return RPIV_OK;
 }
 
-/* The shortest %g form (6 to 9 digits) that reads back as the same float, so text files
- * round-trip exactly and stay readable (0.3187, not 0.318699986). */
-static void put_float(FILE *fp, float v)
-{
-    char buf[32];
-    for (int p = 6; p <= 9; p++) {
-        snprintf(buf, sizeof buf, "%.*g", p, (double)v);
-        if (strtof(buf, NULL) == v)
-            break;
-    }
-    fputs(buf, fp);
-}
-
-/* Column c's value at point (i, j), index k. */
-static void put_value(FILE *fp, const rpiv_field *f, const field_col *c, int i, int j, size_t k)
+/* Column c's value at point (i, j), index k, into out (FIELD_FMT_MAX bytes); its length.
+ * Floats in the shortest %g form (6 to 9 digits) that reads back as the same float, so text
+ * files round-trip exactly and stay readable (0.3187, not 0.318699986). */
+static int put_value(char *out, const rpiv_field *f, const field_col *c, int i, int j, size_t k)
 {
     switch (c->kind) {
     case FIELD_COL_X:
-        fprintf(fp, "%.10g", (f->x0 + i * f->dx) * c->factor);
-        break;
+        return field_fmt_g(out, (f->x0 + i * f->dx) * c->factor, 10);
     case FIELD_COL_Y:
-        fprintf(fp, "%.10g", (f->y0 + j * f->dy) * c->factor);
-        break;
-    case FIELD_COL_FLAG:
-        fprintf(fp, "%d", f->flag[k]);
-        break;
+        return field_fmt_g(out, (f->y0 + j * f->dy) * c->factor, 10);
+    case FIELD_COL_FLAG: { /* 0 .. 255 */
+        unsigned v = f->flag[k];
+        int n = 0;
+        if (v >= 100)
+            out[n++] = (char)('0' + v / 100);
+        if (v >= 10)
+            out[n++] = (char)('0' + v / 10 % 10);
+        out[n++] = (char)('0' + v % 10);
+        return n;
+    }
     default:
         if (c->physical)
-            fprintf(fp, "%.9g", (double)c->data[k] * c->factor);
-        else
-            put_float(fp, c->data[k]);
+            return field_fmt_g(out, (double)c->data[k] * c->factor, 9);
+        return field_fmt_float(out, c->data[k]);
     }
 }
 
 /* The data rows, a point per line, columns c[0..nc-1] separated by one space, in grid order
  * (x fastest). Large fields are formatted by blocks of rows on several threads, each block
- * into its own memory stream, and written in order: the bytes do not depend on the threads. */
+ * into its own buffer, and written in order: the bytes do not depend on the threads. */
 static rpiv_status write_rows(FILE *fp, const rpiv_field *f, const field_col *c, size_t nc,
                               const char *path)
 {
     enum { BLOCK = 16 }; /* rows per block */
     const int nblocks = (f->ny + BLOCK - 1) / BLOCK;
     const int par = (size_t)f->nx * (size_t)f->ny >= 20000;
+    const size_t line_max = nc * (FIELD_FMT_MAX + 1) + 1;
+    const size_t cap = (size_t)BLOCK * (size_t)f->nx * line_max;
     int bad = 0, err = 0;
-#pragma omp parallel for ordered schedule(static, 1) if (par)
-    for (int b = 0; b < nblocks; b++) {
-        char *buf = NULL;
-        size_t len = 0;
-        FILE *ms = open_memstream(&buf, &len);
-        if (ms) {
-            for (int j = b * BLOCK; j < f->ny && j < (b + 1) * BLOCK; j++)
+#pragma omp parallel if (par)
+    {
+        char *buf = malloc(cap); /* one per thread, reused block after block */
+#pragma omp for ordered schedule(static, 1)
+        for (int b = 0; b < nblocks; b++) {
+            size_t len = 0;
+            for (int j = b * BLOCK; buf && j < f->ny && j < (b + 1) * BLOCK; j++)
                 for (int i = 0; i < f->nx; i++) {
                     size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
                     for (size_t m = 0; m < nc; m++) {
                         if (m)
-                            fputc(' ', ms);
-                        put_value(ms, f, &c[m], i, j, k);
+                            buf[len++] = ' ';
+                        len += (size_t)put_value(buf + len, f, &c[m], i, j, k);
                     }
-                    fputc('\n', ms);
+                    buf[len++] = '\n';
                 }
-            if (fclose(ms))
-                len = 0, ms = NULL;
-        }
 #pragma omp ordered
-        {
-            if (!ms) {
-                bad = 1;
-            } else if (!bad && !err && len && fwrite(buf, 1, len, fp) != len) {
-                err = errno ? errno : EIO;
+            {
+                if (!buf) {
+                    bad = 1;
+                } else if (!bad && !err && len && fwrite(buf, 1, len, fp) != len) {
+                    err = errno ? errno : EIO;
+                }
             }
         }
         free(buf);

@@ -13,6 +13,9 @@
 #include <strings.h>
 #include <sys/stat.h>
 #include <time.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <unistd.h>
 
 uint64_t img_max_pixels(void)
@@ -101,19 +104,51 @@ rpiv_status rpiv_image_copy(const rpiv_image *im, rpiv_image **out)
 rpiv_image_stats rpiv_image_stats_of(const rpiv_image *im)
 {
     /* min and max in float (exact), the sum in four double partial sums added in a fixed
-     * order: one pass at vector speed, the same result for any run */
+     * order (lane k takes the pixels i = k mod 4 in turn): one pass at vector speed, the same
+     * result for any run. With SSE2 the min and max run on 4 + 4 lanes (minps(v, lo) is
+     * v < lo ? v : lo, lane by lane): the compiler keeps one chain per pixel otherwise, 2
+     * cycles a pixel, 7 ms of a one-pair run (issue 15). */
     size_t n = (size_t)im->w * (size_t)im->h, i = 0;
-    float lo = im->px[0], hi = im->px[0];
+    const float *px = im->px;
+    float lo = px[0], hi = px[0];
     double s4[4] = {0, 0, 0, 0};
+#ifdef __SSE2__
+    if (n >= 8) {
+        __m128 l0 = _mm_set1_ps(lo), l1 = l0, h0 = l0, h1 = l0;
+        __m128d s01 = _mm_setzero_pd(), s23 = _mm_setzero_pd();
+        for (; i + 8 <= n; i += 8) {
+            __m128 a = _mm_loadu_ps(px + i), b = _mm_loadu_ps(px + i + 4);
+            l0 = _mm_min_ps(a, l0);
+            h0 = _mm_max_ps(a, h0);
+            l1 = _mm_min_ps(b, l1);
+            h1 = _mm_max_ps(b, h1);
+            s01 = _mm_add_pd(s01, _mm_cvtps_pd(a));
+            s23 = _mm_add_pd(s23, _mm_cvtps_pd(_mm_movehl_ps(a, a)));
+            s01 = _mm_add_pd(s01, _mm_cvtps_pd(b));
+            s23 = _mm_add_pd(s23, _mm_cvtps_pd(_mm_movehl_ps(b, b)));
+        }
+        float l[8], h[8];
+        _mm_storeu_ps(l, l0);
+        _mm_storeu_ps(l + 4, l1);
+        _mm_storeu_ps(h, h0);
+        _mm_storeu_ps(h + 4, h1);
+        for (int k = 0; k < 8; k++) {
+            lo = l[k] < lo ? l[k] : lo;
+            hi = h[k] > hi ? h[k] : hi;
+        }
+        _mm_storeu_pd(s4, s01);
+        _mm_storeu_pd(s4 + 2, s23);
+    }
+#endif
     for (; i + 4 <= n; i += 4)
         for (int k = 0; k < 4; k++) {
-            const float v = im->px[i + (size_t)k];
+            const float v = px[i + (size_t)k];
             lo = v < lo ? v : lo;
             hi = v > hi ? v : hi;
             s4[k] += (double)v;
         }
     for (; i < n; i++) {
-        const float v = im->px[i];
+        const float v = px[i];
         lo = v < lo ? v : lo;
         hi = v > hi ? v : hi;
         s4[0] += (double)v;

@@ -295,7 +295,7 @@ static float load_frame(const rpiv_piv *pv, const float *src, const float *bg, f
         if (b)
             for (int x = 0; x < w; x++)
                 out[x] = in[x] - b[x];
-        else
+        else if (out != in) /* in == out: frames given to the plan (piv_pairs.c) */
             memcpy(out, in, (size_t)w * sizeof *out);
         double s = 0;
         long c = 0;

@@ -57,8 +57,12 @@ rpiv_piv_mem rpiv_piv_mem_estimate(const rpiv_piv_params *p, int w, int h, int m
                (p->background != RPIV_BACKGROUND_NONE ? 2 * frame : 0);
     for (int k = 0; k < p->npass; k++) /* correlation workspaces, per thread and pass */
         m.frames += (double)nt * 4 * 4.0 * p->win_w[k] * p->win_h[k];
-    /* a pair being loaded: its two decoded frames and the reader's 16-bit rows of one */
-    m.load = 2.5 * frame;
+    /* a pair being loaded: its two decoded frames and the reader's 16-bit rows of one; a
+     * single pair without background or preprocessing gives its frames to the plan
+     * (piv_pairs.c), whose own are never touched: the rows only */
+    const int give =
+        npairs == 1 && !p->ensemble && !p->prep.ops[0] && p->background == RPIV_BACKGROUND_NONE;
+    m.load = (give ? 0.5 : 2.5) * frame;
     /* the fields the caller keeps from the first pair on */
     m.held = held * nlast * final_b;
 
