@@ -8,8 +8,10 @@
 #include "check.h"
 #include "peak_impl.h"
 #include "piv_testimg.h"
+#include "rpiv/deform.h"
 #include "rpiv/ensemble.h"
 #include "rpiv/piv.h"
+#include "uncertainty_impl.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -83,6 +85,11 @@ typedef struct acc {
     size_t cap;
 } acc;
 
+/* With g_sys set, acc_field adds to each sigma the systematic term of unc_bias.c (the model
+ * particle g_sys, at the vector's displacement, the predictor taken equal to it): the check
+ * of whether that term would help instantaneous fields (docs/uncertainty.md). */
+static const unc_model *g_sys;
+
 static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
 {
     const rpiv_quantity *qu = rpiv_field_quantity(f, "sigma_u");
@@ -113,6 +120,14 @@ static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
             double u, v;
             fl->fn(fl->user, f->x0 + i * f->dx, f->y0 + j * f->dy, &u, &v);
             double eu = (double)f->u[k] - u, ev = (double)f->v[k] - v;
+            if (g_sys) {
+                double bx, by;
+                if (unc_model_bias(g_sys, (double)f->u[k], (double)f->v[k], (double)f->u[k],
+                                   (double)f->v[k], &bx, &by)) {
+                    qu->data[k] = (float)hypot((double)qu->data[k], bx);
+                    qv->data[k] = (float)hypot((double)qv->data[k], by);
+                }
+            }
             s->cov_u += fabs(eu) <= (double)qu->data[k];
             s->cov_v += fabs(ev) <= (double)qv->data[k];
             s->rms_u += eu * eu;
@@ -193,6 +208,82 @@ static void unc_sweep(void)
                 stats s = run_case(&flows[q], noises[k], taus[t], 1000 + 17 * k + 3 * t, 256, 0, 4);
                 print_case(flows[q].name, noises[k], taus[t], &s);
             }
+}
+
+/* The systematic term on instantaneous fields (not applied by the engine): the whole run's
+ * coverage without and with it, the model particle of the images' own width (d_tau / 4). */
+static void unc_sys_instantaneous(void)
+{
+    const double noises[] = {0, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
+    for (size_t q = 0; q < 2; q++)
+        for (size_t t = 0; t < 3; t++)
+            for (size_t k = 0; k < 3; k++) {
+                unc_model m = {taus[t] / 4, taus[t] / 4, RPIV_DEFORM_SHIFT, 1, RPIV_SUBPIXEL_GAUSS};
+                for (int with = 0; with <= 1; with++) {
+                    g_sys = with ? &m : NULL;
+                    stats s = run_case(&flows[q], noises[k], taus[t],
+                                       300 + 7 * (uint64_t)(t + 3 * k), 256, 0, 4);
+                    print_case(flows[q].name, noises[k], taus[t], &s);
+                    printf("      (%s the systematic term)\n", with ? "with" : "without");
+                }
+                g_sys = NULL;
+            }
+}
+
+/* Where the vortex's error is: RMS error and RMS sigma of the valid vectors by distance from
+ * the centre (16 px bins), the grid's edge rows and columns apart. */
+static void unc_vortex_where(void)
+{
+    const double taus[] = {1.5, 2.0, 3.0};
+    for (int t = 0; t < 3; t++) {
+        enum { NB = 12 };
+        double se[NB + 1] = {0}, ss[NB + 1] = {0}, sc[NB + 1] = {0};
+        int nb[NB + 1] = {0};
+        rpiv_piv *pv = NULL;
+        rpiv_piv_params prm = rpiv_piv_params_default();
+        prm.uncertainty = 1;
+        if (getenv("UNC_NODENOISE"))
+            prm.refine_denoise = 0;
+        if (getenv("UNC_REFINE"))
+            prm.refine_max = atoi(getenv("UNC_REFINE"));
+        CHECK_OK(rpiv_piv_new(&prm, 256, 256, NULL, &pv));
+        float *a = malloc(256 * 256 * sizeof *a), *b = malloc(256 * 256 * sizeof *b);
+        for (int q = 0; pv && a && b && q < 4; q++) {
+            ti_params tp = {256, 256, 0.05, taus[t], 1000, 0.05, 0, 300 + 7 * (uint64_t)t + q};
+            ti_pair(&tp, vortex, NULL, a, b);
+            rpiv_image ia = {256, 256, 16, a}, ib = {256, 256, 16, b};
+            rpiv_field *f = NULL;
+            CHECK_OK(rpiv_piv_run(pv, &ia, &ib, &f));
+            const rpiv_quantity *su = f ? rpiv_field_quantity(f, "sigma_u") : NULL;
+            for (int j = 0; su && j < f->ny; j++)
+                for (int i = 0; i < f->nx; i++) {
+                    const size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+                    if (f->flag[k] != RPIV_FLAG_VALID)
+                        continue;
+                    const double x = f->x0 + i * f->dx, y = f->y0 + j * f->dy;
+                    double u, v;
+                    vortex(NULL, x, y, &u, &v);
+                    const int edge = i == 0 || j == 0 || i == f->nx - 1 || j == f->ny - 1;
+                    int bin = (int)(hypot(x - 128.37, y - 127.81) / 16);
+                    bin = edge ? NB : (bin < NB ? bin : NB - 1);
+                    const double e = (double)f->u[k] - u;
+                    se[bin] += e * e;
+                    ss[bin] += (double)su->data[k] * (double)su->data[k];
+                    sc[bin] += fabs(e) <= (double)su->data[k];
+                    nb[bin]++;
+                }
+            rpiv_field_free(f);
+        }
+        printf("    vortex, 5 %% noise, d_tau %.1f, u: r (px) n RMS-error RMS-sigma coverage\n",
+               taus[t]);
+        for (int k = 0; k <= NB; k++)
+            if (nb[k])
+                printf("      %s%3d %4d %.4f %.4f %.2f\n", k == NB ? "edge " : "r >= ", 16 * k,
+                       nb[k], sqrt(se[k] / nb[k]), sqrt(ss[k] / nb[k]), sc[k] / nb[k]);
+        free(a);
+        free(b);
+        rpiv_piv_free(pv);
+    }
 }
 
 /* Default off: no quantity, and the vectors of a run with the uncertainty are bit for bit those
@@ -586,6 +677,15 @@ static void unc_ensemble_coverage(void)
 
 int main(void)
 {
+    /* one ensemble case: RPIV_UNC_ENS="flow noise d_tau nens" (flow 0 uniform, 1 shear) */
+    const char *one = getenv("RPIV_UNC_ENS");
+    int q, nens;
+    double nz, tau;
+    if (one && sscanf(one, "%d %lf %lf %d", &q, &nz, &tau, &nens) == 4 && q >= 0 && q < 2) {
+        stats s = ens_case(&flows[q], nz, tau, nens, 20, 128);
+        print_case(flows[q].name, nz, tau, &s);
+        return check_summary();
+    }
     RUN_TEST(unc_off_by_default);
     RUN_TEST(unc_exact_predictor_is_calibrated);
     RUN_TEST(unc_tracks_the_error);
@@ -596,6 +696,10 @@ int main(void)
     const char *slow = getenv("RPIV_SLOW_TESTS");
     if (slow && slow[0] == '1')
         RUN_TEST(unc_sweep);
+    if (slow && slow[0] == 'v')
+        RUN_TEST(unc_vortex_where);
+    if (slow && slow[0] == 's')
+        RUN_TEST(unc_sys_instantaneous);
     if (slow && (slow[0] == '1' || slow[0] == 'e'))
         RUN_TEST(unc_ensemble_sweep);
     return check_summary();

@@ -123,6 +123,57 @@ static int spline_var(const rpiv_ensemble *e, size_t win, double *vx, double *vy
     return 1;
 }
 
+/* The 3-point curvature of ln c at the integer peak of window win's summed plane, x and y. */
+static int plane_curv(const rpiv_ensemble *e, size_t win, double *hx, double *hy)
+{
+    const piv_pass *ps = &e->pv->pass[e->pass];
+    const int w = ps->ww, h = ps->wh;
+    const float *plane = e->data + win * e->plane;
+    rpiv_peak pk;
+    rpiv_peak_find(plane, w, h, 0, RPIV_SUBPIXEL_GAUSS, &pk);
+    const int bi = (pk.ix + w) % w, bj = (pk.iy + h) % h;
+    const double c0 = (double)plane[(size_t)bj * (size_t)w + (size_t)bi];
+    const double cxm = (double)plane[(size_t)bj * (size_t)w + (size_t)((bi + w - 1) % w)];
+    const double cxp = (double)plane[(size_t)bj * (size_t)w + (size_t)((bi + 1) % w)];
+    const double cym = (double)plane[(size_t)((bj + h - 1) % h) * (size_t)w + (size_t)bi];
+    const double cyp = (double)plane[(size_t)((bj + 1) % h) * (size_t)w + (size_t)bi];
+    if (!(c0 > 0 && cxm > 0 && cxp > 0 && cym > 0 && cyp > 0))
+        return 0;
+    *hx = log(cxm) - 2 * log(c0) + log(cxp);
+    *hy = log(cym) - 2 * log(c0) + log(cyp);
+    return *hx < 0 && *hy < 0;
+}
+
+/* The final pass's systematic term (docs/uncertainty.md, "The systematic floor"): the
+ * engine's chain on a model particle image of the summed planes' width (unc_systematic). */
+static rpiv_status ens_systematic(const rpiv_ensemble *e, const rpiv_field *f, float *su, float *sv)
+{
+    const rpiv_piv *pv = e->pv;
+    const piv_pass *ps = &pv->pass[e->pass];
+    piv_source src;
+    piv_source_of(pv, e->pass, e->pred, &src);
+    float *h = malloc(2 * e->nwin * sizeof *h);
+    double *p = malloc(2 * e->nwin * sizeof *p);
+    if (!h || !p) {
+        free(h);
+        free(p);
+        return rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory for the uncertainty");
+    }
+    for (size_t w = 0; w < e->nwin; w++) {
+        double hx = 0, hy = 0;
+        piv_window_shift(ps, &src, w, &p[w], &p[e->nwin + w]);
+        if (f->flag[w] == RPIV_FLAG_VALID && !plane_curv(e, w, &hx, &hy))
+            hx = hy = 0;
+        h[w] = (float)hx;
+        h[e->nwin + w] = (float)hy;
+    }
+    unc_systematic(f, h, h + e->nwin, p, p + e->nwin, src.deform, src.offsets ? 0 : src.shift, su,
+                   sv, pv->nthreads);
+    free(h);
+    free(p);
+    return RPIV_OK;
+}
+
 rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
 {
     const rpiv_piv *pv = e->pv;
@@ -171,6 +222,8 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
     g.denoise = linked && pv->p.refine_denoise && piv_pred_repeats(pv, p);
     if ((st = unc_chain_push(&c, linked, &g, 0, f, cs, cs + e->nwin)) ||
         (st = unc_add(f, &su, &sv)) || (st = unc_chain_total(c, f, su, sv, pv->nthreads)))
+        goto out_free;
+    if (e->pass == pv->npass - 1 && (st = ens_systematic(e, f, su, sv)))
         goto out_free;
     if (g.shift != 0)
         unc_edge_bias(f, ps->ww, ps->wh, su, sv);
