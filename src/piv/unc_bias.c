@@ -25,7 +25,7 @@ enum {
     MPH = 16, /* sub-pixel phases                */
     MR = 4,   /* lags kept either side of k0     */
     MW = 16,  /* the model plane's size          */
-    MROWS = 4 /* rows of the 1-D model images    */
+    MROWS = 1 /* the 1-D model images are rows of this height */
 };
 
 /* One axis: the correlation at lags k0 - MR .. k0 + MR, k0 = round(d - p). */
@@ -52,8 +52,8 @@ static void model_1d(double s, double d, double p, int deform, double c, int k0,
             rpiv_deform_prefilter(fa, ML, MROWS, 1);
             rpiv_deform_prefilter(fb, ML, MROWS, 1);
             for (int x = 0; x < ML; x++) {
-                a[x] = (double)rpiv_deform_sample(fa, ML, MROWS, x + c - 0.5 * p, 1.0, 0.0f);
-                b[x] = (double)rpiv_deform_sample(fb, ML, MROWS, x + c + 0.5 * p, 1.0, 0.0f);
+                a[x] = (double)rpiv_deform_sample(fa, ML, MROWS, x + c - 0.5 * p, 0.0, 0.0f);
+                b[x] = (double)rpiv_deform_sample(fb, ML, MROWS, x + c + 0.5 * p, 0.0, 0.0f);
             }
         }
         for (int l = -MR; l <= MR; l++)
@@ -133,7 +133,7 @@ int unc_model_fit(unc_model *m, double hx, double hy, double dx, double dy, doub
     double want[2] = {hx, hy}, lo[2] = {log(0.15), log(0.15)}, hi[2] = {log(6.0), log(6.0)};
     if (!(hx < 0) || !(hy < 0))
         return 0;
-    for (int it = 0; it < 40; it++) {
+    for (int it = 0; it < 30; it++) {
         m->sx = exp(0.5 * (lo[0] + hi[0]));
         m->sy = exp(0.5 * (lo[1] + hi[1]));
         double h[2];
@@ -165,6 +165,9 @@ static double median(double *x, size_t n)
     return n % 2 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
 }
 
+/* Samples of the bias tables over the predictor's period (below). */
+#define UNC_TAB 64
+
 void unc_systematic(const rpiv_field *f, const float *hx, const float *hy, const double *pu,
                     const double *pv, int deform, double c, float *su, float *sv, int nthreads)
 {
@@ -191,16 +194,38 @@ void unc_systematic(const rpiv_field *f, const float *hx, const float *hy, const
     unc_model md = {0, 0, deform ? c : 0, deform, RPIV_SUBPIXEL_GAUSS};
     if (!m || !unc_model_fit(&md, med[0], med[1], med[2], med[3], med[4], med[5]))
         return;
-#pragma omp parallel for schedule(dynamic, 8) num_threads(nthreads)
+    /* The bias as a function of one variable per axis, tabulated: with deformation, of the
+     * predictor p (frame A is sampled at the fraction c - p/2 and B at c + p/2 of a pixel, so
+     * the bias has a period of 2 px in p), the residual d - p taken as 0 (a converged pass;
+     * the estimator's own peak locking at the residual is of second order there); without,
+     * of the displacement d (period 1 px). The model's axes are separable: one run gives both. */
+    const double period = deform ? 2.0 : 1.0;
+    double tx[UNC_TAB + 1], ty[UNC_TAB + 1];
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nthreads)
+    for (int j = 0; j < UNC_TAB; j++) {
+        const double t = period * j / UNC_TAB;
+        if (!unc_model_bias(&md, t, t, deform ? t : 0, deform ? t : 0, &tx[j], &ty[j]))
+            tx[j] = ty[j] = 0;
+    }
+    tx[UNC_TAB] = tx[0];
+    ty[UNC_TAB] = ty[0];
     for (size_t k = 0; k < n; k++) {
-        double bx, by;
         if (f->flag[k] != RPIV_FLAG_VALID)
             continue;
         const double u = (double)f->u[k], v = (double)f->v[k];
-        const double px = pu ? pu[k] : deform ? u : 0, py = pv ? pv[k] : deform ? v : 0;
-        if (!unc_model_bias(&md, u, v, px, py, &bx, &by))
-            continue;
-        su[k] = (float)hypot((double)su[k], bx);
-        sv[k] = (float)hypot((double)sv[k], by);
+        const double kx = deform ? (pu ? pu[k] : u) : u, ky = deform ? (pv ? pv[k] : v) : v;
+        double b[2];
+        const double key[2] = {kx, ky}, *tab[2] = {tx, ty};
+        for (int a = 0; a < 2; a++) {
+            /* linear interpolation on the periodic table */
+            double x = key[a] / period;
+            x = (x - floor(x)) * UNC_TAB;
+            int i = (int)x;
+            i = i < 0 ? 0 : (i >= UNC_TAB ? UNC_TAB - 1 : i);
+            const double w = x - i;
+            b[a] = (1 - w) * tab[a][i] + w * tab[a][i + 1];
+        }
+        su[k] = (float)hypot((double)su[k], b[0]);
+        sv[k] = (float)hypot((double)sv[k], b[1]);
     }
 }
