@@ -600,10 +600,9 @@ static void unc_whole_run_coverage(void)
                     if (r)
                         printf("      (with %d refinement repeats)\n", refine);
                     CHECK(s.n > 850);
-                    /* the issue's band is 0.68 +- 0.08; since the refinement's denoiser
-                     * became the default (its effect on noise modelled linearly, unc_chain.c)
-                     * two cases sit just below it (u: 0.598 at 5 % noise, 1.5 px, uniform;
-                     * 0.600 with 3 repeats, 5 %, 2 px, shear): asserted at 0.58, reported */
+                    /* the issue's band is 0.68 +- 0.08: every case inside since the
+                     * systematic term (unc_bias.c); the shear with 3 repeats at 5 % and 2 px
+                     * sits at 0.602, asserted at 0.58 and at most 3 outside */
                     CHECK(s.cov_u >= 0.58 && s.cov_u <= 0.76);
                     CHECK(s.cov_v >= 0.58 && s.cov_v <= 0.76);
                     sum_cov += s.cov_u + s.cov_v;
@@ -675,6 +674,23 @@ static void unc_ensemble_coverage(void)
     CHECK(within(s.med_su, s.rms_u, 1.5) && within(s.med_sv, s.rms_v, 1.5));
 }
 
+/* The systematic floor (unc_bias.c) where it dominates: ensembles of 1.5 px particle images
+ * without noise, whose error is the deformation's interpolation bias (-0.010 px in u, -0.005 in
+ * v, the same in every ensemble); without the term their coverage was 0.08 / 0.30. 8
+ * ensembles of 20 pairs. */
+static void unc_systematic_floor(void)
+{
+    stats s = ens_case(&flows[0], 0, 1.5, 8, 20, 128);
+    print_case("ensemble uniform", 0, 1.5, &s);
+    CHECK(s.n > 380);
+    CHECK(s.cov_u >= 0.6 && s.cov_v >= 0.6);
+    /* sigma at the size of the error, not of the ensemble's random part (0.003-0.004 px);
+     * the model's bias is larger than the error (u 1.3x, v 1.9x: its fitted particle is 6 %
+     * narrow and E2 steep there), so over-covered: 0.88 / 0.88 (docs/uncertainty.md) */
+    CHECK(within(s.med_su, s.rms_u, 2) && within(s.med_sv, s.rms_v, 2));
+    CHECK(s.cov_u <= 0.95 && s.cov_v <= 0.95);
+}
+
 int main(void)
 {
     /* one ensemble case: RPIV_UNC_ENS="flow noise d_tau nens" (flow 0 uniform, 1 shear) */
@@ -693,6 +709,7 @@ int main(void)
     RUN_TEST(unc_whole_run_coverage);
     RUN_TEST(unc_ensemble_deterministic);
     RUN_TEST(unc_ensemble_coverage);
+    RUN_TEST(unc_systematic_floor);
     const char *slow = getenv("RPIV_SLOW_TESTS");
     if (slow && slow[0] == '1')
         RUN_TEST(unc_sweep);
