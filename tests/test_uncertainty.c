@@ -218,7 +218,8 @@ static void unc_sys_instantaneous(void)
     for (size_t q = 0; q < 2; q++)
         for (size_t t = 0; t < 3; t++)
             for (size_t k = 0; k < 3; k++) {
-                unc_model m = {taus[t] / 4, taus[t] / 4, RPIV_DEFORM_SHIFT, 1, RPIV_SUBPIXEL_GAUSS};
+                unc_model m = {taus[t] / 4, taus[t] / 4, RPIV_DEFORM_SHIFT, 1, RPIV_SUBPIXEL_GAUSS,
+                               32,          32};
                 for (int with = 0; with <= 1; with++) {
                     g_sys = with ? &m : NULL;
                     stats s = run_case(&flows[q], noises[k], taus[t],
@@ -683,12 +684,11 @@ static void unc_systematic_floor(void)
     stats s = ens_case(&flows[0], 0, 1.5, 8, 20, 128);
     print_case("ensemble uniform", 0, 1.5, &s);
     CHECK(s.n > 380);
-    CHECK(s.cov_u >= 0.6 && s.cov_v >= 0.6);
-    /* sigma at the size of the error, not of the ensemble's random part (0.003-0.004 px);
-     * the model's bias is larger than the error (u 1.3x, v 1.9x: its fitted particle is 6 %
-     * narrow and E2 steep there), so over-covered: 0.88 / 0.88 (docs/uncertainty.md) */
-    CHECK(within(s.med_su, s.rms_u, 2) && within(s.med_sv, s.rms_v, 2));
-    CHECK(s.cov_u <= 0.95 && s.cov_v <= 0.95);
+    /* the issue's targets: 0.651 / 0.737, median sigma 1.08 / 1.16 of the RMS error; sigma at
+     * the size of the error, not of the ensemble's random part (0.003-0.004 px) */
+    CHECK_NEAR(s.cov_u, 0.68, 0.08);
+    CHECK_NEAR(s.cov_v, 0.68, 0.08);
+    CHECK(within(s.med_su, s.rms_u, 1.5) && within(s.med_sv, s.rms_v, 1.5));
 }
 
 int main(void)

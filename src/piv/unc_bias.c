@@ -9,7 +9,8 @@
  * resampled with the engine's interpolator as rpiv_deform_run does (A at x + c - p/2, B at
  * x + c + p/2, p the predictor, c its sampling shift), else read as they are. Their
  * correlation is separable in x and y, so each axis is a 1-D model and the plane their
- * product; the engine's estimator (rpiv_peak_find) is run on it: bias = estimate - (d - p).
+ * product, each weighted by the window's share of pixel pairs at the shift, 1 - |k| / w;
+ * the engine's estimator (rpiv_peak_find) is run on it: bias = estimate - (d - p).
  * s comes from the measured peak: the model's estimator curvature matched to the field's. */
 #include "peak_impl.h"
 #include "rpiv/deform.h"
@@ -29,7 +30,7 @@ enum {
 };
 
 /* One axis: the correlation at lags k0 - MR .. k0 + MR, k0 = round(d - p). */
-static void model_1d(double s, double d, double p, int deform, double c, int k0,
+static void model_1d(double s, double d, double p, int deform, double c, int k0, int ww,
                      double C[2 * MR + 1])
 {
     float fa[ML * MROWS], fb[ML * MROWS];
@@ -63,6 +64,12 @@ static void model_1d(double s, double d, double p, int deform, double c, int k0,
                     C[l + MR] += a[x] * b[y];
             }
     }
+    /* a window of ww px pairs only ww - |k| of its pixels at the shift k (the particles
+     * uniform over it): the expected correlation is weighted by 1 - |k| / ww */
+    for (int l = -MR; l <= MR && ww > 0; l++) {
+        const double f = 1.0 - fabs((double)(k0 + l)) / ww;
+        C[l + MR] *= f > 0 ? f : 0;
+    }
 }
 
 /* The model plane (lags relative to (k0x, k0y) at its origin, circular) and the estimate. */
@@ -72,8 +79,8 @@ static int model_est(const unc_model *m, double dx, double dy, double px, double
     double cx[2 * MR + 1], cy[2 * MR + 1];
     *k0x = (int)lround(dx - px);
     *k0y = (int)lround(dy - py);
-    model_1d(m->sx, dx, px, m->deform, m->c, *k0x, cx);
-    model_1d(m->sy, dy, py, m->deform, m->c, *k0y, cy);
+    model_1d(m->sx, dx, px, m->deform, m->c, *k0x, m->ww, cx);
+    model_1d(m->sy, dy, py, m->deform, m->c, *k0y, m->wh, cy);
     memset(plane, 0, MW * MW * sizeof *plane);
     for (int l = -MR; l <= MR; l++)
         for (int i = -MR; i <= MR; i++)
@@ -168,8 +175,9 @@ static double median(double *x, size_t n)
 /* Samples of the bias tables over the predictor's period (below). */
 #define UNC_TAB 64
 
-void unc_systematic(const rpiv_field *f, const float *hx, const float *hy, const double *pu,
-                    const double *pv, int deform, double c, float *su, float *sv, int nthreads)
+void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const float *hy,
+                    const double *pu, const double *pv, int deform, double c, float *su, float *sv,
+                    int nthreads)
 {
     const size_t n = (size_t)f->nx * (size_t)f->ny;
     double *q = malloc(6 * (n ? n : 1) * sizeof *q);
@@ -191,7 +199,7 @@ void unc_systematic(const rpiv_field *f, const float *hx, const float *hy, const
     for (int a = 0; a < 6 && m; a++)
         med[a] = median(q + (size_t)a * n, m);
     free(q);
-    unc_model md = {0, 0, deform ? c : 0, deform, RPIV_SUBPIXEL_GAUSS};
+    unc_model md = {0, 0, deform ? c : 0, deform, RPIV_SUBPIXEL_GAUSS, ww, wh};
     if (!m || !unc_model_fit(&md, med[0], med[1], med[2], med[3], med[4], med[5]))
         return;
     /* The bias as a function of one variable per axis, tabulated: with deformation, of the

@@ -99,6 +99,7 @@ typedef struct unc_model {
     double sx, sy, c;
     int deform;
     rpiv_subpixel method;
+    int ww, wh; /* the window, px (the share of pixel pairs at a shift k: 1 - |k| / w); 0: none */
 } unc_model;
 
 /* Set m->sx, m->sy so that the estimator's curvature of ln c at the model's peak (displacement
@@ -114,8 +115,10 @@ int unc_model_bias(const unc_model *m, double dx, double dy, double px, double p
  * systematic floor"), added to su, sv in quadrature: the engine's chain on the model particle
  * whose 3-point curvature is the median of the windows' hx, hy (valid vectors with both < 0),
  * at each vector's displacement and predictor pu, pv (NULL: the vector itself, a converged
- * deforming pass); deform and c as in unc_model, the model's estimator the 3-point Gaussian. */
-void unc_systematic(const rpiv_field *f, const float *hx, const float *hy, const double *pu,
-                    const double *pv, int deform, double c, float *su, float *sv, int nthreads);
+ * deforming pass); ww x wh the windows; deform and c as in unc_model, the model's estimator
+ * the 3-point Gaussian. */
+void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const float *hy,
+                    const double *pu, const double *pv, int deform, double c, float *su, float *sv,
+                    int nthreads);
 
 #endif /* RPIV_SRC_UNCERTAINTY_IMPL_H */
