@@ -4,11 +4,14 @@
  * 0.68 +- 0.08, u and v), the median sigma against the RMS error (within a factor 1.5), and
  * sigma growing with the image noise. Uniform, shear and vortex flows; noise 0-10 %; particle
  * images 1.5-3 px. RPIV_SLOW_TESTS=1 runs the whole sweep of docs/uncertainty.md (a table on
- * stdout). */
+ * stdout); RPIV_SLOW_TESTS=e its ensembles only. */
 #include "check.h"
+#include "peak_impl.h"
 #include "piv_testimg.h"
+#include "rpiv/deform.h"
 #include "rpiv/ensemble.h"
 #include "rpiv/piv.h"
+#include "uncertainty_impl.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -82,6 +85,11 @@ typedef struct acc {
     size_t cap;
 } acc;
 
+/* With g_sys set, acc_field adds to each sigma the systematic term of unc_bias.c (the model
+ * particle g_sys, at the vector's displacement, the predictor taken equal to it): the check
+ * of whether that term would help instantaneous fields (docs/uncertainty.md). */
+static const unc_model *g_sys;
+
 static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
 {
     const rpiv_quantity *qu = rpiv_field_quantity(f, "sigma_u");
@@ -112,6 +120,14 @@ static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
             double u, v;
             fl->fn(fl->user, f->x0 + i * f->dx, f->y0 + j * f->dy, &u, &v);
             double eu = (double)f->u[k] - u, ev = (double)f->v[k] - v;
+            if (g_sys) {
+                double bx, by;
+                if (unc_model_bias(g_sys, (double)f->u[k], (double)f->v[k], (double)f->u[k],
+                                   (double)f->v[k], &bx, &by)) {
+                    qu->data[k] = (float)hypot((double)qu->data[k], bx);
+                    qv->data[k] = (float)hypot((double)qv->data[k], by);
+                }
+            }
             s->cov_u += fabs(eu) <= (double)qu->data[k];
             s->cov_v += fabs(ev) <= (double)qv->data[k];
             s->rms_u += eu * eu;
@@ -192,6 +208,83 @@ static void unc_sweep(void)
                 stats s = run_case(&flows[q], noises[k], taus[t], 1000 + 17 * k + 3 * t, 256, 0, 4);
                 print_case(flows[q].name, noises[k], taus[t], &s);
             }
+}
+
+/* The systematic term on instantaneous fields (not applied by the engine): the whole run's
+ * coverage without and with it, the model particle of the images' own width (d_tau / 4). */
+static void unc_sys_instantaneous(void)
+{
+    const double noises[] = {0, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
+    for (size_t q = 0; q < 2; q++)
+        for (size_t t = 0; t < 3; t++)
+            for (size_t k = 0; k < 3; k++) {
+                unc_model m = {taus[t] / 4, taus[t] / 4, RPIV_DEFORM_SHIFT, 1, RPIV_SUBPIXEL_GAUSS,
+                               32,          32};
+                for (int with = 0; with <= 1; with++) {
+                    g_sys = with ? &m : NULL;
+                    stats s = run_case(&flows[q], noises[k], taus[t],
+                                       300 + 7 * (uint64_t)(t + 3 * k), 256, 0, 4);
+                    print_case(flows[q].name, noises[k], taus[t], &s);
+                    printf("      (%s the systematic term)\n", with ? "with" : "without");
+                }
+                g_sys = NULL;
+            }
+}
+
+/* Where the vortex's error is: RMS error and RMS sigma of the valid vectors by distance from
+ * the centre (16 px bins), the grid's edge rows and columns apart. */
+static void unc_vortex_where(void)
+{
+    const double taus[] = {1.5, 2.0, 3.0};
+    for (int t = 0; t < 3; t++) {
+        enum { NB = 12 };
+        double se[NB + 1] = {0}, ss[NB + 1] = {0}, sc[NB + 1] = {0};
+        int nb[NB + 1] = {0};
+        rpiv_piv *pv = NULL;
+        rpiv_piv_params prm = rpiv_piv_params_default();
+        prm.uncertainty = 1;
+        if (getenv("UNC_NODENOISE"))
+            prm.refine_denoise = 0;
+        if (getenv("UNC_REFINE"))
+            prm.refine_max = atoi(getenv("UNC_REFINE"));
+        CHECK_OK(rpiv_piv_new(&prm, 256, 256, NULL, &pv));
+        float *a = malloc(256 * 256 * sizeof *a), *b = malloc(256 * 256 * sizeof *b);
+        for (int q = 0; pv && a && b && q < 4; q++) {
+            ti_params tp = {256, 256, 0.05, taus[t], 1000, 0.05, 0, 300 + 7 * (uint64_t)t + q};
+            ti_pair(&tp, vortex, NULL, a, b);
+            rpiv_image ia = {256, 256, 16, a}, ib = {256, 256, 16, b};
+            rpiv_field *f = NULL;
+            CHECK_OK(rpiv_piv_run(pv, &ia, &ib, &f));
+            const rpiv_quantity *su = f ? rpiv_field_quantity(f, "sigma_u") : NULL;
+            for (int j = 0; su && j < f->ny; j++)
+                for (int i = 0; i < f->nx; i++) {
+                    const size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+                    if (f->flag[k] != RPIV_FLAG_VALID)
+                        continue;
+                    const double x = f->x0 + i * f->dx, y = f->y0 + j * f->dy;
+                    double u, v;
+                    vortex(NULL, x, y, &u, &v);
+                    const int edge = i == 0 || j == 0 || i == f->nx - 1 || j == f->ny - 1;
+                    int bin = (int)(hypot(x - 128.37, y - 127.81) / 16);
+                    bin = edge ? NB : (bin < NB ? bin : NB - 1);
+                    const double e = (double)f->u[k] - u;
+                    se[bin] += e * e;
+                    ss[bin] += (double)su->data[k] * (double)su->data[k];
+                    sc[bin] += fabs(e) <= (double)su->data[k];
+                    nb[bin]++;
+                }
+            rpiv_field_free(f);
+        }
+        printf("    vortex, 5 %% noise, d_tau %.1f, u: r (px) n RMS-error RMS-sigma coverage\n",
+               taus[t]);
+        for (int k = 0; k <= NB; k++)
+            if (nb[k])
+                printf("      %s%3d %4d %.4f %.4f %.2f\n", k == NB ? "edge " : "r >= ", 16 * k,
+                       nb[k], sqrt(se[k] / nb[k]), sqrt(ss[k] / nb[k]), sc[k] / nb[k]);
+        free(a);
+        free(b);
+        rpiv_piv_free(pv);
+    }
 }
 
 /* Default off: no quantity, and the vectors of a run with the uncertainty are bit for bit those
@@ -420,6 +513,74 @@ static int within(double x, double ref, double factor)
     return x <= factor * ref && x >= ref / factor;
 }
 
+/* The spline estimator's first-order sensitivity (peak_spline_sens) against a Monte Carlo:
+ * a Gaussian peak of width 1.3 px at (0.31, -0.17) px on a 32 x 32 plane, noise added to its
+ * samples (independent, then correlated over neighbouring columns: n(x) = z(x) + z(x+1),
+ * covariance 2 s^2 at lag 0, s^2 at lag 1 in x); the standard deviation of the estimate over
+ * 4000 draws against sqrt(J^T Cov J). */
+static void unc_spline_sensitivity(void)
+{
+    enum { W = 32, NDRAW = 4000 };
+    const double x0 = 0.31, y0 = -0.17, sw = 1.3, amp = 1000, base = 20, sn = 1.5;
+    float clean[W * W], plane[W * W];
+    for (int j = 0; j < W; j++)
+        for (int i = 0; i < W; i++) {
+            const double x = i < W / 2 ? i : i - W, y = j < W / 2 ? j : j - W;
+            const double r2 = (x - x0) * (x - x0) + (y - y0) * (y - y0);
+            clean[j * W + i] = (float)(base + amp * exp(-r2 / (2 * sw * sw)));
+        }
+    double fx, fy;
+    CHECK(peak_fit_spline(clean, W, W, 0, 0, 0, 0, &fx, &fy));
+    peak_sens ps;
+    CHECK(peak_spline_sens(clean, W, W, 0, 0, fx, fy, &ps));
+    CHECK(ps.n == 7);
+    /* the spline through ln(base + Gaussian): close to, not exactly, the truth */
+    CHECK(fabs(fx - x0) < 0.01 && fabs(fy - y0) < 0.01);
+    for (int corr = 0; corr <= 1; corr++) {
+        /* predicted: J^T Cov J over the 7 x 7 samples (columns -3..3 from the peak) */
+        double px = 0, py = 0;
+        for (int a = 0; a < 49; a++)
+            for (int b = 0; b < 49; b++) {
+                const int dxa = a % 7 - b % 7, same_row = a / 7 == b / 7;
+                double c = 0;
+                if (same_row && dxa == 0)
+                    c = corr ? 2 * sn * sn : sn * sn;
+                else if (same_row && abs(dxa) == 1 && corr)
+                    c = sn * sn;
+                px += ps.jx[a] * ps.jx[b] * c;
+                py += ps.jy[a] * ps.jy[b] * c;
+            }
+        uint64_t seed = 4242 + (uint64_t)corr;
+        double mx = 0, my = 0, vx = 0, vy = 0;
+        int ok = 0;
+        for (int d = 0; d < NDRAW; d++) {
+            double z[W * W];
+            for (int k = 0; k < W * W; k++)
+                z[k] = sn * ti_gauss(&seed);
+            for (int j = 0; j < W; j++)
+                for (int i = 0; i < W; i++)
+                    plane[j * W + i] = (float)((double)clean[j * W + i] + z[j * W + i] +
+                                               (corr ? z[j * W + (i + 1) % W] : 0));
+            double ex, ey;
+            if (!peak_fit_spline(plane, W, W, 0, 0, 0, 0, &ex, &ey))
+                continue;
+            ok++;
+            mx += ex;
+            my += ey;
+            vx += ex * ex;
+            vy += ey * ey;
+        }
+        CHECK(ok == NDRAW);
+        mx /= ok;
+        my /= ok;
+        const double sx = sqrt(vx / ok - mx * mx), sy = sqrt(vy / ok - my * my);
+        printf("    %s noise: Monte Carlo sigma x %.5f y %.5f px, first order %.5f %.5f px\n",
+               corr ? "correlated" : "independent", sx, sy, sqrt(px), sqrt(py));
+        /* 4000 draws: the estimated sigma's own spread is 1.1 % */
+        CHECK(within(sx, sqrt(px), 1.05) && within(sy, sqrt(py), 1.05));
+    }
+}
+
 /* The whole default run (and with 3 refinement repeats), every flow and particle image size,
  * 5 and 10 % noise, 4 pairs pooled per case (900 vectors): coverage 0.68 +- 0.08 and RMS sigma
  * within 1.5 of the RMS error, u and v; median sigma within 1.5 of the RMS error where the
@@ -440,10 +601,9 @@ static void unc_whole_run_coverage(void)
                     if (r)
                         printf("      (with %d refinement repeats)\n", refine);
                     CHECK(s.n > 850);
-                    /* the issue's band is 0.68 +- 0.08; since the refinement's denoiser
-                     * became the default (its effect on noise modelled linearly, unc_chain.c)
-                     * two cases sit just below it (u: 0.598 at 5 % noise, 1.5 px, uniform;
-                     * 0.600 with 3 repeats, 5 %, 2 px, shear): asserted at 0.58, reported */
+                    /* the issue's band is 0.68 +- 0.08: every case inside since the
+                     * systematic term (unc_bias.c); the shear with 3 repeats at 5 % and 2 px
+                     * sits at 0.602, asserted at 0.58 and at most 3 outside */
                     CHECK(s.cov_u >= 0.58 && s.cov_u <= 0.76);
                     CHECK(s.cov_v >= 0.58 && s.cov_v <= 0.76);
                     sum_cov += s.cov_u + s.cov_v;
@@ -515,18 +675,49 @@ static void unc_ensemble_coverage(void)
     CHECK(within(s.med_su, s.rms_u, 1.5) && within(s.med_sv, s.rms_v, 1.5));
 }
 
+/* The systematic floor (unc_bias.c) where it dominates: ensembles of 1.5 px particle images
+ * without noise, whose error is the deformation's interpolation bias (-0.010 px in u, -0.005 in
+ * v, the same in every ensemble); without the term their coverage was 0.08 / 0.30. 8
+ * ensembles of 20 pairs. */
+static void unc_systematic_floor(void)
+{
+    stats s = ens_case(&flows[0], 0, 1.5, 8, 20, 128);
+    print_case("ensemble uniform", 0, 1.5, &s);
+    CHECK(s.n > 380);
+    /* the issue's targets: 0.651 / 0.737, median sigma 1.08 / 1.16 of the RMS error; sigma at
+     * the size of the error, not of the ensemble's random part (0.003-0.004 px) */
+    CHECK_NEAR(s.cov_u, 0.68, 0.08);
+    CHECK_NEAR(s.cov_v, 0.68, 0.08);
+    CHECK(within(s.med_su, s.rms_u, 1.5) && within(s.med_sv, s.rms_v, 1.5));
+}
+
 int main(void)
 {
+    /* one ensemble case: RPIV_UNC_ENS="flow noise d_tau nens" (flow 0 uniform, 1 shear) */
+    const char *one = getenv("RPIV_UNC_ENS");
+    int q, nens;
+    double nz, tau;
+    if (one && sscanf(one, "%d %lf %lf %d", &q, &nz, &tau, &nens) == 4 && q >= 0 && q < 2) {
+        stats s = ens_case(&flows[q], nz, tau, nens, 20, 128);
+        print_case(flows[q].name, nz, tau, &s);
+        return check_summary();
+    }
     RUN_TEST(unc_off_by_default);
     RUN_TEST(unc_exact_predictor_is_calibrated);
     RUN_TEST(unc_tracks_the_error);
+    RUN_TEST(unc_spline_sensitivity);
     RUN_TEST(unc_whole_run_coverage);
     RUN_TEST(unc_ensemble_deterministic);
     RUN_TEST(unc_ensemble_coverage);
+    RUN_TEST(unc_systematic_floor);
     const char *slow = getenv("RPIV_SLOW_TESTS");
     if (slow && slow[0] == '1')
         RUN_TEST(unc_sweep);
-    if (slow && slow[0] == '1')
+    if (slow && slow[0] == 'v')
+        RUN_TEST(unc_vortex_where);
+    if (slow && slow[0] == 's')
+        RUN_TEST(unc_sys_instantaneous);
+    if (slow && (slow[0] == '1' || slow[0] == 'e'))
         RUN_TEST(unc_ensemble_sweep);
     return check_summary();
 }

@@ -97,7 +97,7 @@ static void add_plane(void *ctx, const float *plane, const float *colmax, size_t
     if (e->scratch) {
         double us[ENS_UNC_SUMS];
         ens_unc_pair(e, plane, xs, e->scratch + 2 * (size_t)omp_get_thread_num() * e->plane, us);
-        ens_unc_add(e, win, us);
+        ens_unc_add(e, win, us, plane);
     }
     float *sum = e->data + win * e->plane, *energy = e->data + e->nwin * e->plane;
     (void)pu;
@@ -205,8 +205,8 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
  *   predictor  if has_pred: nx, ny (int32), x0, y0, dx, dy, scale_mm_per_px, dt_s (double),
  *              u, v, peak_ratio, corr (nx*ny floats each), flag (nx*ny bytes), then if
  *              flags & CK_PRED_SIGMA its sigma_u, sigma_v (nx*ny floats each)
- *   sums       nsums floats, as rpiv_ensemble_data gives them (with piv.uncertainty, 8
- *              more per window: ensemble_unc.c)
+ *   sums       nsums floats, as rpiv_ensemble_data gives them (with piv.uncertainty,
+ *              ENS_UNC_STRIDE more per window: ensemble_unc.c)
  *   checksum   FNV-1a (base/hash.h) of every byte before it, uint64
  * RPIVENS1 (an accumulator's sums), RPIVCKP1 (the batch's checkpoint), RPIVCKP2 (no
  * length) and RPIVCKP3 (no uncertainty) came before. */
@@ -381,10 +381,10 @@ static rpiv_status check_layout(const reader *r, const file_header *want)
 {
     const file_header *hd = &r->hd;
     if (hd->nsums != want->nsums &&
-        hd->nsums - (uint64_t)hd->nx * (uint64_t)hd->ny * ENS_UNC_SUMS == want->nsums)
+        hd->nsums - (uint64_t)hd->nx * (uint64_t)hd->ny * ENS_UNC_STRIDE == want->nsums)
         return rpiv_fail(RPIV_EFORMAT, "%s: sums made with piv.uncertainty on; this run has it off",
                          r->path);
-    if (hd->nsums + (uint64_t)want->nx * (uint64_t)want->ny * ENS_UNC_SUMS == want->nsums)
+    if (hd->nsums + (uint64_t)want->nx * (uint64_t)want->ny * ENS_UNC_STRIDE == want->nsums)
         return rpiv_fail(RPIV_EFORMAT, "%s: sums made with piv.uncertainty off; this run has it on",
                          r->path);
     if (hd->w != want->w || hd->h != want->h || hd->pass != want->pass || hd->ww != want->ww ||

@@ -24,8 +24,16 @@ struct rpiv_ensemble {
     float *scratch; /* with piv.uncertainty: two planes per thread (ensemble_unc.c), else NULL */
 };
 
-/* Floats per window of the uncertainty's sums (ensemble_unc.c), after the energies. */
+/* One pair's correlation-statistics sums per window (ensemble_unc.c). */
 #define ENS_UNC_SUMS 8
+/* The second moments of the pairs' plane samples within +-ENS_UNC_R px of zero shift (the
+ * upper triangle of the (2R+1)^2 x (2R+1)^2 matrix), per window after the 8 sums. */
+#define ENS_UNC_R 3
+#define ENS_UNC_MOM                                                                                \
+    ((2 * ENS_UNC_R + 1) * (2 * ENS_UNC_R + 1) * ((2 * ENS_UNC_R + 1) * (2 * ENS_UNC_R + 1) + 1) / \
+     2)
+/* Floats per window of the uncertainty's sums, after the energies. */
+#define ENS_UNC_STRIDE (ENS_UNC_SUMS + ENS_UNC_MOM)
 
 /* The floats the uncertainty adds to pass `pass`'s sums: 0 with piv.uncertainty off. */
 size_t ens_unc_floats(const rpiv_piv *pv, int pass);
@@ -35,8 +43,9 @@ size_t ens_unc_floats(const rpiv_piv *pv, int pass);
 void ens_unc_pair(const rpiv_ensemble *e, const float *plane, const rpiv_xcorr_src *xs,
                   float *scratch, double sums[ENS_UNC_SUMS]);
 
-/* Add one pair's sums of window win to e's, in the order of the pairs. */
-void ens_unc_add(rpiv_ensemble *e, size_t win, const double sums[ENS_UNC_SUMS]);
+/* Add one pair's sums of window win to e's, and the second moments of its plane's samples
+ * near zero shift, in the order of the pairs. */
+void ens_unc_add(rpiv_ensemble *e, size_t win, const double sums[ENS_UNC_SUMS], const float *plane);
 
 /* sigma_u, sigma_v of the finished field f of e (validated). */
 RPIV_NODISCARD rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f);

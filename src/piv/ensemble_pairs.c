@@ -64,7 +64,7 @@ static void slot_add(rpiv_ensemble *e, const pair_slot *s)
         energy[2 * win] += (float)s->energy[2 * win];
         energy[2 * win + 1] += (float)s->energy[2 * win + 1];
         if (s->unc)
-            ens_unc_add(e, win, s->unc + win * ENS_UNC_SUMS);
+            ens_unc_add(e, win, s->unc + win * ENS_UNC_SUMS, p);
     }
     e->npairs++;
 }

@@ -172,3 +172,47 @@ int peak_fit_spline(const float *plane, int w, int h, int bi, int bj, double x0,
             return newton(n, L, x, y, fx, fy);
     return 0;
 }
+
+int peak_spline_sens(const float *plane, int w, int h, int bi, int bj, double fx, double fy,
+                     peak_sens *out)
+{
+    double L[NMAX][NMAX];
+    int n = 0;
+    for (int m = NMAX; m >= 5 && !n; m -= 2)
+        if (logs(plane, w, h, bi, bj, m, L))
+            n = m;
+    if (!n)
+        return 0;
+    double f, g[2], H[3];
+    eval(n, L, fx, fy, &f, g, H);
+    const double det = H[0] * H[2] - H[1] * H[1];
+    if (!(H[0] < 0 && det > 0))
+        return 0;
+    /* (fx, fy) must be the spline's maximum (Newton's step from it below 1e-6 px) */
+    const double ix = H[2] / det, ixy = -H[1] / det, iy = H[0] / det; /* H^-1 */
+    if (!(fabs(ix * g[0] + ixy * g[1]) < 1e-6 && fabs(ixy * g[0] + iy * g[1]) < 1e-6))
+        return 0;
+    double wx[NMAX], wxd[NMAX], wxdd[NMAX], wy[NMAX], wyd[NMAX], wydd[NMAX];
+    weights(n, fx, wx, wxd, wxdd);
+    weights(n, fy, wy, wyd, wydd);
+    const int r = (n - 1) / 2;
+    out->n = n;
+    out->hxx = H[0];
+    out->hxy = H[1];
+    out->hyy = H[2];
+    for (int j = 0; j < n; j++) {
+        int row = bj + j - r;
+        row = row < 0 ? row + h : (row >= h ? row - h : row);
+        for (int i = 0; i < n; i++) {
+            int col = bi + i - r;
+            col = col < 0 ? col + w : (col >= w ? col - w : col);
+            const double c = (double)plane[(size_t)row * (size_t)w + (size_t)col];
+            /* d g / d c_ji: g is linear in L, dL_ji = dc_ji / c_ji - dc_0 / c_0, and the
+             * weights of each gradient component sum to 0 (the spline's slope of a constant) */
+            const double gx = wy[j] * wxd[i] / c, gy = wyd[j] * wx[i] / c;
+            out->jx[j * n + i] = -(ix * gx + ixy * gy);
+            out->jy[j * n + i] = -(ixy * gx + iy * gy);
+        }
+    }
+    return 1;
+}

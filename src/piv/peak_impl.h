@@ -18,4 +18,22 @@
 int peak_fit_spline(const float *plane, int w, int h, int bi, int bj, double x0, double y0,
                     double *fx, double *fy);
 
+/* The first-order sensitivity of the spline estimator's maximum to the plane's samples: by
+ * the implicit function theorem on the spline's zero gradient g at the maximum x*,
+ * d x* = -H^-1 d g, and g is linear in the logarithms of the samples (docs/uncertainty.md,
+ * "Ensemble fields"). jx[j n + i], jy[j n + i]: d x* / d c and d y* / d c of sample (i, j) of
+ * the n x n neighbourhood (n = 7 or 5, as peak_fit_spline chose it) centred on (bi, bj);
+ * hxx, hxy, hyy: the spline's Hessian at the maximum (of ln c). */
+typedef struct peak_sens {
+    int n;
+    double hxx, hxy, hyy;
+    double jx[(2 * PEAK_SPLINE_R + 1) * (2 * PEAK_SPLINE_R + 1)];
+    double jy[(2 * PEAK_SPLINE_R + 1) * (2 * PEAK_SPLINE_R + 1)];
+} peak_sens;
+
+/* The sensitivity at (fx, fy), offsets from (bi, bj) that peak_fit_spline returned for the
+ * same plane: 1 and *out; 0 when the spline has no maximum there (its fallback was used). */
+int peak_spline_sens(const float *plane, int w, int h, int bi, int bj, double fx, double fy,
+                     peak_sens *out);
+
 #endif /* RPIV_SRC_PEAK_IMPL_H */

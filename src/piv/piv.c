@@ -714,11 +714,14 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
         double su, sv;
         float *scr =
             c->scratch + 2 * (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
+        double curv[2];
         unc_cs(xs->a, xs->stride_a, xs->b, xs->stride_b, ps->ww, ps->wh,
                (int)lround((double)c->f->u[win] - pu), (int)lround((double)c->f->v[win] - pv_), scr,
-               &su, &sv);
+               &su, &sv, curv);
         c->su[win] = (float)su;
         c->sv[win] = (float)sv;
+        c->su[2 * ps->nwin + win] = (float)curv[0]; /* after the sigmas: the curvatures */
+        c->su[3 * ps->nwin + win] = (float)curv[1];
     }
 }
 
@@ -763,7 +766,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
         /* every pass: the final vectors carry the predictors' noise (docs/uncertainty.md) */
         const size_t nscr = 2 * (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
         c.scratch = scratch = malloc(nscr * sizeof *scratch);
-        cs = calloc(2 * ps->nwin, sizeof *cs);
+        cs = calloc(4 * ps->nwin, sizeof *cs);
         if (!scratch || !cs) {
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
             goto out_free;

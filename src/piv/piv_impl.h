@@ -131,7 +131,8 @@ RPIV_NODISCARD rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *pr
 /* The uncertainty of the vectors of pass `pass` (f, validated; cs its windows' own sigmas, u
  * then v; shift: piv_shift's): the level joins the chain of the passes before it when its
  * predictor is the field the last one returned (`refines`: a repeat, its predictor
- * low-passed); the final pass gets sigma_u, sigma_v (unc_step.c). */
+ * low-passed); the final pass gets sigma_u, sigma_v (unc_step.c). cs: the windows' own
+ * sigmas u, v, then their 3-point curvatures x, y (unc_cs), nwin floats each. */
 RPIV_NODISCARD rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift,
                                                 const rpiv_field *predictor, int refines,
                                                 rpiv_field *f, const float *cs);

@@ -115,13 +115,21 @@ void unc_cs_sums(const float *a, size_t sa, const float *b, size_t sb, int w, in
     cs_dir(a, sa, b, sb, w, h, ix, iy, ma, mb, 0, 1, scratch, sums + 4);
 }
 
+/* ln c- - 2 ln c0 + ln c+, or 0 where a value is not positive. */
+static double curv3(double c0, double cp, double cm)
+{
+    return c0 > 0 && cp > 0 && cm > 0 ? log(cm) - 2 * log(c0) + log(cp) : 0;
+}
+
 void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
-            float *scratch, double *su, double *sv)
+            float *scratch, double *su, double *sv, double curv[2])
 {
     double s[8];
     unc_cs_sums(a, sa, b, sb, w, h, ix, iy, scratch, s);
     *su = unc_cs_sigma(s[0], s[1], s[2], s[3]);
     *sv = unc_cs_sigma(s[4], s[5], s[6], s[7]);
+    curv[0] = curv3(s[0], s[1], s[2]);
+    curv[1] = curv3(s[4], s[5], s[6]);
 }
 
 float *unc_quantity(rpiv_field *f, const char *name)

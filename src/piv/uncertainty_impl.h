@@ -5,6 +5,7 @@
 #define RPIV_SRC_UNCERTAINTY_IMPL_H
 
 #include "rpiv/field.h"
+#include "rpiv/peak.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -17,9 +18,10 @@
 /* The standard uncertainty (1 sigma, px) of the displacement measured on a window pair: a
  * (rows sa floats apart) and b (sb), w x h, the pair as it was correlated (deformed), the
  * correlation peak at the integer shift (ix, iy). scratch holds 2 w h floats. Writes *su, *sv
- * in 0..UNC_SIGMA_MAX. */
+ * in 0..UNC_SIGMA_MAX, and the 3-point curvature of the logarithm of the correlation at the
+ * peak, x then y, to curv (0 where a value is not positive; unc_systematic's width). */
 void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
-            float *scratch, double *su, double *sv);
+            float *scratch, double *su, double *sv, double curv[2]);
 
 /* The sums unc_cs propagates, for one pair: per direction (x, then y) the correlation at the
  * peak's integer shift C0, at +1 and -1 px, and the variance of C+ - C- (sums[8]); scratch
@@ -87,5 +89,36 @@ RPIV_NODISCARD rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field 
  * edge, where the predictor is continued linearly; u_xx, u_yy from the field's second
  * differences inward. f: the final field (grid steps dx, dy px). */
 void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv);
+
+/* ---- the systematic error of the engine's chain on a model particle (unc_bias.c) ---- */
+
+/* The model: pixel-integrated Gaussian particle images of standard deviation sx, sy px;
+ * deform: the pass resamples both frames with the predictor, sampling shift c; method: the
+ * sub-pixel estimator (resolved). */
+typedef struct unc_model {
+    double sx, sy, c;
+    int deform;
+    rpiv_subpixel method;
+    int ww, wh; /* the window, px (the share of pixel pairs at a shift k: 1 - |k| / w); 0: none */
+} unc_model;
+
+/* Set m->sx, m->sy so that the estimator's curvature of ln c at the model's peak (displacement
+ * (dx, dy), predictor (px, py)) equals the measured hx, hy (< 0). 0 if it cannot. */
+int unc_model_fit(unc_model *m, double hx, double hy, double dx, double dy, double px, double py);
+
+/* The systematic error (estimate - truth, px) of the engine's chain on the model at
+ * displacement (dx, dy) and predictor (px, py): 1 and *bx, *by, or 0 (no fit). */
+int unc_model_bias(const unc_model *m, double dx, double dy, double px, double py, double *bx,
+                   double *by);
+
+/* The systematic term of a final field f's valid vectors (docs/uncertainty.md, "The
+ * systematic floor"), added to su, sv in quadrature: the engine's chain on the model particle
+ * whose 3-point curvature is the median of the windows' hx, hy (valid vectors with both < 0),
+ * at each vector's displacement and predictor pu, pv (NULL: the vector itself, a converged
+ * deforming pass); ww x wh the windows; deform and c as in unc_model, the model's estimator
+ * the 3-point Gaussian. */
+void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const float *hy,
+                    const double *pu, const double *pv, int deform, double c, float *su, float *sv,
+                    int nthreads);
 
 #endif /* RPIV_SRC_UNCERTAINTY_IMPL_H */
