@@ -87,7 +87,7 @@ RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *pr
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
 /* Shrink the detail of a grid field above its [1/4, 1/2, 1/4] smoothing, along x then y, with
  * a threshold from the field's own noise level (src/piv/refine_filter.c). */
-RPIV_NODISCARD rpiv_status piv_pred_denoise(rpiv_field *f);
+RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

@@ -1,10 +1,12 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* src/piv/refine_filter.c - the denoiser of the refinement's predictor (docs/piv.md,
- * "Refinement at the final size"): the field split, line by line along x and then along y,
- * into a [1/4, 1/2, 1/4] smoothing and its detail, the detail shrunk (non-negative garrote)
- * with a threshold set from the field's own noise level, sigma sqrt(2 ln n) (Donoho and
- * Johnstone's universal threshold), sigma the median absolute detail / 0.6745 along the grid
- * direction where it is smallest. */
+ * "Refinement at the final size"): at dilations 1, 2 and 4 grid steps in turn (an a-trous
+ * split), the field split, line by line along x and then along y, into a [1/4, 1/2, 1/4]
+ * smoothing and its detail, the detail shrunk (non-negative garrote) with a threshold set from
+ * the field's own noise level, sigma sqrt(2 ln n) (Donoho and Johnstone's universal
+ * threshold), sigma the median absolute detail / 0.6745 along the grid direction where it is
+ * smallest, at the coarser dilations at most what the first one's sigma predicts for the
+ * noise of a window average. */
 #include "piv_impl.h"
 
 #include "rpiv/deform.h"
@@ -40,16 +42,17 @@ static double median_of(double *v, size_t n)
     return n % 2 ? hi : 0.5 * (gsl_stats_select(v, 1, n, n / 2 - 1) + hi);
 }
 
-/* Noise level of one component: the smallest over the four grid directions (x, y and the
- * diagonals) of the median absolute inner detail / 0.6745. A shear or wave along one
- * direction has no detail across it, so at least one direction sees the noise alone. */
-static double noise_sigma(const float *g, int nx, int ny, double *buf)
+/* Noise level of one component at dilation `step` (grid steps between the samples of a
+ * detail): the smallest over the four grid directions (x, y and the diagonals) of the median
+ * absolute inner detail / 0.6745. A shear or wave along one direction has no detail across
+ * it, so at least one direction sees the noise alone. */
+static double noise_sigma(const float *g, int nx, int ny, int step, double *buf)
 {
-    const ptrdiff_t sx = 1, sy = nx;
+    const ptrdiff_t sx = step, sy = (ptrdiff_t)step * nx;
     const ptrdiff_t dirs[4] = {sx, sy, sy + sx, sy - sx};
     double best = (double)INFINITY;
     for (int d = 0; d < 4; d++) {
-        const int ix = d != 1, iy = d != 0; /* an inner sample along x, along y */
+        const int ix = d != 1 ? step : 0, iy = d != 0 ? step : 0; /* inner along x, along y */
         size_t m = 0;
         for (int j = iy; j < ny - iy; j++)
             for (int i = ix; i < nx - ix; i++) {
@@ -82,7 +85,82 @@ static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, double
     }
 }
 
-rpiv_status piv_pred_denoise(rpiv_field *f)
+/* Shrink, at dilation `step`, the lines along one axis (n samples a line at stride s, count
+ * lines at stride ls): each line split into its `step` interleaved sub-lines. */
+static void shrink_axis(float *g, int count, int n, size_t s, size_t ls, int step, double t,
+                        double *line)
+{
+    for (int o = 0; o < step; o++) {
+        const int m = (n - o + step - 1) / step;
+        if (m >= 3)
+            shrink_lines(g + (size_t)o * s, count, m, s * (size_t)step, ls, t, line);
+    }
+}
+
+/* Levels of the denoiser: details at dilations 1, 2, 4 grid steps. In the linear picture of
+ * the iteration (docs/piv.md) the repeat keeps (1 - H) G of the predictor's noise and adds the
+ * same measurement noise again, so the fixed point's noise is e / (1 - (1 - H) G): with the
+ * window's response H (top hat, 50 % overlap) and the noise's G the product of the levels'
+ * smoothings, the largest (1 - H) G is 0.18 with one level (at 3.8 grid steps a wavelength),
+ * 0.051 with two and 0.014 with three. */
+enum { LEVELS = 3, NF = 32 };
+
+/* The noise model of a level: the standard deviation of the detail at dilation 2^level of a
+ * field whose noise has the power spectrum of a top-hat window average, |H|^2, H =
+ * sinc(w rx / 2) sinc(w ry / 2) (rx, ry: the window over the grid step), after the
+ * [1/4, 1/2, 1/4] smoothings of the levels before it along x and y; the smallest of the four
+ * grid directions. Mean over an NF x NF grid of frequencies (radians per grid step). */
+static double model_detail(int level, double rx, double ry)
+{
+    double px[NF], py[NF], a[NF], c[NF], sn[NF];
+    const double st = (double)(1 << level);
+    for (int i = 0; i < NF; i++) {
+        const double w = M_PI * (2.0 * (i + 0.5) / NF - 1.0);
+        const double hx = sin(0.5 * w * rx) / (0.5 * w * rx),
+                     hy = sin(0.5 * w * ry) / (0.5 * w * ry);
+        px[i] = hx * hx;
+        py[i] = hy * hy;
+        a[i] = 1; /* the smoothings of the levels before, one axis */
+        for (int l = 0; l < level; l++)
+            a[i] *= 0.5 * (1 + cos(w * (double)(1 << l)));
+        c[i] = cos(w * st);
+        sn[i] = sin(w * st);
+    }
+    double best = (double)INFINITY;
+    for (int d = 0; d < 4; d++) {
+        double sum = 0;
+        for (int j = 0; j < NF; j++)
+            for (int i = 0; i < NF; i++) {
+                /* cos of the detail's phase: along x, y, x + y, x - y */
+                const double cp = d == 0   ? c[i]
+                                  : d == 1 ? c[j]
+                                  : d == 2 ? c[i] * c[j] - sn[i] * sn[j]
+                                           : c[i] * c[j] + sn[i] * sn[j];
+                const double k = a[i] * a[j] * 0.5 * (1 - cp);
+                sum += k * k * px[i] * py[j];
+            }
+        const double sd = sqrt(sum / (NF * NF));
+        best = sd < best ? sd : best;
+    }
+    return best;
+}
+
+/* The pass whose grid the predictor is on (-1 if none). */
+static int pred_pass(const rpiv_piv *pv, const rpiv_field *predictor)
+{
+    /* piv_shift (src/piv/piv.c) spelled out: this file calls nothing there */
+    for (int j = 0; j < pv->npass; j++) {
+        const piv_pass *ps = &pv->pass[j];
+        const double c = j > 0 && pv->deforms ? RPIV_DEFORM_SHIFT : 0.0;
+        if (ps->nx == predictor->nx && ps->ny == predictor->ny && ps->sx == predictor->dx &&
+            ps->sy == predictor->dy && ps->ox + 0.5 * (ps->ww - 1) + c == predictor->x0 &&
+            ps->oy + 0.5 * (ps->wh - 1) + c == predictor->y0)
+            return j;
+    }
+    return -1;
+}
+
+rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f)
 {
     const int nx = f->nx, ny = f->ny;
     const size_t n = (size_t)nx * (size_t)ny;
@@ -93,34 +171,37 @@ rpiv_status piv_pred_denoise(rpiv_field *f)
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor denoiser");
     double *line = buf + n;
     const double universal = sqrt(2.0 * log((double)n));
-    for (int comp = 0; comp < 2; comp++) {
-        float *g = comp ? f->v : f->u;
-        double sigma = noise_sigma(g, nx, ny, buf);
-        if (!isfinite(sigma))
-            continue;
-        const double t = sigma * universal;
-        if (nx >= 3)
-            shrink_lines(g, ny, nx, 1, (size_t)nx, t, line);
-        if (ny >= 3)
-            shrink_lines(g, nx, ny, (size_t)nx, 1, t, line);
-    }
+    const int j = pred_pass(pv, f);
+    const double rx = j >= 0 ? pv->pass[j].ww / (double)f->dx : 2,
+                 ry = j >= 0 ? pv->pass[j].wh / (double)f->dy : 2;
+    double ratio[LEVELS], sigma1[2] = {(double)INFINITY, (double)INFINITY};
+    for (int lev = 0; lev < LEVELS; lev++)
+        ratio[lev] = model_detail(lev, rx, ry);
+    for (int lev = 0, step = 1; lev < LEVELS; lev++, step *= 2)
+        for (int comp = 0; comp < 2; comp++) {
+            float *g = comp ? f->v : f->u;
+            double sigma = noise_sigma(g, nx, ny, step, buf);
+            if (lev == 0)
+                sigma1[comp] = sigma;
+            else if (isfinite(sigma1[comp])) /* a smooth flow's own detail is no noise */
+                sigma = fmin(sigma, sigma1[comp] * ratio[lev] / ratio[0]);
+            if (!isfinite(sigma))
+                continue;
+            const double t = sigma * universal;
+            shrink_axis(g, ny, nx, 1, (size_t)nx, step, t, line);
+            shrink_axis(g, nx, ny, (size_t)nx, 1, step, t, line);
+        }
     free(buf);
     return RPIV_OK;
 }
 
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
 {
-    /* piv_shift and piv_repeats (src/piv/piv.c) spelled out: this file calls nothing there */
-    for (int j = 0; j < pv->npass; j++) {
-        const piv_pass *ps = &pv->pass[j];
-        const double c = j > 0 && pv->deforms ? RPIV_DEFORM_SHIFT : 0.0;
-        if (ps->nx == predictor->nx && ps->ny == predictor->ny && ps->sx == predictor->dx &&
-            ps->sy == predictor->dy && ps->ox + 0.5 * (ps->ww - 1) + c == predictor->x0 &&
-            ps->oy + 0.5 * (ps->wh - 1) + c == predictor->y0) {
-            const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
-            return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
-                   pv->pass[k].wh == pv->pass[k - 1].wh;
-        }
-    }
-    return 0;
+    /* piv_repeats (src/piv/piv.c) spelled out for the pass the predictor feeds */
+    const int j = pred_pass(pv, predictor);
+    if (j < 0)
+        return 0;
+    const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
+    return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
+           pv->pass[k].wh == pv->pass[k - 1].wh;
 }
