@@ -45,7 +45,9 @@ static double median_of(double *v, size_t n)
 /* Noise level of one component at dilation `step` (grid steps between the samples of a
  * detail): the smallest over the four grid directions (x, y and the diagonals) of the median
  * absolute inner detail / 0.6745. A shear or wave along one direction has no detail across
- * it, so at least one direction sees the noise alone. */
+ * it, so at least one direction sees the noise alone. The details of a dilation are taken
+ * every `step` nodes along x and y: closer ones share their samples' noise (and cost the
+ * time of 1 + 1/4 + 1/16 of one level instead of three). */
 static double noise_sigma(const float *g, int nx, int ny, int step, double *buf)
 {
     const ptrdiff_t sx = step, sy = (ptrdiff_t)step * nx;
@@ -54,8 +56,8 @@ static double noise_sigma(const float *g, int nx, int ny, int step, double *buf)
     for (int d = 0; d < 4; d++) {
         const int ix = d != 1 ? step : 0, iy = d != 0 ? step : 0; /* inner along x, along y */
         size_t m = 0;
-        for (int j = iy; j < ny - iy; j++)
-            for (int i = ix; i < nx - ix; i++) {
+        for (int j = iy; j < ny - iy; j += step)
+            for (int i = ix; i < nx - ix; i += step) {
                 const float *c = g + (size_t)j * (size_t)nx + (size_t)i;
                 buf[m++] =
                     fabs(2.0 * (double)c[0] - (double)c[-dirs[d]] - (double)c[dirs[d]]) / 4.0;
