@@ -71,7 +71,7 @@ out_free:
 
 /* The default settings on 1.5 px particles at SNR 10 and 0.05 ppp (~50 particles per 32 px
  * window): the issue's targets, RMS <= 0.055 px and peak-locking <= 0.015 px (measured
- * 0.045 and 0.010 px over 3 seeds). */
+ * 0.0338 and 0.0107 px; session 5's one-level denoiser 0.0369 px). */
 static void noise_default_settings_meet_the_target_at_005_ppp(void)
 {
     rpiv_piv_params prm = rpiv_piv_params_default();
@@ -88,7 +88,9 @@ static void noise_default_settings_meet_the_target_at_005_ppp(void)
  * those of session 4 (refine_max 0, no denoiser, no line test: the listed third pass deformed
  * by the raw second-pass field, which counted the window-scale noise twice: 0.078 px at 0.02
  * ppp over 3 seeds and shifts 0..2, docs/deform.md). The target is met at 0.03 ppp; at 0.02 ppp
- * one 32 px correlation alone is at 0.058 px, so it is not, but the repeat no longer adds. */
+ * one 32 px correlation alone is at 0.058 px, so it is not, but the repeats no longer add:
+ * measured 0.0452 and 0.0586 px (session 5's one-level denoiser 0.0493 and 0.0640 px, whose
+ * repeats kept up to 18 % of the window-scale noise: docs/piv.md), session 4's 0.0767 px. */
 static void noise_defaults_at_003_and_002_ppp(void)
 {
     rpiv_piv_params prm = rpiv_piv_params_default();
@@ -104,7 +106,8 @@ static void noise_defaults_at_003_and_002_ppp(void)
            "(session 4's defaults %.4f px); peak-locking %.4f %.4f %.4f px\n",
            s3.rms, s2.rms, o2.rms, s3.locking, s2.locking, o2.locking);
     CHECK(s3.rms <= 0.055 && s3.locking <= 0.015);
-    CHECK(s2.rms < 0.9 * o2.rms && s2.locking <= 0.015);
+    CHECK(s2.rms < 0.8 * o2.rms && s2.locking <= 0.015);
+    CHECK(s2.rms <= 0.060); /* at the floor of one 32 px correlation (0.058 px), not above */
 }
 
 int main(void)

@@ -318,7 +318,10 @@ static void piv_lamb_oseen_vortex_has_few_outliers(void)
                "%d replaced, RMS %.4f %.4f px\n",
                e.n, e.outliers, e.replaced, e.rms_u, e.rms_v);
         CHECK(e.outliers < 0.005 * e.n);
-        CHECK(e.rms_u < 0.1 && e.rms_v < 0.1);
+        /* measured 0.0259 / 0.0230 px; session 5's one-level denoiser 0.0244 / 0.0209, the
+         * three levels with caps from the second differences' noise 0.0304 / 0.0300 (the
+         * vortex's own detail set them: docs/piv.md) */
+        CHECK(e.rms_u < 0.028 && e.rms_v < 0.028);
     }
     rpiv_field_free(f);
     pair_free(&p);

@@ -147,12 +147,70 @@ static void refine_recovers_shears_by_default(void)
     }
 }
 
+/* The RMS error of field f against the flow (no result struct: for the step-by-step runs). */
+static double field_rms(const rpiv_field *f, ti_flow_fn fn, void *user)
+{
+    double s2 = 0;
+    for (int j = 0; j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+            double u, v;
+            fn(user, f->x0 + i * f->dx, f->y0 + j * f->dy, &u, &v);
+            s2 += ((double)f->u[k] - u) * ((double)f->u[k] - u) +
+                  ((double)f->v[k] - v) * ((double)f->v[k] - v);
+        }
+    return sqrt(s2 / (f->nx * f->ny));
+}
+
+/* The listed passes 64, 32 and then `reps` repeats of the 32 px pass, step by step, as
+ * rpiv_piv_passes runs them without its stops: the RMS error of the 64, 32 field (*first) and
+ * the largest RMS error of the repeats (returned). */
+static double worst_repeat(const pair *p, ti_flow_fn fn, void *user, int reps, double *first)
+{
+    rpiv_piv_params d = rpiv_piv_params_default();
+    rpiv_piv *pv = NULL;
+    rpiv_field *prev = NULL, *f = NULL;
+    double worst = NAN;
+    *first = NAN;
+    CHECK_OK(rpiv_piv_new(&d, p->w, p->h, NULL, &pv));
+    if (!pv || rpiv_piv_load(pv, &p->ia, &p->ib))
+        goto out_free;
+    CHECK_OK(rpiv_piv_step(pv, 0, NULL, &f));
+    if (!f)
+        goto out_free;
+    CHECK_OK(rpiv_piv_step(pv, 1, f, &prev));
+    rpiv_field_free(f);
+    f = NULL;
+    if (!prev)
+        goto out_free;
+    *first = field_rms(prev, fn, user);
+    worst = 0;
+    for (int k = 0; k < reps; k++) {
+        CHECK_OK(rpiv_piv_step(pv, 2, prev, &f));
+        if (!f) {
+            worst = NAN;
+            break;
+        }
+        worst = fmax(worst, field_rms(f, fn, user));
+        rpiv_field_free(prev);
+        prev = f;
+        f = NULL;
+    }
+out_free:
+    rpiv_field_free(prev);
+    rpiv_piv_free(pv);
+    return worst;
+}
+
 /* lambda = W: the window's response is nil there, so the iteration cannot recover the wave
  * and must not amplify it or its own noise. Phase pi/2: the grid samples the crests, +-1 px
- * (measured: amplitude -0.001, RMS error 1.0115 px, 1.0119 px after 15 repeats; session 4's
- * 3 passes 1.0135 px). Phase 0: the truth is 0 at the grid, the error is the noise the
- * wave leaves (measured 0.1624 px, 0.1633 px after 13 repeats, against 0.1601 px without
- * repeats and 0.1863 px with session 4's 3 passes: a growth of 1.4 % and 2.0 %, not nil). */
+ * (measured: amplitude -0.000, RMS error 1.0082 px with the defaults and after 20 repeats;
+ * session 4's 3 passes 1.0135 px). Phase 0: the truth is 0 at the grid, the error is the
+ * noise the wave leaves (measured: 0.1465 px after 64, 32; 0.1422 px with the defaults and
+ * after every one of 20 repeats; session 5's one-level denoiser grew it to 0.1638 px, because
+ * its predictor kept half of the noise at 4 grid steps a wavelength, which the repeat, blind
+ * to a third of it, measured again: docs/piv.md). The error must not grow with the repeats:
+ * no repeat's error above that of the 64, 32 field it starts from. */
 static void refine_is_stable_at_the_window_size(void)
 {
     const rpiv_piv_params d = rpiv_piv_params_default();
@@ -169,6 +227,7 @@ static void refine_is_stable_at_the_window_size(void)
         pair_make(&p, 512, 512, 99, shear, &s);
         result r = run(&d, &p, shear, &s), r0 = run(&none, &p, shear, &s),
                r20 = run(&more, &p, shear, &s), old = run(&prev, &p, shear, &s);
+        double first, worst = worst_repeat(&p, shear, &s, 20, &first);
         char what[4][64];
         const char *tag = crest ? "crests" : "zeros";
         snprintf(what[0], 64, "1 px, lambda 32 px, %s, defaults:", tag);
@@ -179,12 +238,15 @@ static void refine_is_stable_at_the_window_size(void)
         print(what[1], &r0);
         print(what[2], &r20);
         print(what[3], &old);
-        if (crest) {
+        printf("    1 px, lambda 32 px, %s: RMS error after 64, 32 %.4f px, worst of 20 repeats "
+               "%.4f px\n",
+               tag, first, worst);
+        if (crest)
             CHECK(fabs(r.amp) <= 0.05 && fabs(r20.amp) <= 0.05); /* H = 0: nothing, not more */
-            CHECK(r.rms <= r0.rms * 1.002 && r20.rms <= r0.rms * 1.002);
-        } else {
-            CHECK(r.rms <= r0.rms * 1.03 && r20.rms <= r0.rms * 1.03);
-        }
+        /* no growth: not above the field the repeats start from (0.1 % for float rounding) */
+        CHECK(worst <= first * 1.001);
+        CHECK(r.rms <= first * 1.001 && r20.rms <= first * 1.001);
+        CHECK(r20.rms <= r0.rms * 1.001);
         CHECK(r.rms < old.rms);
         pair_free(&p);
     }

@@ -430,7 +430,8 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise) */
     const int denoise = pv->p.refine_denoise && piv_pred_repeats(pv, predictor);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
-        !(filter > 0 && (st = pred_filter(f, filter))) && !(denoise && (st = piv_pred_denoise(f))))
+        !(filter > 0 && (st = pred_filter(f, filter))) &&
+        !(denoise && (st = piv_pred_denoise(pv, f))))
         st = rpiv_deform_pred_new(f, pv->w, pv->h, shift, out);
     rpiv_field_free(f);
     return st;

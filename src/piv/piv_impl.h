@@ -85,9 +85,11 @@ RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *pr
  * (the grid is that of pass j, and pass j + 1, or the last pass itself, repeats)? Such
  * predictors are denoised with refine_denoise (src/piv/refine_filter.c). */
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
-/* Shrink the detail of a grid field above its [1/4, 1/2, 1/4] smoothing, along x then y, with
- * a threshold from the field's own noise level (src/piv/refine_filter.c). */
-RPIV_NODISCARD rpiv_status piv_pred_denoise(rpiv_field *f);
+/* Shrink the detail of a grid field above its smoothing, along x then y, at dilations 1, 2
+ * and 4 grid steps (second differences at 1 and 4, the fourth at 2), with thresholds from the
+ * field's own noise level (pv: the window of the pass the field's grid belongs to;
+ * src/piv/refine_filter.c). */
+RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

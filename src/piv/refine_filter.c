@@ -1,10 +1,13 @@
 /* SPDX-License-Identifier: GPL-3.0-or-later */
 /* src/piv/refine_filter.c - the denoiser of the refinement's predictor (docs/piv.md,
- * "Refinement at the final size"): the field split, line by line along x and then along y,
- * into a [1/4, 1/2, 1/4] smoothing and its detail, the detail shrunk (non-negative garrote)
- * with a threshold set from the field's own noise level, sigma sqrt(2 ln n) (Donoho and
- * Johnstone's universal threshold), sigma the median absolute detail / 0.6745 along the grid
- * direction where it is smallest. */
+ * "Refinement at the final size"): at dilations 1, 2 and 4 grid steps in turn (an a-trous
+ * split), the field split, line by line along x and then along y, into a smoothing and its
+ * detail (the second difference at dilations 1 and 4, the fourth at 2), the detail shrunk
+ * (non-negative garrote) with a threshold set from the field's own noise level, sigma
+ * sqrt(2 ln n) (Donoho and Johnstone's universal threshold), sigma the median absolute detail
+ * / 0.6745 along the grid direction where it is smallest, at the coarser dilations at most
+ * what the noise of a window average gives there, scaled from a noise level that a smooth
+ * flow's own detail cannot raise (that of the fourth differences at dilation 1). */
 #include "piv_impl.h"
 
 #include "rpiv/deform.h"
@@ -30,6 +33,31 @@ static double detail(const float *g, int n, size_t s, int i)
     return (2.0 * (double)c[0] - (double)c[-(ptrdiff_t)s] - (double)c[s]) / 4.0;
 }
 
+/* Sample i of a line of n samples (stride s), the line continued past its ends by odd
+ * reflection about the end samples (U_-i = 2 U_0 - U_i): linear fields continue linearly. */
+static double reflected(const float *g, int n, size_t s, int i)
+{
+    if (i < 0)
+        return 2.0 * (double)g[0] - (double)g[(size_t)(-i) * s];
+    if (i >= n)
+        return 2.0 * (double)g[(size_t)(n - 1) * s] - (double)g[(size_t)(2 * (n - 1) - i) * s];
+    return (double)g[(size_t)i * s];
+}
+
+/* Fourth-order detail of sample i of a line of n >= 5 samples (stride s): U_i minus its
+ * smoothing [-1/16, 1/4, 5/8, 1/4, -1/16], (6 U_i - 4 (U_i-1 + U_i+1) + U_i-2 + U_i+2) / 16,
+ * response ((1 - cos w) / 2)^2: 1 at 2 samples a wavelength as the second difference's, but
+ * w^4 / 16 instead of w^2 / 4 for long waves, and nil on cubics. With the odd reflection it
+ * is 0 at the end samples (left as they are) and (5 U_1 - 2 U_0 - 4 U_2 + U_3) / 16 at the
+ * second ones, whose white-noise share is sqrt(46 / 70) of the inner one's. */
+static double detail4(const float *g, int n, size_t s, int i)
+{
+    return (6.0 * reflected(g, n, s, i) -
+            4.0 * (reflected(g, n, s, i - 1) + reflected(g, n, s, i + 1)) +
+            reflected(g, n, s, i - 2) + reflected(g, n, s, i + 2)) /
+           16.0;
+}
+
 /* The median of v[0..n-1] (rearranged): GSL's quickselect, linear in n (the sort it replaces
  * took 7 % of a default 2560 x 2160 run); the same value as the sort's. */
 static double median_of(double *v, size_t n)
@@ -40,22 +68,31 @@ static double median_of(double *v, size_t n)
     return n % 2 ? hi : 0.5 * (gsl_stats_select(v, 1, n, n / 2 - 1) + hi);
 }
 
-/* Noise level of one component: the smallest over the four grid directions (x, y and the
- * diagonals) of the median absolute inner detail / 0.6745. A shear or wave along one
- * direction has no detail across it, so at least one direction sees the noise alone. */
-static double noise_sigma(const float *g, int nx, int ny, double *buf)
+/* Noise level of one component at dilation `step` (grid steps between the samples of a
+ * detail) for the detail of the given order (2 or 4): the smallest over the four grid
+ * directions (x, y and the diagonals) of the median absolute inner detail / 0.6745. A shear
+ * or wave along one direction has no detail across it, so at least one direction sees the
+ * noise alone. The details of a dilation are taken every `step` nodes along x and y: closer
+ * ones share their samples' noise (and cost the time of 1 + 1/4 + 1/16 of one level instead
+ * of three). */
+static double noise_sigma(const float *g, int nx, int ny, int step, int order, double *buf)
 {
-    const ptrdiff_t sx = 1, sy = nx;
+    const ptrdiff_t sx = step, sy = (ptrdiff_t)step * nx;
     const ptrdiff_t dirs[4] = {sx, sy, sy + sx, sy - sx};
     double best = (double)INFINITY;
     for (int d = 0; d < 4; d++) {
-        const int ix = d != 1, iy = d != 0; /* an inner sample along x, along y */
+        const int r = order == 4 ? 2 * step : step;         /* the stencil's reach */
+        const int ix = d != 1 ? r : 0, iy = d != 0 ? r : 0; /* inner along x, along y */
+        const ptrdiff_t e = dirs[d];
         size_t m = 0;
-        for (int j = iy; j < ny - iy; j++)
-            for (int i = ix; i < nx - ix; i++) {
+        for (int j = iy; j < ny - iy; j += step)
+            for (int i = ix; i < nx - ix; i += step) {
                 const float *c = g + (size_t)j * (size_t)nx + (size_t)i;
+                const double c0 = c[0], c1 = (double)c[-e] + (double)c[e];
                 buf[m++] =
-                    fabs(2.0 * (double)c[0] - (double)c[-dirs[d]] - (double)c[dirs[d]]) / 4.0;
+                    order == 4
+                        ? fabs(6.0 * c0 - 4.0 * c1 + (double)c[-2 * e] + (double)c[2 * e]) / 16.0
+                        : fabs(2.0 * c0 - c1) / 4.0;
             }
         if (m >= 8) {
             double s = median_of(buf, m) / 0.6745;
@@ -65,16 +102,20 @@ static double noise_sigma(const float *g, int nx, int ny, double *buf)
     return best;
 }
 
-/* Shrink the details of the lines of g (count lines, n samples each, sample stride s, line
- * stride ls) with threshold t (t * 2/3 at the ends, whose detail has 2/3 of the noise). */
-static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, double t, double *line)
+/* Shrink the details of the given order (2 or 4) of the lines of g (count lines, n samples
+ * each, sample stride s, line stride ls) with threshold t (order 2: t * 2/3 at the ends,
+ * whose detail has 2/3 of the noise; order 4: t * sqrt(46/70) next to them). */
+static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, int order, double t,
+                         double *line)
 {
+    const double te = order == 4 ? t * sqrt(46.0 / 70.0) : t * (2.0 / 3.0);
+    const int ie = order == 4; /* the sample with the end threshold: 0 or 1 from either end */
     for (int l = 0; l < count; l++) {
         float *r = g + (size_t)l * ls;
         for (int i = 0; i < n; i++)
-            line[i] = detail(r, n, s, i);
+            line[i] = order == 4 ? detail4(r, n, s, i) : detail(r, n, s, i);
         for (int i = 0; i < n; i++) {
-            double d = line[i], ti = (i == 0 || i == n - 1) ? t * (2.0 / 3.0) : t;
+            double d = line[i], ti = (i == ie || i == n - 1 - ie) ? te : t;
             /* non-negative garrote: d - t^2 / d above the threshold, 0 below */
             double kept = fabs(d) > ti ? d - ti * ti / d : 0;
             r[(size_t)i * s] = (float)((double)r[(size_t)i * s] - d + kept);
@@ -82,7 +123,89 @@ static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, double
     }
 }
 
-rpiv_status piv_pred_denoise(rpiv_field *f)
+/* Shrink, at dilation `step`, the lines along one axis (n samples a line at stride s, count
+ * lines at stride ls): each line split into its `step` interleaved sub-lines. */
+static void shrink_axis(float *g, int count, int n, size_t s, size_t ls, int step, int order,
+                        double t, double *line)
+{
+    for (int o = 0; o < step; o++) {
+        const int m = (n - o + step - 1) / step;
+        if (m >= (order == 4 ? 5 : 3))
+            shrink_lines(g + (size_t)o * s, count, m, s * (size_t)step, ls, order, t, line);
+    }
+}
+
+/* Levels of the denoiser: details at dilations 1, 2, 4 grid steps. In the linear picture of
+ * the iteration (docs/piv.md) the repeat keeps (1 - H) G of the predictor's noise and adds the
+ * same measurement noise again, so the fixed point's noise is e / (1 - (1 - H) G): with the
+ * window's response H (top hat, 50 % overlap) and the noise's G the product of the levels'
+ * smoothings, the largest (1 - H) G is 0.18 with one level (at 3.8 grid steps a wavelength),
+ * 0.014 with three second differences and 0.022 with the fourth at dilation 2. That level is
+ * there for the noise at 4 grid steps a wavelength, where both details are the whole field;
+ * for a smooth flow's longer waves the fourth difference's detail is 1/2 (8 steps) to 1/7
+ * (16 steps) of the second's, below no threshold it was above (session 6: lambda = 4 W RMS
+ * 0.078 px instead of 0.082, the response at 1.5 W 0.93 instead of 0.89 over three pairs). */
+enum { LEVELS = 3, NF = 32 };
+static const int ORDER[LEVELS] = {2, 4, 2};
+
+/* The noise model of a level: the standard deviation of the detail of the given order at
+ * dilation 2^level of a field whose noise has the power spectrum of a top-hat window average,
+ * |H|^2, H = sinc(w rx / 2) sinc(w ry / 2) (rx, ry: the window over the grid step), after the
+ * smoothings of the levels before it along x and y; the smallest of the four grid directions.
+ * Mean over an NF x NF grid of frequencies (radians per grid step). */
+static double model_detail(int level, int order, double rx, double ry)
+{
+    double px[NF], py[NF], a[NF], c[NF], sn[NF];
+    const double st = (double)(1 << level);
+    for (int i = 0; i < NF; i++) {
+        const double w = M_PI * (2.0 * (i + 0.5) / NF - 1.0);
+        const double hx = sin(0.5 * w * rx) / (0.5 * w * rx),
+                     hy = sin(0.5 * w * ry) / (0.5 * w * ry);
+        px[i] = hx * hx;
+        py[i] = hy * hy;
+        a[i] = 1; /* the smoothings of the levels before, one axis */
+        for (int l = 0; l < level; l++) {
+            const double q = 0.5 * (1 - cos(w * (double)(1 << l))); /* the second's detail */
+            a[i] *= ORDER[l] == 4 ? 1 - q * q : 1 - q;
+        }
+        c[i] = cos(w * st);
+        sn[i] = sin(w * st);
+    }
+    double best = (double)INFINITY;
+    for (int d = 0; d < 4; d++) {
+        double sum = 0;
+        for (int j = 0; j < NF; j++)
+            for (int i = 0; i < NF; i++) {
+                /* cos of the detail's phase: along x, y, x + y, x - y */
+                const double cp = d == 0   ? c[i]
+                                  : d == 1 ? c[j]
+                                  : d == 2 ? c[i] * c[j] - sn[i] * sn[j]
+                                           : c[i] * c[j] + sn[i] * sn[j];
+                const double q = 0.5 * (1 - cp), k = a[i] * a[j] * (order == 4 ? q * q : q);
+                sum += k * k * px[i] * py[j];
+            }
+        const double sd = sqrt(sum / (NF * NF));
+        best = sd < best ? sd : best;
+    }
+    return best;
+}
+
+/* The pass whose grid the predictor is on (-1 if none). */
+static int pred_pass(const rpiv_piv *pv, const rpiv_field *predictor)
+{
+    /* piv_shift (src/piv/piv.c) spelled out: this file calls nothing there */
+    for (int j = 0; j < pv->npass; j++) {
+        const piv_pass *ps = &pv->pass[j];
+        const double c = j > 0 && pv->deforms ? RPIV_DEFORM_SHIFT : 0.0;
+        if (ps->nx == predictor->nx && ps->ny == predictor->ny && ps->sx == predictor->dx &&
+            ps->sy == predictor->dy && ps->ox + 0.5 * (ps->ww - 1) + c == predictor->x0 &&
+            ps->oy + 0.5 * (ps->wh - 1) + c == predictor->y0)
+            return j;
+    }
+    return -1;
+}
+
+rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f)
 {
     const int nx = f->nx, ny = f->ny;
     const size_t n = (size_t)nx * (size_t)ny;
@@ -93,34 +216,43 @@ rpiv_status piv_pred_denoise(rpiv_field *f)
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor denoiser");
     double *line = buf + n;
     const double universal = sqrt(2.0 * log((double)n));
-    for (int comp = 0; comp < 2; comp++) {
-        float *g = comp ? f->v : f->u;
-        double sigma = noise_sigma(g, nx, ny, buf);
-        if (!isfinite(sigma))
-            continue;
-        const double t = sigma * universal;
-        if (nx >= 3)
-            shrink_lines(g, ny, nx, 1, (size_t)nx, t, line);
-        if (ny >= 3)
-            shrink_lines(g, nx, ny, (size_t)nx, 1, t, line);
-    }
+    const int j = pred_pass(pv, f);
+    const double rx = j >= 0 ? pv->pass[j].ww / (double)f->dx : 2,
+                 ry = j >= 0 ? pv->pass[j].wh / (double)f->dy : 2;
+    double ratio[LEVELS], noise[2] = {(double)INFINITY, (double)INFINITY};
+    for (int lev = 0; lev < LEVELS; lev++)
+        ratio[lev] = model_detail(lev, ORDER[lev], rx, ry);
+    const double ratio4 = model_detail(0, 4, rx, ry);
+    for (int lev = 0, step = 1; lev < LEVELS; lev++, step *= 2)
+        for (int comp = 0; comp < 2; comp++) {
+            float *g = comp ? f->v : f->u;
+            double sigma = noise_sigma(g, nx, ny, step, ORDER[lev], buf);
+            if (lev == 0) {
+                /* The noise level the coarser caps scale from: a smooth flow's own detail,
+                 * which has no direction free of it in a vortex, raises the second
+                 * differences' sigma (Lamb-Oseen: 0.022 px) far more than the fourth's
+                 * (0.008 px); on noise alone the fourth's, scaled by the model, is 1.06 times
+                 * the second's (0.95..1.17 on test_noise's fields), so the smaller of the two. */
+                noise[comp] = fmin(sigma, noise_sigma(g, nx, ny, 1, 4, buf) * ratio[0] / ratio4);
+            } else if (isfinite(noise[comp])) /* a smooth flow's own detail is no noise */
+                sigma = fmin(sigma, noise[comp] * ratio[lev] / ratio[0]);
+            if (!isfinite(sigma))
+                continue;
+            const double t = sigma * universal;
+            shrink_axis(g, ny, nx, 1, (size_t)nx, step, ORDER[lev], t, line);
+            shrink_axis(g, nx, ny, (size_t)nx, 1, step, ORDER[lev], t, line);
+        }
     free(buf);
     return RPIV_OK;
 }
 
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
 {
-    /* piv_shift and piv_repeats (src/piv/piv.c) spelled out: this file calls nothing there */
-    for (int j = 0; j < pv->npass; j++) {
-        const piv_pass *ps = &pv->pass[j];
-        const double c = j > 0 && pv->deforms ? RPIV_DEFORM_SHIFT : 0.0;
-        if (ps->nx == predictor->nx && ps->ny == predictor->ny && ps->sx == predictor->dx &&
-            ps->sy == predictor->dy && ps->ox + 0.5 * (ps->ww - 1) + c == predictor->x0 &&
-            ps->oy + 0.5 * (ps->wh - 1) + c == predictor->y0) {
-            const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
-            return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
-                   pv->pass[k].wh == pv->pass[k - 1].wh;
-        }
-    }
-    return 0;
+    /* piv_repeats (src/piv/piv.c) spelled out for the pass the predictor feeds */
+    const int j = pred_pass(pv, predictor);
+    if (j < 0)
+        return 0;
+    const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
+    return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
+           pv->pass[k].wh == pv->pass[k - 1].wh;
 }
