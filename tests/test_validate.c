@@ -63,6 +63,24 @@ static void validate_finds_planted_outliers_and_replaces_them(void)
     rpiv_field_free(f);
 }
 
+/* A cluster: the wrong vector X at (5, 5) has four wrong diagonal neighbours, each of which
+ * fails against its own (mostly right) block; X itself, with half of its block wrong, passes a
+ * single round (median midway, large spread) and must fall in the next one. */
+static void validate_tests_again_a_vector_hidden_by_a_cluster(void)
+{
+    enum { NX = 12, NY = 11 };
+    rpiv_field *f = smooth(NX, NY, 31);
+    const int at[][2] = {{5, 5}, {4, 4}, {6, 4}, {4, 6}, {6, 6}};
+    for (int k = 0; k < 5; k++)
+        f->u[at[k][1] * NX + at[k][0]] += 5.0f;
+    size_t nrej = 0;
+    CHECK_OK(rpiv_validate_median(f, 2, 0.1, &nrej));
+    CHECK(nrej == 5);
+    for (int k = 0; k < 5; k++)
+        CHECK(f->flag[at[k][1] * NX + at[k][0]] == RPIV_FLAG_REPLACED);
+    rpiv_field_free(f);
+}
+
 /* The hand-worked case: neighbours 1..8 give Um = 4.5, rm = 2, so r0* = |U0 - 4.5| / 2.1;
  * U0 = 8.6 gives 1.952 (kept), U0 = 8.8 gives 2.048 (rejected). */
 static void validate_threshold_matches_the_formula(void)
@@ -207,6 +225,7 @@ int main(void)
 {
     RUN_TEST(validate_keeps_a_smooth_field);
     RUN_TEST(validate_finds_planted_outliers_and_replaces_them);
+    RUN_TEST(validate_tests_again_a_vector_hidden_by_a_cluster);
     RUN_TEST(validate_threshold_matches_the_formula);
     RUN_TEST(validate_masked_vectors_are_skipped_and_optionally_filled);
     RUN_TEST(validate_fills_large_holes_and_empty_fields);

@@ -253,23 +253,64 @@ rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, int 
     for (size_t k = 0; k < n; k++)
         ok[k] = f->flag[k] == RPIV_FLAG_VALID;
     /* each vector's test reads the flags of its neighbours only: rows in parallel, the same
-     * result */
+     * result. Rounds: a vector that passed only because outliers made up half of its
+     * neighbourhood (a cluster of wrong vectors) is tested again without the ones rejected in
+     * round before (see below which), until a round rejects nothing (a clean field: one
+     * round, as before). */
     const int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
+    unsigned char *retest = calloc(n, 1);
+    if (!retest) {
+        free(rej);
+        return rpiv_fail(RPIV_ENOMEM, "validate: out of memory");
+    }
+    memset(retest, 1, n);
+    for (;;) {
+        size_t fresh = 0;
 #pragma omp parallel for schedule(static) num_threads(nt) if (n >= 4096)
-    for (int j = 0; j < ny; j++)
-        for (int i = 0; i < nx; i++) {
-            size_t k = (size_t)j * (size_t)nx + (size_t)i;
-            if (!ok[k])
-                continue;
-            float nu[8], nv[8];
-            int m = gather(f, ok, i, j, nu, nv);
-            if (m < 2)
-                continue;
-            if ((residual((double)f->u[k], nu, m, eps) > threshold ||
-                 residual((double)f->v[k], nv, m, eps) > threshold) &&
-                !(lines && agrees_along_a_line(f, ok, i, j, threshold, eps)))
-                rej[k] = 1;
-        }
+        for (int j = 0; j < ny; j++)
+            for (int i = 0; i < nx; i++) {
+                size_t k = (size_t)j * (size_t)nx + (size_t)i;
+                if (!ok[k] || rej[k] || !retest[k])
+                    continue;
+                float nu[8], nv[8];
+                int m = gather(f, ok, i, j, nu, nv);
+                if (m < 2)
+                    continue;
+                if ((residual((double)f->u[k], nu, m, eps) > threshold ||
+                     residual((double)f->v[k], nv, m, eps) > threshold) &&
+                    !(lines && agrees_along_a_line(f, ok, i, j, threshold, eps)))
+                    rej[k] = 1;
+            }
+        /* a survivor is tested again when at least half of the usable vectors of its block
+         * were rejected in this round: it passed against a neighbourhood of outliers. (Not
+         * every neighbour of a rejection: on a shear's crests that cascade eroded true
+         * gradients.) */
+        memset(retest, 0, n);
+        for (int j = 0; j < ny; j++)
+            for (int i = 0; i < nx; i++) {
+                const size_t k = (size_t)j * (size_t)nx + (size_t)i;
+                if (ok[k] != 1 || rej[k])
+                    continue;
+                int all = 0, bad = 0;
+                for (int jj = j - 1; jj <= j + 1; jj++)
+                    for (int ii = i - 1; ii <= i + 1; ii++) {
+                        if ((ii == i && jj == j) || ii < 0 || jj < 0 || ii >= nx || jj >= ny)
+                            continue;
+                        const size_t q = (size_t)jj * (size_t)nx + (size_t)ii;
+                        all += ok[q] == 1;
+                        bad += ok[q] == 1 && rej[q];
+                    }
+                retest[k] = bad > 0 && 2 * bad >= all;
+            }
+        for (size_t k = 0; k < n; k++)
+            if (rej[k] && ok[k] == 1) {
+                ok[k] = 0;
+                fresh++;
+            }
+        if (!fresh)
+            break;
+    }
+    free(retest);
     for (size_t k = 0; k < n; k++)
         if (rej[k]) {
             f->flag[k] = RPIV_FLAG_REPLACED;
