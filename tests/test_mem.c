@@ -70,7 +70,7 @@ typedef struct mem_case {
     int w, h, npairs;
     const char *windows;
     double overlap;
-    int ensemble;
+    int ensemble, uncertainty;
 } mem_case;
 
 static void check_case(const mem_case *c)
@@ -85,6 +85,8 @@ static void check_case(const mem_case *c)
     int k = 10;
     if (c->ensemble)
         argv[k++] = "--ensemble";
+    if (c->uncertainty)
+        argv[k++] = "--uncertainty";
     argv[k] = NULL;
     int status = -1;
     long kb = child_rss_kb(argv, &status);
@@ -99,24 +101,27 @@ static void check_case(const mem_case *c)
     }
     p.overlap = c->overlap;
     p.ensemble = c->ensemble;
+    p.uncertainty = c->uncertainty;
     rpiv_piv_mem m = rpiv_piv_mem_estimate(&p, c->w, c->h, 0, (size_t)c->npairs, !c->ensemble);
     double est = m.total / 1048576.0, rss = (double)kb / 1024.0;
     printf("  %dx%d, %d pair%s, windows %s, overlap %g%s: estimate %.1f MiB (frames %.1f, load "
            "%.1f, work %.1f), peak RSS %.1f MiB, %+.1f %%\n",
            c->w, c->h, c->npairs, c->npairs > 1 ? "s" : "", c->windows, c->overlap,
-           c->ensemble ? ", ensemble" : "", est, m.frames / 1048576.0, m.load / 1048576.0,
-           m.work / 1048576.0, rss, 100 * (est - rss) / rss);
+           c->ensemble ? (c->uncertainty ? ", ensemble, uncertainty" : ", ensemble") : "", est,
+           m.frames / 1048576.0, m.load / 1048576.0, m.work / 1048576.0, rss,
+           100 * (est - rss) / rss);
     CHECK(fabs(est - rss) <= 0.25 * rss);
 }
 
 static void estimate_within_25_percent_of_peak_rss(void)
 {
     static const mem_case cases[] = {
-        {1024, 1024, 1, "64,32,32", 0.5, 0}, {1024, 1024, 1, "8", 0.95, 0},
-        {2048, 2048, 1, "64,32,32", 0.5, 0}, {2048, 2048, 1, "16,8", 0.95, 0},
-        {2048, 1024, 1, "32,16", 0.75, 0},   {1024, 1024, 3, "32,16", 0.75, 0},
-        {256, 256, 8, "64,32,32", 0.5, 1},   {1024, 1024, 4, "32", 0.75, 1},
-        {2048, 2048, 1, "64,32", 0.5, 1},
+        {1024, 1024, 1, "64,32,32", 0.5, 0, 0}, {1024, 1024, 1, "8", 0.95, 0, 0},
+        {2048, 2048, 1, "64,32,32", 0.5, 0, 0}, {2048, 2048, 1, "16,8", 0.95, 0, 0},
+        {2048, 1024, 1, "32,16", 0.75, 0, 0},   {1024, 1024, 3, "32,16", 0.75, 0, 0},
+        {256, 256, 8, "64,32,32", 0.5, 1, 0},   {1024, 1024, 4, "32", 0.75, 1, 0},
+        {2048, 2048, 1, "64,32", 0.5, 1, 0},    {1024, 1024, 4, "32", 0.75, 1, 1},
+        {2048, 2048, 2, "64,32", 0.5, 1, 1},
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++)
         check_case(&cases[i]);

@@ -4,6 +4,7 @@
  * allocation of the engine; the figures it was checked against are in docs/benchmarks.md. */
 #include "rpiv/piv.h"
 
+#include "ensemble_impl.h"
 #include "pair_pool.h"
 
 #include <math.h>
@@ -111,7 +112,9 @@ rpiv_piv_mem rpiv_piv_mem_estimate(const rpiv_piv_params *p, int w, int h, int m
         for (int k = 0; k < p->npass; k++) {
             const double n = pass_vectors(p, rw, rh, k);
             const double plane = (double)p->win_w[k] * p->win_h[k];
-            const double sums = n * (plane + 2) * 4;
+            /* with the uncertainty, each window's statistics sums and the second moments of
+             * its plane's samples near zero shift (ensemble_unc.c) */
+            const double sums = n * (plane + 2 + (p->uncertainty ? ENS_UNC_STRIDE : 0)) * 4;
             double pass =
                 sums + m.load + (k ? pass_vectors(p, rw, rh, k - 1) * (FIELD_B + SPLINE_B) : 0);
             /* pairs in flight, as rpiv_ensemble_add_pairs decides: a slot of planes per
