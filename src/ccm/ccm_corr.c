@@ -56,13 +56,62 @@ rpiv_status rpiv_ccm_corr_add(rpiv_ccm_corr *c, rpiv_ccm_gauss g)
     return RPIV_OK;
 }
 
+/* Along one axis, the Gaussian exp(-c e^2) convolved with the triangle (b - |t|)/b^2 of unit
+ * area: its value, first and second derivatives at offset e. The triangle is the second
+ * difference of the ramp max(t, 0) with step b, over b^2, and the ramp convolved with the
+ * normal density of variance s^2 = 1/(2c) is Q(x) = x Phi(x/s) + s phi(x/s), so
+ *   f(e) = sqrt(pi/c)/b^2 [Q(e+b) - 2Q(e) + Q(e-b)],
+ *   f'(e) = sqrt(pi/c)/b^2 [Phi((e+b)/s) - 2Phi(e/s) + Phi((e-b)/s)],
+ *   f''(e) = [E(e+b) - 2E(e) + E(e-b)]/b^2, E(x) = exp(-c x^2).
+ * f is even: it is evaluated at -|e| (arguments <= b, no cancellation against a growing
+ * ramp); 0 where even its nearest point is more than 10 s away (exp(-50)). Where c b^2 < 1e-6
+ * the second differences lose digits and the triangle is replaced
+ * by the Gaussian of its variance b^2/6 (error O((c b^2)^2) < 1e-12 relative). b = 0: the
+ * Gaussian. */
+void ccm_axis(double e, double c, double b, double *f, double *fd, double *fdd)
+{
+    if (!(b > 0) || c * b * b < 1e-6) {
+        double cc = b > 0 ? c / (1 + c * b * b / 3) : c, a = b > 0 ? sqrt(cc / c) : 1;
+        double E = a * exp(-cc * e * e);
+        *f = E;
+        *fd = -2 * cc * e * E;
+        *fdd = (4 * cc * cc * e * e - 2 * cc) * E;
+        return;
+    }
+    double x = -fabs(e);
+    if (c * (x + b) * (x + b) > 50 && x + b < 0) { /* all three points beyond 10 s: < 2e-22 */
+        *f = *fd = *fdd = 0;
+        return;
+    }
+    double s = 1 / sqrt(2 * c), k = sqrt(M_PI / c) / (b * b);
+    double xs[3] = {x + b, x, x - b}, w[3] = {1, -2, 1}, q = 0, p = 0, h = 0;
+    for (int i = 0; i < 3; i++) {
+        double E = exp(-c * xs[i] * xs[i]), P = 0.5 * erfc(-xs[i] / (M_SQRT2 * s));
+        q += w[i] * (xs[i] * P + s * E / sqrt(2 * M_PI));
+        p += w[i] * P;
+        h += w[i] * E;
+    }
+    *f = k * q;
+    *fd = e > 0 ? -k * p : k * p;
+    *fdd = h / (b * b);
+}
+
+double ccm_term_eval(const rpiv_ccm_gauss *g, double ex, double ey)
+{
+    if (!(g->box > 0))
+        return g->amp * exp(-g->c * (ex * ex + ey * ey));
+    double fx, fy, d1, d2;
+    ccm_axis(ex, g->c, g->box, &fx, &d1, &d2);
+    ccm_axis(ey, g->c, g->box, &fy, &d1, &d2);
+    return g->amp * fx * fy;
+}
+
 double rpiv_ccm_corr_eval(const rpiv_ccm_corr *c, double dx, double dy)
 {
     double s = 0;
     for (size_t k = 0; k < c->n; k++) {
         const rpiv_ccm_gauss *g = &c->g[k];
-        double ex = dx - g->dx, ey = dy - g->dy;
-        s += g->amp * exp(-g->c * (ex * ex + ey * ey));
+        s += ccm_term_eval(g, dx - g->dx, dy - g->dy);
     }
     return s;
 }
@@ -74,6 +123,18 @@ static void corr_d2(const rpiv_ccm_corr *c, double x, double y, double *r, doubl
     for (size_t k = 0; k < c->n; k++) {
         const rpiv_ccm_gauss *t = &c->g[k];
         double ex = x - t->dx, ey = y - t->dy, cc = t->c;
+        if (t->box > 0) {
+            double fx, fxd, fxdd, fy, fyd, fydd;
+            ccm_axis(ex, cc, t->box, &fx, &fxd, &fxdd);
+            ccm_axis(ey, cc, t->box, &fy, &fyd, &fydd);
+            s += t->amp * fx * fy;
+            gx += t->amp * fxd * fy;
+            gy += t->amp * fx * fyd;
+            hxx += t->amp * fxdd * fy;
+            hyy += t->amp * fx * fydd;
+            hxy += t->amp * fxd * fyd;
+            continue;
+        }
         double e = t->amp * exp(-cc * (ex * ex + ey * ey));
         s += e;
         gx -= 2 * cc * ex * e;
@@ -105,7 +166,7 @@ static rpiv_status corr_span(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, s
         if (!(g->amp > 0))
             continue;
         if (!isfinite(g->amp) || !isfinite(g->dx) || !isfinite(g->dy) || !(g->c > 0) ||
-            !isfinite(g->c))
+            !isfinite(g->c) || !(g->box >= 0 && g->box <= 64))
             return rpiv_fail(RPIV_ENUMERIC, "ccm: correlation term %zu is not finite", k);
         nact++;
         xmin = fmin(xmin, g->dx);
@@ -131,23 +192,11 @@ static rpiv_status corr_span(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, s
 }
 
 /* The integer-sampled maximum. When all DY are equal every term decreases with |y - DY|, so
- * the best row is the integer nearest DY and only that row is sampled (likewise for DX). */
+ * the best row is the integer nearest DY and only that row is sampled (row_argmax; here the
+ * column nearest a common DX, or the whole box). */
 static void sampled_argmax(const rpiv_ccm_corr *c, const span *s, int *mx, int *my)
 {
     double best = -1;
-    if (s->mode & 1) {
-        int y = (int)lround(s->dy0);
-        *my = y;
-        *mx = s->x0;
-        for (int x = s->x0; x <= s->x1; x++) {
-            double r = rpiv_ccm_corr_eval(c, x, y);
-            if (r > best) {
-                best = r;
-                *mx = x;
-            }
-        }
-        return;
-    }
     if (s->mode & 2) {
         int x = (int)lround(s->dx0);
         *mx = x;
@@ -174,24 +223,127 @@ static void sampled_argmax(const rpiv_ccm_corr *c, const span *s, int *mx, int *
         }
 }
 
+static rpiv_status row_argmax(const rpiv_ccm_corr *c, const span *s, double *wq, int *mx, int *my);
+
 rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int *mx, int *my)
 {
     span s;
     rpiv_status st = corr_span(c, p, &s);
     if (st)
         return st;
+    if (s.mode & 1) {
+        double *wq = malloc(c->n * sizeof *wq);
+        if (!wq)
+            return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu terms", c->n);
+        st = row_argmax(c, &s, wq, mx, my);
+        free(wq);
+        return st;
+    }
     sampled_argmax(c, &s, mx, my);
     return RPIV_OK;
 }
 
+/* A line of the plane: along x at y = at (axis 0) or along y at x = at (axis 1). wq[k] is
+ * term k's amplitude times its factor across the line (the box makes each term a product of
+ * one factor per axis), computed once; NULL: evaluate the whole terms. */
 typedef struct pkline {
     const rpiv_ccm_corr *c;
-    int axis; /* 0: along x at y = at; 1: along y at x = at */
+    int axis;
     double at;
+    const double *wq;
 } pkline;
+
+/* The factors across the line of every term into wq (c->n values). */
+static void line_factors(const rpiv_ccm_corr *c, int axis, double at, double *wq)
+{
+    for (size_t k = 0; k < c->n; k++) {
+        const rpiv_ccm_gauss *g = &c->g[k];
+        double e = at - (axis ? g->dx : g->dy), f, d1, d2;
+        if (g->box > 0)
+            ccm_axis(e, g->c, g->box, &f, &d1, &d2);
+        else
+            f = exp(-g->c * e * e);
+        wq[k] = g->amp * f;
+    }
+}
+
+/* R along the line at t and its first two derivatives along it. */
+static void line_d2(const pkline *l, double t, double *r, double *d1, double *d2)
+{
+    const rpiv_ccm_corr *c = l->c;
+    double s = 0, a = 0, b = 0;
+    for (size_t k = 0; k < c->n; k++) {
+        const rpiv_ccm_gauss *g = &c->g[k];
+        double e = t - (l->axis ? g->dy : g->dx), f, fd, fdd;
+        if (g->box > 0) {
+            ccm_axis(e, g->c, g->box, &f, &fd, &fdd);
+        } else {
+            f = exp(-g->c * e * e);
+            fd = -2 * g->c * e * f;
+            fdd = (4 * g->c * g->c * e * e - 2 * g->c) * f;
+        }
+        s += l->wq[k] * f;
+        a += l->wq[k] * fd;
+        b += l->wq[k] * fdd;
+    }
+    *r = s;
+    *d1 = a;
+    *d2 = b;
+}
+
+/* Q(-a) for a >= 0, Q the ramp convolved with the normal density of standard deviation s
+ * (ccm_axis): -a Phi(-a/s) + s phi(a/s), >= 0 and small. */
+static double qneg(double a, double c, double s)
+{
+    return -a * 0.5 * erfc(a * sqrt(c)) + s * exp(-c * a * a) / sqrt(2 * M_PI);
+}
+
+/* R on the line at the n integer points x0 .. x0 + n - 1 into out. A term of box b = 1 is
+ * sqrt(pi/c) [(1 - |e|)+ + q(|e+1|) - 2 q(|e|) + q(|e-1|)] with q(a) = Q(-a) (Q(u) is u+ +
+ * Q(-|u|)): unit-spaced points share their q values, n + 2 per term instead of 3 n. */
+static void line_ints(const pkline *l, int x0, int n, double *out)
+{
+    const rpiv_ccm_corr *c = l->c;
+    for (int i = 0; i < n; i++)
+        out[i] = 0;
+    for (size_t k = 0; k < c->n; k++) {
+        const rpiv_ccm_gauss *g = &c->g[k];
+        double d = l->axis ? g->dy : g->dx, w = l->wq[k];
+        if (g->box != 1 || g->c < 1e-6) { /* (a broad term: the q differences cancel) */
+            for (int i = 0; i < n; i++) {
+                double f, fd, fdd, e = x0 + i - d;
+                if (g->box > 0)
+                    ccm_axis(e, g->c, g->box, &f, &fd, &fdd);
+                else
+                    f = exp(-g->c * e * e);
+                out[i] += w * f;
+            }
+            continue;
+        }
+        double s = 1 / sqrt(2 * g->c), kk = sqrt(M_PI / g->c), far = 1 + 10 * s;
+        double q0 = qneg(fabs(x0 - 1 - d), g->c, s), q1 = qneg(fabs(x0 - d), g->c, s);
+        for (int i = 0; i < n; i++) {
+            double e = x0 + i - d;
+            if (fabs(e) > far) { /* all three points beyond 10 s: < exp(-50) */
+                q0 = q1;
+                q1 = i + 1 < n ? qneg(fabs(e + 1), g->c, s) : 0;
+                continue;
+            }
+            double q2 = qneg(fabs(e + 1), g->c, s);
+            out[i] += w * kk * (fmax(0, 1 - fabs(e)) + q2 - 2 * q1 + q0);
+            q0 = q1;
+            q1 = q2;
+        }
+    }
+}
 
 static double line_r(const pkline *l, double t)
 {
+    if (l->wq) {
+        double r, d1, d2;
+        line_d2(l, t, &r, &d1, &d2);
+        return r;
+    }
     return l->axis ? rpiv_ccm_corr_eval(l->c, l->at, t) : rpiv_ccm_corr_eval(l->c, t, l->at);
 }
 
@@ -200,9 +352,72 @@ static double line_neg(double t, void *u)
     return -line_r(u, t);
 }
 
-/* Brent's method on -R along the line, bracketed by the integer samples around m, then a
- * Newton polish on the analytic derivative (Brent alone stops near sqrt(eps) |t|, since R is
- * flat at its maximum). */
+/* The integer-sampled maximum when all DY are equal (span mode 1): on the row nearest DY,
+ * through the terms' factors (wq, c->n values, overwritten). */
+static rpiv_status row_argmax(const rpiv_ccm_corr *c, const span *s, double *wq, int *mx, int *my)
+{
+    *my = (int)lround(s->dy0);
+    line_factors(c, 0, *my, wq);
+    pkline row = {c, 0, *my, wq};
+    int nr = s->x1 - s->x0 + 1;
+    double *rv = malloc((size_t)nr * sizeof *rv);
+    if (!rv)
+        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for a row of %d samples", nr);
+    line_ints(&row, s->x0, nr, rv);
+    double best = -1;
+    *mx = s->x0;
+    for (int x = s->x0; x <= s->x1; x++)
+        if (rv[x - s->x0] > best) {
+            best = rv[x - s->x0];
+            *mx = x;
+        }
+    free(rv);
+    return RPIV_OK;
+}
+
+/* The maximum of R on the line in (lo, hi), where R' > 0 at lo and < 0 at hi, from t:
+ * Newton's method on R' with the analytic R'', kept inside a bracket that every evaluation
+ * narrows (a bisection step where Newton's would leave it or R'' >= 0), until a step is
+ * below 1e-12 px (quadratic convergence: the last step's error is far below it).
+ * 1 and *tmax on success; 0 (no sign change, no convergence): Brent's method instead. */
+static int newton_line(const pkline *l, double lo, double hi, double t, double *tmax)
+{
+    double r, d1, d2;
+    line_d2(l, lo, &r, &d1, &d2);
+    if (!(d1 > 0))
+        return 0;
+    line_d2(l, hi, &r, &d1, &d2);
+    if (!(d1 < 0))
+        return 0;
+    if (!(t > lo && t < hi))
+        t = 0.5 * (lo + hi);
+    for (int it = 0; it < 60; it++) {
+        line_d2(l, t, &r, &d1, &d2);
+        if (d1 == 0) {
+            *tmax = t;
+            return d2 < 0;
+        }
+        if (d1 > 0)
+            lo = t;
+        else
+            hi = t;
+        double tn = d2 < 0 ? t - d1 / d2 : 0.5 * (lo + hi);
+        if (!(tn > lo && tn < hi))
+            tn = 0.5 * (lo + hi);
+        if (fabs(tn - t) <= 1e-12 * (1 + fabs(t)) || hi - lo <= 1e-12 * (1 + fabs(t))) {
+            *tmax = tn;
+            return 1;
+        }
+        t = tn;
+    }
+    return 0;
+}
+
+/* Brent's method on -R along the line, bracketed by the integer samples around m, to
+ * BRENT_TOL, then a Newton polish on the analytic derivatives to the rounding (Brent alone
+ * stops near sqrt(eps) |t|, since R is flat at its maximum; from 1e-4 px Newton's quadratic
+ * convergence needs two or three steps where Brent needs many more evaluations). */
+#define BRENT_TOL 1e-4
 static rpiv_status line_max(const pkline *l, int m, int lo, int hi, double guess,
                             const rpiv_ccm_params *p, double *tmax)
 {
@@ -240,6 +455,8 @@ static rpiv_status line_max(const pkline *l, int m, int lo, int hi, double guess
             return rpiv_fail(RPIV_ENUMERIC, "ccm: flat correlation around shift %d", m);
         }
     }
+    if (l->wq && newton_line(l, m - 1.0, m + 1.0, t0, tmax))
+        return RPIV_OK;
     gsl_min_fminimizer *s = gsl_min_fminimizer_alloc(gsl_min_fminimizer_brent);
     if (!s)
         return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory");
@@ -252,7 +469,7 @@ static rpiv_status line_max(const pkline *l, int m, int lo, int hi, double guess
             break;
         double a = gsl_min_fminimizer_x_lower(s), b = gsl_min_fminimizer_x_upper(s);
         double x = gsl_min_fminimizer_x_minimum(s);
-        if (b - a < p->xtol_px + 4 * GSL_SQRT_DBL_EPSILON * fabs(x)) {
+        if (b - a < fmax(p->xtol_px, BRENT_TOL) + 4 * GSL_SQRT_DBL_EPSILON * fabs(x)) {
             gs = GSL_SUCCESS;
             break;
         }
@@ -265,12 +482,18 @@ static rpiv_status line_max(const pkline *l, int m, int lo, int hi, double guess
     if (gs)
         return ccm_gsl_fail(gs, "Brent's peak search");
     for (int k = 0; k < 8; k++) {
-        double r, g[2], h[3];
-        if (l->axis)
-            corr_d2(l->c, l->at, t, &r, g, h);
-        else
-            corr_d2(l->c, t, l->at, &r, g, h);
-        double d1 = l->axis ? g[1] : g[0], d2 = l->axis ? h[2] : h[0];
+        double r, d1, d2;
+        if (l->wq) {
+            line_d2(l, t, &r, &d1, &d2);
+        } else {
+            double g[2], h[3];
+            if (l->axis)
+                corr_d2(l->c, l->at, t, &r, g, h);
+            else
+                corr_d2(l->c, t, l->at, &r, g, h);
+            d1 = l->axis ? g[1] : g[0];
+            d2 = l->axis ? h[2] : h[0];
+        }
         if (!(d2 < 0))
             break;
         double dt = -d1 / d2;
@@ -350,25 +573,50 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     rpiv_status st = corr_span(c, p, &s);
     if (st)
         return st;
+    /* every term is a product of a factor along x and one along y: along a line the factors
+     * across it are computed once (wq), and each evaluation costs one factor per term */
+    double *wq = malloc(c->n * sizeof *wq);
+    if (!wq)
+        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu terms", c->n);
     int mx, my;
-    sampled_argmax(c, &s, &mx, &my);
+    if (s.mode & 1) {
+        if ((st = row_argmax(c, &s, wq, &mx, &my))) {
+            free(wq);
+            return st;
+        }
+    } else {
+        sampled_argmax(c, &s, &mx, &my);
+    }
     out->mx = mx;
     out->my = my;
     /* the sampled plane around the maximum, handed to the PIV engine's estimator for a sum
      * of correlation (peak.h, rpiv_subpixel_resolve) as the 8 x 8 float plane in circular
      * order that it reads after an FFT: shifts -4..3, the search over -1..1, normalised by
      * the centre; the samples the estimator reads (the 3-point fits: the row and the column
-     * through the centre; the centroid: 3 x 3; the spline: 7 x 7) */
+     * through the centre; the centroid: 3 x 3; the spline: 7 x 7), row by row */
     enum { PW = 8 };
     float plane[PW * PW] = {0};
     rpiv_subpixel method = rpiv_subpixel_resolve(p->subpixel, 1);
     int rad = method == RPIV_SUBPIXEL_SPLINE ? 3 : 1;
-    double r0 = rpiv_ccm_corr_eval(c, mx, my);
+    double rows[2 * 3 + 1][2 * 3 + 1];
+    /* every term is even about its DY: with all DY equal to the row my, rows my -+ j agree */
+    int mirror = (s.mode & 1) && s.dy0 == my;
+    for (int j = -rad; j <= rad; j++) {
+        if (mirror && j > 0) {
+            for (int i = -rad; i <= rad; i++)
+                rows[j + rad][i + rad] = rows[rad - j][i + rad];
+            continue;
+        }
+        line_factors(c, 0, my + j, wq);
+        pkline row = {c, 0, my + j, wq};
+        line_ints(&row, mx - rad, 2 * rad + 1, rows[j + rad]);
+    }
+    double r0 = rows[rad][rad];
     for (int j = -rad; j <= rad; j++)
         for (int i = -rad; i <= rad; i++) {
             if (i && j && method != RPIV_SUBPIXEL_CENTROID && method != RPIV_SUBPIXEL_SPLINE)
                 continue;
-            double v = i || j ? rpiv_ccm_corr_eval(c, mx + i, my + j) / r0 : 1.0;
+            double v = i || j ? rows[j + rad][i + rad] / r0 : 1.0;
             plane[((j + PW) % PW) * PW + (i + PW) % PW] = (float)v;
         }
     rpiv_peak fit;
@@ -380,11 +628,13 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
         out->dx = s.dx0;
         out->dy = s.dy0;
     } else if (s.mode & 1) {
-        pkline l = {c, 0, s.dy0};
+        line_factors(c, 0, s.dy0, wq);
+        pkline l = {c, 0, s.dy0, wq};
         out->dy = s.dy0;
         st = line_max(&l, mx, s.x0, s.x1, out->dx_sub, p, &out->dx);
     } else if (s.mode & 2) {
-        pkline l = {c, 1, s.dx0};
+        line_factors(c, 1, s.dx0, wq);
+        pkline l = {c, 1, s.dx0, wq};
         out->dx = s.dx0;
         st = line_max(&l, my, s.y0, s.y1, out->dy_sub, p, &out->dy);
     } else {
@@ -392,6 +642,7 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
         double y0 = isfinite(out->dy_sub) ? out->dy_sub : my;
         st = plane_max(c, x0, y0, p, &out->dx, &out->dy);
     }
+    free(wq);
     if (st)
         return st;
     out->value = rpiv_ccm_corr_eval(c, out->dx, out->dy);
