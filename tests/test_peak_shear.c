@@ -11,8 +11,9 @@
  * cases), SHEAR_NODEFORM=1 (integer window offsets), SHEAR_STUDY=D (the last pass again from
  * its result moved by +-D px), SHEAR_SPREAD_UM=S (the particles' diameter spread),
  * SHEAR_SPLIT=K (K disjoint groups of the pairs against all: the estimator's noise bias),
- * SHEAR_PLANE=1 (the engine's summed planes against the CCM's, the window's pair loss, mean
- * removal and area average; slow). docs/ccm.md, "What the engine measures". */
+ * SHEAR_PLANE=1 (the engine's summed planes against the CCM's, the window's pair loss and
+ * mean removal, the spline's block; 2: also the window's area average, slow). docs/ccm.md, "What
+ * the engine measures". */
 #include "check.h"
 #include "rpiv/ccm.h"
 #include "rpiv/config.h"
@@ -142,7 +143,13 @@ static void ccm_peak(const rpiv_experiment *ex, double xs, double ys, rpiv_subpi
 /* Study (SHEAR_PLANE=1): the engine's summed plane of window k along x through the shift 0
  * (the predictor, up, vp) against the CCM's (pixel_box of ec) at up + i, both relative to
  * their value at shift 0; accumulated, printed by plane_report. */
-static double g_ln[2][7], g_cnt, g_est[4], g_avg[2], g_spp;
+static double g_ln[2][7], g_cnt, g_est[4], g_avg[2], g_spp, g_blk[3], g_bsub[3];
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
 static void plane_study(const rpiv_experiment *ec, double xs, double ys, const rpiv_field *f,
                         size_t k, double up, double vp)
 {
@@ -161,6 +168,54 @@ static void plane_study(const rpiv_experiment *ec, double xs, double ys, const r
     CHECK_OK(rpiv_ccm_work_new(&p, &wk));
     CHECK_OK(rpiv_ccm_corr_new(0, &c));
     if (wk && c && rpiv_ccm_stat_corr(&mo, wk, c) == RPIV_OK) {
+        /* which block the spline reads on this plane: the 7 x 7 around the integer maximum
+         * near 0 if all positive, else the 5 x 5, else the 3-point Gaussian */
+        {
+            int bi = 0, bj = 0;
+            for (int jj = -1; jj <= 1; jj++)
+                for (int ii = -1; ii <= 1; ii++)
+                    if (pl[((jj + w) % w) * w + (ii + w) % w] >
+                        pl[((bj + w) % w) * w + (bi + w) % w]) {
+                        bi = ii;
+                        bj = jj;
+                    }
+            int ok7 = 1, ok5 = 1;
+            for (int jj = -3; jj <= 3; jj++)
+                for (int ii = -3; ii <= 3; ii++) {
+                    float v = pl[((bj + jj + w) % w) * w + (bi + ii + w) % w];
+                    if (!(v > 0)) {
+                        ok7 = 0;
+                        if (abs(ii) <= 2 && abs(jj) <= 2)
+                            ok5 = 0;
+                    }
+                }
+            g_blk[ok7 ? 0 : ok5 ? 1 : 2]++;
+            /* the same estimator after subtracting the plane's far-field level (the median of
+             * the shifts beyond w/4 in x or y: the mean removal's constant baseline) */
+            float *cp = malloc((size_t)w * (size_t)w * sizeof *cp);
+            float *far = malloc((size_t)w * (size_t)w * sizeof *far);
+            if (cp && far) {
+                size_t nf = 0;
+                for (int jj = 0; jj < w; jj++)
+                    for (int ii = 0; ii < w; ii++) {
+                        int sx = ii < w / 2 ? ii : ii - w, sy = jj < w / 2 ? jj : jj - w;
+                        if (abs(sx) > w / 4 || abs(sy) > w / 4)
+                            far[nf++] = pl[jj * w + ii];
+                    }
+                qsort(far, nf, sizeof *far, cmp_float);
+                float med = far[nf / 2];
+                for (int t = 0; t < w * w; t++)
+                    cp[t] = pl[t] - med;
+                rpiv_peak f0, f1;
+                rpiv_peak_find(pl, w, w, 0, RPIV_SUBPIXEL_SPLINE, &f0);
+                rpiv_peak_find(cp, w, w, 0, RPIV_SUBPIXEL_SPLINE, &f1);
+                g_bsub[0] += (f0.ix + f0.dx + up) - (double)f->u[k];
+                g_bsub[1] += (f1.ix + f1.dx) - (f0.ix + f0.dx);
+                g_bsub[2] += (double)med / (double)pl[0];
+            }
+            free(cp);
+            free(far);
+        }
         double c0 = rpiv_ccm_corr_eval(c, up, vp), e0 = (double)pl[0];
         for (int i = -3; i <= 3; i++) {
             double e = (double)pl[(i + w) % w] / e0, r = rpiv_ccm_corr_eval(c, up + i, vp) / c0;
@@ -214,7 +269,8 @@ static void plane_study(const rpiv_experiment *ec, double xs, double ys, const r
          * prediction's variation over the window (the deformation follows it), summed; its
          * continuous peak against the centre's */
         rpiv_ccm_corr *ca = NULL;
-        CHECK_OK(rpiv_ccm_corr_new(0, &ca));
+        if (atoi(getenv("SHEAR_PLANE")) >= 2)
+            CHECK_OK(rpiv_ccm_corr_new(0, &ca));
         double pj[4][4], dd[4] = {-12, -4, 4, 12};
         for (int a = 0; ca && a < 4; a++)
             for (int b = 0; b < 4; b++) {
@@ -276,6 +332,14 @@ static void plane_report(void)
            g_est[0] / g_cnt, g_est[1] / g_cnt, g_est[2] / g_cnt, g_est[3] / g_cnt);
     printf("   the window's area average - its centre: continuous %+.4f, spline %+.4f px\n",
            g_avg[0] / g_cnt, g_avg[1] / g_cnt);
+    printf(
+        "   the spline's block on the engine's planes: 7 x 7 %g, 5 x 5 %g, 3-point Gaussian %g\n",
+        g_blk[0], g_blk[1], g_blk[2]);
+    printf("   far-field level %+.4f of the peak; subtracting it moves the spline by %+.4f px "
+           "(re-estimate - engine %+.2g)\n",
+           g_bsub[2] / g_cnt, g_bsub[1] / g_cnt, g_bsub[0] / g_cnt);
+    memset(g_bsub, 0, sizeof g_bsub);
+    memset(g_blk, 0, sizeof g_blk);
     memset(g_avg, 0, sizeof g_avg);
     memset(g_est, 0, sizeof g_est);
     memset(g_ln, 0, sizeof g_ln);
@@ -287,9 +351,11 @@ static void plane_report(void)
  * plane), [2] predicted - ideal, [3] ensemble - continuous peak of point-sampled images
  * (pixel_box 0, the paper's), [4] ensemble - prediction with the pixels' triangle replaced
  * by the Gaussian of its variance (session 5's stand-in); [5] the largest |ensemble - ideal|,
- * [6] the standard deviation of ensemble - predicted. */
+ * [6] the standard deviation of ensemble - predicted; [7] ensemble - ideal and [8] ensemble -
+ * predicted over the interior vectors (not the outer ring of windows, whose deformed windows
+ * reach beyond the images' border). */
 typedef struct shear_result {
-    double m[2][7];
+    double m[2][9];
     int n;
 } shear_result;
 
@@ -371,7 +437,7 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         ec.piv.subpixel = e0.piv.subpixel = ms[q];
         e0.bias.pixel_box = 0; /* the paper's continuous images; ccm_peak blurs them */
         double *m = res->m[q], ss = 0;
-        int n = 0;
+        int n = 0, nin = 0;
         for (int j = 0; j < f->ny; j++)
             for (int i = 0; i < f->nx; i++) {
                 size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
@@ -398,6 +464,11 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                 m[3] += u - p0.dx;
                 m[4] += u - pb.dx_sub;
                 m[5] = fmax(m[5], fabs(u - pk.dx));
+                if (i > 0 && j > 0 && i < f->nx - 1 && j < f->ny - 1) {
+                    m[7] += u - pk.dx;
+                    m[8] += u - pk.dx_sub;
+                    nin++;
+                }
                 ss += (u - pk.dx_sub) * (u - pk.dx_sub);
                 n++;
             }
@@ -406,11 +477,16 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
             for (int t = 0; t < 5; t++)
                 m[t] /= n;
             m[6] = sqrt(fmax(ss / n - m[1] * m[1], 0));
+            m[7] /= nin > 0 ? nin : 1;
+            m[8] /= nin > 0 ? nin : 1;
             printf(
                 "  %-5s %d vectors: ensemble - ideal %+.4f (max |.| %.4f), ensemble - "
                 "predicted %+.4f (std %.4f), predicted - ideal %+.4f; ensemble - "
                 "point-sampled ideal %+.4f, ensemble - Gaussian stand-in's prediction %+.4f px\n",
                 rpiv_subpixel_names[ms[q]], n, m[0], m[5], m[1], m[6], m[2], m[3], m[4]);
+            printf("        %d interior vectors: ensemble - ideal %+.4f, ensemble - predicted "
+                   "%+.4f px\n",
+                   nin, m[7], m[8]);
         }
         plane_report();
         res->n = n;
