@@ -191,58 +191,6 @@ static rpiv_status corr_span(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, s
     return RPIV_OK;
 }
 
-/* The integer-sampled maximum. When all DY are equal every term decreases with |y - DY|, so
- * the best row is the integer nearest DY and only that row is sampled (row_argmax; here the
- * column nearest a common DX, or the whole box). */
-static void sampled_argmax(const rpiv_ccm_corr *c, const span *s, int *mx, int *my)
-{
-    double best = -1;
-    if (s->mode & 2) {
-        int x = (int)lround(s->dx0);
-        *mx = x;
-        *my = s->y0;
-        for (int y = s->y0; y <= s->y1; y++) {
-            double r = rpiv_ccm_corr_eval(c, x, y);
-            if (r > best) {
-                best = r;
-                *my = y;
-            }
-        }
-        return;
-    }
-    *mx = s->x0;
-    *my = s->y0;
-    for (int y = s->y0; y <= s->y1; y++)
-        for (int x = s->x0; x <= s->x1; x++) {
-            double r = rpiv_ccm_corr_eval(c, x, y);
-            if (r > best) {
-                best = r;
-                *mx = x;
-                *my = y;
-            }
-        }
-}
-
-static rpiv_status row_argmax(const rpiv_ccm_corr *c, const span *s, double *wq, int *mx, int *my);
-
-rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int *mx, int *my)
-{
-    span s;
-    rpiv_status st = corr_span(c, p, &s);
-    if (st)
-        return st;
-    if (s.mode & 1) {
-        double *wq = malloc(c->n * sizeof *wq);
-        if (!wq)
-            return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu terms", c->n);
-        st = row_argmax(c, &s, wq, mx, my);
-        free(wq);
-        return st;
-    }
-    sampled_argmax(c, &s, mx, my);
-    return RPIV_OK;
-}
-
 /* A line of the plane: along x at y = at (axis 0) or along y at x = at (axis 1). wq[k] is
  * term k's amplitude times its factor across the line (the box makes each term a product of
  * one factor per axis), computed once; NULL: evaluate the whole terms. */
@@ -298,43 +246,155 @@ static double qneg(double a, double c, double s)
     return -a * 0.5 * erfc(a * sqrt(c)) + s * exp(-c * a * a) / sqrt(2 * M_PI);
 }
 
-/* R on the line at the n integer points x0 .. x0 + n - 1 into out. A term of box b = 1 is
- * sqrt(pi/c) [(1 - |e|)+ + q(|e+1|) - 2 q(|e|) + q(|e-1|)] with q(a) = Q(-a) (Q(u) is u+ +
- * Q(-|u|)): unit-spaced points share their q values, n + 2 per term instead of 3 n. */
-static void line_ints(const pkline *l, int x0, int n, double *out)
+/* One term's factor along an axis at the integer points x0 .. x0 + n - 1 (d: the term's
+ * displacement along the axis, the factor at x is f(x - d)) into f; [*lo, *hi]: the indices
+ * inside its support, beyond which every factor is below exp(-50) of the term's peak (all
+ * three points of the box's second difference beyond 10 standard deviations, ccm_axis) and
+ * f is left unset; *lo > *hi when none is. A box of 1 px is sqrt(pi/c) [(1 - |e|)+ + q(|e+1|) -
+ * 2 q(|e|) + q(|e-1|)] with q(a) = Q(-a) (Q(u) is u+ + Q(-|u|)): unit-spaced points share
+ * their q values, one erfc and one exp per point plus two, where ccm_axis takes three of
+ * each. */
+static void axis_lattice(const rpiv_ccm_gauss *g, double d, int x0, int n, double *f, int *lo,
+                         int *hi)
 {
-    const rpiv_ccm_corr *c = l->c;
-    for (int i = 0; i < n; i++)
-        out[i] = 0;
+    double b = g->box > 0 ? g->box : 0, far = b + 10 / sqrt(2 * g->c);
+    double a = fmax(0, ceil(d - far - x0)), z = fmin(n - 1, floor(d + far - x0));
+    *lo = 0;
+    *hi = -1;
+    if (!(a <= z))
+        return;
+    *lo = (int)a;
+    *hi = (int)z;
+    if (g->box != 1 || g->c < 1e-6) { /* (a broad term: the q differences cancel) */
+        for (int i = *lo; i <= *hi; i++) {
+            double fd, fdd, e = x0 + i - d;
+            if (g->box > 0)
+                ccm_axis(e, g->c, g->box, &f[i], &fd, &fdd);
+            else
+                f[i] = exp(-g->c * e * e);
+        }
+        return;
+    }
+    double s = 1 / sqrt(2 * g->c), kk = sqrt(M_PI / g->c), e = x0 + *lo - d;
+    double q0 = qneg(fabs(e - 1), g->c, s), q1 = qneg(fabs(e), g->c, s);
+    for (int i = *lo; i <= *hi; i++, e += 1) {
+        double q2 = qneg(fabs(e + 1), g->c, s);
+        f[i] = kk * (fmax(0, 1 - fabs(e)) + q2 - 2 * q1 + q0);
+        q0 = q1;
+        q1 = q2;
+    }
+}
+
+/* R at the integer points (xa + i, ya + j), i < nx, j < ny, into r[j nx + i]: each term is a
+ * product of an x factor and a y factor, so a term costs nx + ny factors (axis_lattice) and
+ * an outer product over its support, not nx ny whole evaluations. fx, fy: scratch of nx and
+ * ny values. wq (or NULL): every term's amplitude times its factor on the row ya + wrow (the
+ * line_factors of that row). Terms of amplitude <= 0 add nothing. */
+static void lattice(const rpiv_ccm_corr *c, int xa, int nx, int ya, int ny, double *r, double *fx,
+                    double *fy, double *wq, int wrow)
+{
+    for (size_t i = 0; i < (size_t)nx * (size_t)ny; i++)
+        r[i] = 0;
     for (size_t k = 0; k < c->n; k++) {
         const rpiv_ccm_gauss *g = &c->g[k];
-        double d = l->axis ? g->dy : g->dx, w = l->wq[k];
-        if (g->box != 1 || g->c < 1e-6) { /* (a broad term: the q differences cancel) */
-            for (int i = 0; i < n; i++) {
-                double f, fd, fdd, e = x0 + i - d;
-                if (g->box > 0)
-                    ccm_axis(e, g->c, g->box, &f, &fd, &fdd);
-                else
-                    f = exp(-g->c * e * e);
-                out[i] += w * f;
-            }
+        int ia, ib, ja = 0, jb = -1;
+        if (wq)
+            wq[k] = 0;
+        if (!(g->amp > 0))
             continue;
-        }
-        double s = 1 / sqrt(2 * g->c), kk = sqrt(M_PI / g->c), far = 1 + 10 * s;
-        double q0 = qneg(fabs(x0 - 1 - d), g->c, s), q1 = qneg(fabs(x0 - d), g->c, s);
-        for (int i = 0; i < n; i++) {
-            double e = x0 + i - d;
-            if (fabs(e) > far) { /* all three points beyond 10 s: < exp(-50) */
-                q0 = q1;
-                q1 = i + 1 < n ? qneg(fabs(e + 1), g->c, s) : 0;
-                continue;
-            }
-            double q2 = qneg(fabs(e + 1), g->c, s);
-            out[i] += w * kk * (fmax(0, 1 - fabs(e)) + q2 - 2 * q1 + q0);
-            q0 = q1;
-            q1 = q2;
+        axis_lattice(g, g->dx, xa, nx, fx, &ia, &ib);
+        if (ia <= ib || wq)
+            axis_lattice(g, g->dy, ya, ny, fy, &ja, &jb);
+        if (wq && wrow >= ja && wrow <= jb)
+            wq[k] = g->amp * fy[wrow];
+        for (int j = ja; j <= jb && ia <= ib; j++) {
+            double w = g->amp * fy[j], *row = r + (size_t)j * (size_t)nx;
+            for (int i = ia; i <= ib; i++)
+                row[i] += w * fx[i];
         }
     }
+}
+
+/* Lattices up to this many points are sampled in one pass; larger boxes (a general sum with
+ * DX and DY spread over many pixels) row by row. */
+#define LATTICE_MAX (1 << 18)
+
+/* The integer-sampled maximum (mx, my): over the span's box, y outer and x inner, the first
+ * of equal values; along the row nearest DY when all DY are equal (every term decreases with
+ * |y - DY|), along the column nearest DX when all DX are equal. With rows (rad > 0): R at
+ * (mx + i, my + j), |i|, |j| <= rad into rows[j + rad][i + rad]. With wq: when all DY equal
+ * the integer my, every term's amplitude times its factor on that row, and *wq_set = 1. */
+static rpiv_status sample_plane(const rpiv_ccm_corr *c, const span *s, int rad, double rows[7][7],
+                                double *wq, int *wq_set, int *mx, int *my)
+{
+    int ax0 = s->x0, ax1 = s->x1, ay0 = s->y0, ay1 = s->y1;
+    if (s->mode & 2)
+        ax0 = ax1 = (int)lround(s->dx0);
+    if (s->mode & 1)
+        ay0 = ay1 = (int)lround(s->dy0);
+    /* every term is even about its DY: with all DY equal to the row ay0, rows ay0 -+ j agree */
+    int mirror = (s->mode & 1) && s->dy0 == ay0;
+    int xa = ax0 - rad, nx = ax1 - ax0 + 1 + 2 * rad, ya = mirror ? ay0 : ay0 - rad;
+    int ny = mirror ? rad + 1 : ay1 - ay0 + 1 + 2 * rad;
+    int one = (double)nx * ny <= LATTICE_MAX;
+    if (!one) { /* row by row, then the plane around the maximum */
+        xa = ax0;
+        nx = ax1 - ax0 + 1;
+        ny = 1;
+    }
+    size_t nbuf = (size_t)nx * (size_t)ny + (size_t)nx + (size_t)ny + 4 * (size_t)rad + 2;
+    double *buf = malloc(nbuf * sizeof *buf);
+    if (!buf)
+        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %d x %d correlation samples", nx, ny);
+    double *r = buf, *fx = r + (size_t)nx * (size_t)ny, *fy = fx + nx, best = -1;
+    *wq_set = 0;
+    if (one) {
+        lattice(c, xa, nx, ya, ny, r, fx, fy, mirror ? wq : NULL, 0);
+        *wq_set = mirror && wq;
+    }
+    *mx = ax0;
+    *my = ay0;
+    for (int y = ay0; y <= ay1; y++) {
+        const double *row = r + (one ? (size_t)(y - ya) * (size_t)nx : 0);
+        if (!one)
+            lattice(c, xa, nx, y, 1, r, fx, fy, NULL, 0);
+        for (int x = ax0; x <= ax1; x++)
+            if (row[x - xa] > best) {
+                best = row[x - xa];
+                *mx = x;
+                *my = y;
+            }
+    }
+    if (rad > 0 && !one) { /* the plane around the maximum: reuse the buffer's head */
+        xa = *mx - rad;
+        ya = *my - rad;
+        nx = ny = 2 * rad + 1;
+        double *pf = malloc(((size_t)nx * (size_t)ny + 2 * (size_t)nx) * sizeof *pf);
+        if (!pf) {
+            free(buf);
+            return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for the sampled plane");
+        }
+        free(buf);
+        buf = r = pf;
+        lattice(c, xa, nx, ya, ny, r, r + nx * ny, r + nx * ny + nx, NULL, 0);
+    }
+    for (int j = -rad; j <= rad && rad > 0; j++) {
+        int yj = mirror ? abs(j) : *my + j - ya;
+        for (int i = -rad; i <= rad; i++)
+            rows[j + rad][i + rad] = r[(size_t)yj * (size_t)nx + (size_t)(*mx + i - xa)];
+    }
+    free(buf);
+    return RPIV_OK;
+}
+
+rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int *mx, int *my)
+{
+    span s;
+    rpiv_status st = corr_span(c, p, &s);
+    int wq_set = 0;
+    if (!st)
+        st = sample_plane(c, &s, 0, NULL, NULL, &wq_set, mx, my);
+    return st;
 }
 
 static double line_r(const pkline *l, double t)
@@ -352,62 +412,40 @@ static double line_neg(double t, void *u)
     return -line_r(u, t);
 }
 
-/* The integer-sampled maximum when all DY are equal (span mode 1): on the row nearest DY,
- * through the terms' factors (wq, c->n values, overwritten). */
-static rpiv_status row_argmax(const rpiv_ccm_corr *c, const span *s, double *wq, int *mx, int *my)
-{
-    *my = (int)lround(s->dy0);
-    line_factors(c, 0, *my, wq);
-    pkline row = {c, 0, *my, wq};
-    int nr = s->x1 - s->x0 + 1;
-    double *rv = malloc((size_t)nr * sizeof *rv);
-    if (!rv)
-        return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for a row of %d samples", nr);
-    line_ints(&row, s->x0, nr, rv);
-    double best = -1;
-    *mx = s->x0;
-    for (int x = s->x0; x <= s->x1; x++)
-        if (rv[x - s->x0] > best) {
-            best = rv[x - s->x0];
-            *mx = x;
-        }
-    free(rv);
-    return RPIV_OK;
-}
-
-/* The maximum of R on the line in (lo, hi), where R' > 0 at lo and < 0 at hi, from t:
- * Newton's method on R' with the analytic R'', kept inside a bracket that every evaluation
- * narrows (a bisection step where Newton's would leave it or R'' >= 0), until a step is
- * below 1e-12 px (quadratic convergence: the last step's error is far below it).
- * 1 and *tmax on success; 0 (no sign change, no convergence): Brent's method instead. */
+/* The maximum of R on the line in (lo, hi), which holds one (R(t) above R(lo) and R(hi)),
+ * from t: Newton's method on R' with the analytic R'', kept inside a bracket that every
+ * evaluation narrows (a bisection step where Newton's would leave it or R'' >= 0). It stops
+ * where a Newton step (R'' < 0) is below 1e-12 px, or where the quadratic convergence puts
+ * the point after the step within 1e-13 px: e_{k+1} = C e_k^2 with C from the last two steps,
+ * the error after a step h (below 1e-6 px) following a step h' is about |h|^3 / h'^2. 1 and *tmax
+ * on success; 0 (a bracket that collapses without a maximum, no convergence): Brent's method
+ * instead. */
 static int newton_line(const pkline *l, double lo, double hi, double t, double *tmax)
 {
-    double r, d1, d2;
-    line_d2(l, lo, &r, &d1, &d2);
-    if (!(d1 > 0))
-        return 0;
-    line_d2(l, hi, &r, &d1, &d2);
-    if (!(d1 < 0))
-        return 0;
+    double r, d1, d2, prev = 0;
     if (!(t > lo && t < hi))
         t = 0.5 * (lo + hi);
     for (int it = 0; it < 60; it++) {
         line_d2(l, t, &r, &d1, &d2);
-        if (d1 == 0) {
-            *tmax = t;
-            return d2 < 0;
+        if (d2 < 0) {
+            double h = -d1 / d2, tol = 1e-12 * (1 + fabs(t));
+            if (fabs(h) <= tol || (fabs(h) <= 1e-6 && fabs(h) * h * h <= 1e-13 * prev * prev)) {
+                *tmax = t + h;
+                return 1;
+            }
         }
         if (d1 > 0)
             lo = t;
         else
             hi = t;
         double tn = d2 < 0 ? t - d1 / d2 : 0.5 * (lo + hi);
-        if (!(tn > lo && tn < hi))
+        prev = d2 < 0 ? tn - t : 0;
+        if (!(tn > lo && tn < hi)) {
             tn = 0.5 * (lo + hi);
-        if (fabs(tn - t) <= 1e-12 * (1 + fabs(t)) || hi - lo <= 1e-12 * (1 + fabs(t))) {
-            *tmax = tn;
-            return 1;
+            prev = 0;
         }
+        if (hi - lo <= 1e-12 * (1 + fabs(t)))
+            return 0;
         t = tn;
     }
     return 0;
@@ -578,39 +616,22 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     double *wq = malloc(c->n * sizeof *wq);
     if (!wq)
         return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu terms", c->n);
-    int mx, my;
-    if (s.mode & 1) {
-        if ((st = row_argmax(c, &s, wq, &mx, &my))) {
-            free(wq);
-            return st;
-        }
-    } else {
-        sampled_argmax(c, &s, &mx, &my);
-    }
-    out->mx = mx;
-    out->my = my;
     /* the sampled plane around the maximum, handed to the PIV engine's estimator for a sum
      * of correlation (peak.h, rpiv_subpixel_resolve) as the 8 x 8 float plane in circular
      * order that it reads after an FFT: shifts -4..3, the search over -1..1, normalised by
      * the centre; the samples the estimator reads (the 3-point fits: the row and the column
-     * through the centre; the centroid: 3 x 3; the spline: 7 x 7), row by row */
+     * through the centre; the centroid: 3 x 3; the spline: 7 x 7) */
     enum { PW = 8 };
     float plane[PW * PW] = {0};
     rpiv_subpixel method = rpiv_subpixel_resolve(p->subpixel, 1);
-    int rad = method == RPIV_SUBPIXEL_SPLINE ? 3 : 1;
-    double rows[2 * 3 + 1][2 * 3 + 1];
-    /* every term is even about its DY: with all DY equal to the row my, rows my -+ j agree */
-    int mirror = (s.mode & 1) && s.dy0 == my;
-    for (int j = -rad; j <= rad; j++) {
-        if (mirror && j > 0) {
-            for (int i = -rad; i <= rad; i++)
-                rows[j + rad][i + rad] = rows[rad - j][i + rad];
-            continue;
-        }
-        line_factors(c, 0, my + j, wq);
-        pkline row = {c, 0, my + j, wq};
-        line_ints(&row, mx - rad, 2 * rad + 1, rows[j + rad]);
+    int rad = method == RPIV_SUBPIXEL_SPLINE ? 3 : 1, mx = 0, my = 0, wq_set = 0;
+    double rows[2 * 3 + 1][2 * 3 + 1] = {{0}};
+    if ((st = sample_plane(c, &s, rad, rows, wq, &wq_set, &mx, &my))) {
+        free(wq);
+        return st;
     }
+    out->mx = mx;
+    out->my = my;
     double r0 = rows[rad][rad];
     for (int j = -rad; j <= rad; j++)
         for (int i = -rad; i <= rad; i++) {
@@ -623,28 +644,30 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     rpiv_peak_find(plane, PW, PW, 1, method, &fit);
     out->dx_sub = mx + fit.dx;
     out->dy_sub = my + fit.dy;
-    /* the continuous maximum */
+    /* the continuous maximum; its value along the line (one factor per term) */
+    pkline l = {c, s.mode & 1 ? 0 : 1, s.mode & 1 ? s.dy0 : s.dx0, wq};
     if (s.mode == 3) {
         out->dx = s.dx0;
         out->dy = s.dy0;
+        l.wq = NULL;
     } else if (s.mode & 1) {
-        line_factors(c, 0, s.dy0, wq);
-        pkline l = {c, 0, s.dy0, wq};
+        if (!wq_set) /* (else the lattice's row my = DY gave them) */
+            line_factors(c, 0, s.dy0, wq);
         out->dy = s.dy0;
         st = line_max(&l, mx, s.x0, s.x1, out->dx_sub, p, &out->dx);
     } else if (s.mode & 2) {
         line_factors(c, 1, s.dx0, wq);
-        pkline l = {c, 1, s.dx0, wq};
         out->dx = s.dx0;
         st = line_max(&l, my, s.y0, s.y1, out->dy_sub, p, &out->dy);
     } else {
         double x0 = isfinite(out->dx_sub) ? out->dx_sub : mx;
         double y0 = isfinite(out->dy_sub) ? out->dy_sub : my;
         st = plane_max(c, x0, y0, p, &out->dx, &out->dy);
+        l.wq = NULL;
     }
+    if (!st)
+        out->value =
+            l.wq ? line_r(&l, l.axis ? out->dy : out->dx) : rpiv_ccm_corr_eval(c, out->dx, out->dy);
     free(wq);
-    if (st)
-        return st;
-    out->value = rpiv_ccm_corr_eval(c, out->dx, out->dy);
-    return RPIV_OK;
+    return st;
 }
