@@ -269,6 +269,56 @@ static void peak_of_a_sum_is_a_stationary_maximum(void)
     }
 }
 
+/* The sampled plane on the separable lattice against whole-term evaluations, in the three
+ * lattice paths: one pass with mirrored rows (all DY equal to an integer), one pass over a
+ * general box, and row by row (a box beyond LATTICE_MAX = 2^18 samples: DX and DY spread
+ * over 600 px); boxes of 1 px (shared q values), 0.7 px (ccm_axis) and none. */
+static void sampled_plane_matches_whole_terms(void)
+{
+    const double far = 600;
+    rpiv_ccm_gauss g[3][4] = {{{1.0, 0.5, 2.31, 1, 1},
+                               {0.8, 0.2, 3.62, 1, 1},
+                               {0.3, 1.7, 1.1, 1, 0.7},
+                               {0.2, 0.9, 2.9, 1, 0}},
+                              {{1.0, 0.5, 2.31, 0.6, 1},
+                               {0.8, 0.2, 3.62, 1.4, 1},
+                               {0.3, 1.7, 1.1, 0.2, 0.7},
+                               {0.2, 0.9, 2.9, 1.1, 0}},
+                              {{1.0, 0.5, 2.31, 0.6, 1},
+                               {0.8, 0.2, 3.62, 1.4, 1},
+                               {0.3, 1.7, 1.1, 0.2, 0.7},
+                               {1e-3, 0.9, 2.9 + far, 1.1 + far, 1}}};
+    for (int k = 0; k < 3; k++) {
+        rpiv_ccm_corr c = {4, 4, g[k]};
+        rpiv_ccm_peak pk;
+        CHECK_OK(rpiv_ccm_corr_peak(&c, &P, &pk));
+        int bx = 0, by = 0;
+        double best = -1;
+        for (int y = -1; y <= 3; y++)
+            for (int x = 0; x <= 5; x++)
+                if (rpiv_ccm_corr_eval(&c, x, y) > best) {
+                    best = rpiv_ccm_corr_eval(&c, x, y);
+                    bx = x;
+                    by = y;
+                }
+        CHECK(pk.mx == bx && pk.my == by);
+        enum { PW = 8 };
+        float pl[PW * PW] = {0};
+        double r0 = rpiv_ccm_corr_eval(&c, pk.mx, pk.my);
+        for (int j = -3; j <= 3; j++)
+            for (int i = -3; i <= 3; i++)
+                pl[((j + PW) % PW) * PW + (i + PW) % PW] =
+                    (float)(rpiv_ccm_corr_eval(&c, pk.mx + i, pk.my + j) / r0);
+        rpiv_peak fit;
+        rpiv_peak_find(pl, PW, PW, 1, rpiv_subpixel_resolve(P.subpixel, 1), &fit);
+        CHECK_NEAR(pk.dx_sub, pk.mx + fit.dx, 1e-6);
+        CHECK_NEAR(pk.dy_sub, pk.my + fit.dy, 1e-6);
+        CHECK_NEAR(pk.value, rpiv_ccm_corr_eval(&c, pk.dx, pk.dy), 1e-14);
+        if (k == 0)
+            CHECK(pk.dy == 1);
+    }
+}
+
 static void peak_errors(void)
 {
     rpiv_ccm_corr *c = NULL;
@@ -1392,6 +1442,7 @@ int main(void)
     RUN_TEST(pixel_integration_matches_sampled_images);
     RUN_TEST(peak_of_one_gaussian_is_exact);
     RUN_TEST(peak_of_a_sum_is_a_stationary_maximum);
+    RUN_TEST(sampled_plane_matches_whole_terms);
     RUN_TEST(peak_errors);
     RUN_TEST(statform_gaussian_case_matches_closed_form);
     RUN_TEST(uniform_velocity_gives_zero_bias_for_any_sheet);
