@@ -68,7 +68,9 @@ rpiv_status rpiv_ccm_corr_add(rpiv_ccm_corr *c, rpiv_ccm_gauss g)
  * the second differences lose digits and the triangle is replaced
  * by the Gaussian of its variance b^2/6 (error O((c b^2)^2) < 1e-12 relative). b = 0: the
  * Gaussian. */
-void ccm_axis(double e, double c, double b, double *f, double *fd, double *fdd)
+/* ccm_axis and the third derivative f3 = [E'(e+b) - 2E'(e) + E'(e-b)]/b^2, E' = -2cxE (odd,
+ * like f': evaluated at -|e|, its sign flipped for e > 0). */
+static void axis_d3(double e, double c, double b, double *f, double *fd, double *fdd, double *f3)
 {
     if (!(b > 0) || c * b * b < 1e-6) {
         double cc = b > 0 ? c / (1 + c * b * b / 3) : c, a = b > 0 ? sqrt(cc / c) : 1;
@@ -76,24 +78,33 @@ void ccm_axis(double e, double c, double b, double *f, double *fd, double *fdd)
         *f = E;
         *fd = -2 * cc * e * E;
         *fdd = (4 * cc * cc * e * e - 2 * cc) * E;
+        *f3 = (12 * cc * cc * e - 8 * cc * cc * cc * e * e * e) * E;
         return;
     }
     double x = -fabs(e);
     if (c * (x + b) * (x + b) > 50 && x + b < 0) { /* all three points beyond 10 s: < 2e-22 */
-        *f = *fd = *fdd = 0;
+        *f = *fd = *fdd = *f3 = 0;
         return;
     }
     double s = 1 / sqrt(2 * c), k = sqrt(M_PI / c) / (b * b);
-    double xs[3] = {x + b, x, x - b}, w[3] = {1, -2, 1}, q = 0, p = 0, h = 0;
+    double xs[3] = {x + b, x, x - b}, w[3] = {1, -2, 1}, q = 0, p = 0, h = 0, h3 = 0;
     for (int i = 0; i < 3; i++) {
         double E = exp(-c * xs[i] * xs[i]), P = 0.5 * erfc(-xs[i] / (M_SQRT2 * s));
         q += w[i] * (xs[i] * P + s * E / sqrt(2 * M_PI));
         p += w[i] * P;
         h += w[i] * E;
+        h3 += w[i] * xs[i] * E;
     }
     *f = k * q;
     *fd = e > 0 ? -k * p : k * p;
     *fdd = h / (b * b);
+    *f3 = (e > 0 ? 2 * c : -2 * c) * h3 / (b * b);
+}
+
+void ccm_axis(double e, double c, double b, double *f, double *fd, double *fdd)
+{
+    double f3;
+    axis_d3(e, c, b, f, fd, fdd, &f3);
 }
 
 double ccm_term_eval(const rpiv_ccm_gauss *g, double ex, double ey)
@@ -215,28 +226,40 @@ static void line_factors(const rpiv_ccm_corr *c, int axis, double at, double *wq
     }
 }
 
-/* R along the line at t and its first two derivatives along it. */
-static void line_d2(const pkline *l, double t, double *r, double *d1, double *d2)
+/* R along the line at t and its first three derivatives along it (d3: NULL, not wanted).
+ * Terms of factor 0 across the line are skipped. */
+static void line_d3(const pkline *l, double t, double *r, double *d1, double *d2, double *d3)
 {
     const rpiv_ccm_corr *c = l->c;
-    double s = 0, a = 0, b = 0;
+    double s = 0, a = 0, b = 0, b3 = 0;
     for (size_t k = 0; k < c->n; k++) {
         const rpiv_ccm_gauss *g = &c->g[k];
-        double e = t - (l->axis ? g->dy : g->dx), f, fd, fdd;
+        double e = t - (l->axis ? g->dy : g->dx), f, fd, fdd, f3, cc = g->c;
+        if (l->wq[k] == 0)
+            continue;
         if (g->box > 0) {
-            ccm_axis(e, g->c, g->box, &f, &fd, &fdd);
+            axis_d3(e, cc, g->box, &f, &fd, &fdd, &f3);
         } else {
-            f = exp(-g->c * e * e);
-            fd = -2 * g->c * e * f;
-            fdd = (4 * g->c * g->c * e * e - 2 * g->c) * f;
+            f = exp(-cc * e * e);
+            fd = -2 * cc * e * f;
+            fdd = (4 * cc * cc * e * e - 2 * cc) * f;
+            f3 = (12 * cc * cc * e - 8 * cc * cc * cc * e * e * e) * f;
         }
         s += l->wq[k] * f;
         a += l->wq[k] * fd;
         b += l->wq[k] * fdd;
+        b3 += l->wq[k] * f3;
     }
     *r = s;
     *d1 = a;
     *d2 = b;
+    if (d3)
+        *d3 = b3;
+}
+
+static void line_d2(const pkline *l, double t, double *r, double *d1, double *d2)
+{
+    line_d3(l, t, r, d1, d2, NULL);
 }
 
 /* Q(-a) for a >= 0, Q the ramp convolved with the normal density of standard deviation s
@@ -420,25 +443,38 @@ static double line_neg(double t, void *u)
 }
 
 /* The maximum of R on the line in (lo, hi), which holds one (R(t) above R(lo) and R(hi)),
- * from t: Newton's method on R' with the analytic R'', kept inside a bracket that every
- * evaluation narrows (a bisection step where Newton's would leave it or R'' >= 0). It stops
- * where a Newton step (R'' < 0) is below 1e-12 px, or where the quadratic convergence puts
- * the point after the step within 1e-13 px: e_{k+1} = C e_k^2 with C from the last two steps,
- * the error after a step h (below 1e-6 px) following a step h' is about |h|^3 / h'^2. 1 and *tmax
- * on success; 0 (a bracket that collapses without a maximum, no convergence): Brent's method
- * instead. */
+ * from t: Halley's method on R' with the analytic R'' and R''' (cubic convergence; Newton's
+ * step where Halley's denominator 2 R''^2 - R' R''' is not positive), kept inside a bracket
+ * that every evaluation narrows (a bisection step where the step would leave it or
+ * R'' >= 0). It stops where a step h (R'' < 0) is below 1e-12 px, or where the convergence
+ * puts the point after it within 1e-13 px: the error after h following a step h' is about
+ * h^4 / h'^3 after two Halley steps (e_{k+1} = K e_k^3, K from the two steps; |h| <= 1e-4),
+ * |h|^3 / h'^2 after Newton steps (|h| <= 1e-6). *rmax: R there, from the last evaluation's
+ * Taylor series (to h^3). 0 (a bracket that collapses without a maximum, no convergence):
+ * Brent's method instead. */
 static int newton_line(const pkline *l, double lo, double hi, double t, double *tmax, double *rmax)
 {
-    double r, d1, d2, prev = 0;
+    double r, d1, d2, d3, prev = 0;
+    int halley_prev = 0;
     if (!(t > lo && t < hi))
         t = 0.5 * (lo + hi);
     for (int it = 0; it < 60; it++) {
-        line_d2(l, t, &r, &d1, &d2);
+        line_d3(l, t, &r, &d1, &d2, &d3);
+        double h = 0;
+        int halley = 0;
         if (d2 < 0) {
-            double h = -d1 / d2, tol = 1e-12 * (1 + fabs(t));
-            if (fabs(h) <= tol || (fabs(h) <= 1e-6 && fabs(h) * h * h <= 1e-13 * prev * prev)) {
+            double den = 2 * d2 * d2 - d1 * d3;
+            halley = den > 0;
+            h = halley ? -2 * d1 * d2 / den : -d1 / d2;
+            double ah = fabs(h), tol = 1e-12 * (1 + fabs(t));
+            int conv = ah <= tol;
+            if (halley && halley_prev)
+                conv |= ah <= 1e-4 && ah * ah * ah * ah <= 1e-13 * fabs(prev * prev * prev);
+            else
+                conv |= ah <= 1e-6 && ah * ah * ah <= 1e-13 * prev * prev;
+            if (conv) {
                 *tmax = t + h;
-                *rmax = r + h * (d1 + 0.5 * d2 * h); /* + R''' h^3 / 6, |h| <= 1e-6 */
+                *rmax = r + h * (d1 + h * (0.5 * d2 + h * d3 / 6));
                 return 1;
             }
         }
@@ -446,11 +482,13 @@ static int newton_line(const pkline *l, double lo, double hi, double t, double *
             lo = t;
         else
             hi = t;
-        double tn = d2 < 0 ? t - d1 / d2 : 0.5 * (lo + hi);
-        prev = d2 < 0 ? tn - t : 0;
+        double tn = d2 < 0 ? t + h : 0.5 * (lo + hi);
+        prev = d2 < 0 ? h : 0;
+        halley_prev = halley;
         if (!(tn > lo && tn < hi)) {
             tn = 0.5 * (lo + hi);
             prev = 0;
+            halley_prev = 0;
         }
         if (hi - lo <= 1e-12 * (1 + fabs(t)))
             return 0;
