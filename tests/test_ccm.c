@@ -271,12 +271,13 @@ static void peak_of_a_sum_is_a_stationary_maximum(void)
 
 /* The sampled plane on the separable lattice against whole-term evaluations, in the three
  * lattice paths: one pass with mirrored rows (all DY equal to an integer), one pass over a
- * general box, and row by row (a box beyond LATTICE_MAX = 2^18 samples: DX and DY spread
- * over 600 px); boxes of 1 px (shared q values), 0.7 px (ccm_axis) and none. */
+ * general box, row by row (a box beyond LATTICE_MAX = 2^18 samples: DX and DY spread over
+ * 600 px), and all terms at one displacement; boxes of 1 px (shared q values), 0.7 px (ccm_axis)
+ * and none. */
 static void sampled_plane_matches_whole_terms(void)
 {
     const double far = 600;
-    rpiv_ccm_gauss g[3][4] = {{{1.0, 0.5, 2.31, 1, 1},
+    rpiv_ccm_gauss g[4][4] = {{{1.0, 0.5, 2.31, 1, 1},
                                {0.8, 0.2, 3.62, 1, 1},
                                {0.3, 1.7, 1.1, 1, 0.7},
                                {0.2, 0.9, 2.9, 1, 0}},
@@ -287,8 +288,12 @@ static void sampled_plane_matches_whole_terms(void)
                               {{1.0, 0.5, 2.31, 0.6, 1},
                                {0.8, 0.2, 3.62, 1.4, 1},
                                {0.3, 1.7, 1.1, 0.2, 0.7},
-                               {1e-3, 0.9, 2.9 + far, 1.1 + far, 1}}};
-    for (int k = 0; k < 3; k++) {
+                               {1e-3, 0.9, 2.9 + far, 1.1 + far, 1}},
+                              {{1.0, 0.5, 2.3, 1, 1},
+                               {0.8, 0.2, 2.3, 1, 1},
+                               {0.3, 1.7, 2.3, 1, 0.7},
+                               {0.2, 0.9, 2.3, 1, 0}}};
+    for (int k = 0; k < 4; k++) {
         rpiv_ccm_corr c = {4, 4, g[k]};
         rpiv_ccm_peak pk;
         CHECK_OK(rpiv_ccm_corr_peak(&c, &P, &pk));
@@ -314,8 +319,10 @@ static void sampled_plane_matches_whole_terms(void)
         CHECK_NEAR(pk.dx_sub, pk.mx + fit.dx, 1e-6);
         CHECK_NEAR(pk.dy_sub, pk.my + fit.dy, 1e-6);
         CHECK_NEAR(pk.value, rpiv_ccm_corr_eval(&c, pk.dx, pk.dy), 1e-14);
-        if (k == 0)
+        if (k == 0 || k == 3)
             CHECK(pk.dy == 1);
+        if (k == 3)
+            CHECK(pk.dx == 2.3);
     }
 }
 

@@ -353,7 +353,9 @@ static void lattice(const rpiv_ccm_corr *c, int xa, int nx, int ya, int ny, doub
  * of equal values; along the row nearest DY when all DY are equal (every term decreases with
  * |y - DY|), along the column nearest DX when all DX are equal. With rows (rad > 0): R at
  * (mx + i, my + j), |i|, |j| <= rad into rows[j + rad][i + rad]. With wq: when all DY equal
- * the integer my, every term's amplitude times its factor on that row, and *wq_set = 1. */
+ * the integer my, DX not all equal and rad >= 1, every term's amplitude times its factor on that
+ * row, followed by R on the row at x0 - 1 .. x1 + 1, and *wq_set = 1 (wq holds n + x1 - x0 + 3
+ * values). */
 static rpiv_status sample_plane(const rpiv_ccm_corr *c, const span *s, int rad, double rows[7][7],
                                 double *wq, int *wq_set, int *mx, int *my)
 {
@@ -380,7 +382,9 @@ static rpiv_status sample_plane(const rpiv_ccm_corr *c, const span *s, int rad, 
     *wq_set = 0;
     if (one) {
         lattice(c, xa, nx, ya, ny, r, fx, fy, mirror ? wq : NULL, 0);
-        *wq_set = mirror && wq;
+        *wq_set = mirror && wq && rad >= 1 && !(s->mode & 2);
+        for (int x = s->x0 - 1; *wq_set && x <= s->x1 + 1; x++) /* the line's samples */
+            wq[c->n + (size_t)(x - s->x0 + 1)] = r[x - xa];
     }
     *mx = ax0;
     *my = ay0;
@@ -502,35 +506,36 @@ static int newton_line(const pkline *l, double lo, double hi, double t, double *
  * stops near sqrt(eps) |t|, since R is flat at its maximum; from 1e-4 px Newton's quadratic
  * convergence needs two or three steps where Brent needs many more evaluations). */
 #define BRENT_TOL 1e-4
-static rpiv_status line_max(const pkline *l, int m, int lo, int hi, double guess,
+/* R on the line at the integer t: from lv (the lattice's samples at lo - 1 .. hi + 1; NULL:
+ * none) or evaluated. */
+static double line_int(const pkline *l, const double *lv, int lo, int hi, int t)
+{
+    return lv && t >= lo - 1 && t <= hi + 1 ? lv[t - lo + 1] : line_r(l, t);
+}
+
+static rpiv_status line_max(const pkline *l, const double *lv, int m, int lo, int hi, double guess,
                             const rpiv_ccm_params *p, double *tmax, double *rmax)
 {
     *rmax = NAN;
-    double fm = line_r(l, m), fa = line_r(l, m - 1), fb = line_r(l, m + 1);
+    double fm = line_int(l, lv, lo, hi, m), fa = line_int(l, lv, lo, hi, m - 1);
+    double fb = line_int(l, lv, lo, hi, m + 1);
     /* walk to a local maximum of the samples on this line */
     for (int step = 0; step < hi - lo + 2; step++) {
         if (fb > fm && m + 1 <= hi + 1) {
             m++;
             fa = fm;
             fm = fb;
-            fb = line_r(l, m + 1);
+            fb = line_int(l, lv, lo, hi, m + 1);
         } else if (fa > fm && m - 1 >= lo - 1) {
             m--;
             fb = fm;
             fm = fa;
-            fa = line_r(l, m - 1);
+            fa = line_int(l, lv, lo, hi, m - 1);
         } else {
             break;
         }
     }
     double t0 = m, f0 = fm;
-    if (guess > m - 1 && guess < m + 1) {
-        double fg = line_r(l, guess);
-        if (fg > f0) {
-            t0 = guess;
-            f0 = fg;
-        }
-    }
     if (!(f0 > fa) || !(f0 > fb)) {
         double tm = fa == fm ? m - 0.5 : m + 0.5, fmid = line_r(l, tm);
         if (fmid > fa && fmid > fb) {
@@ -540,7 +545,9 @@ static rpiv_status line_max(const pkline *l, int m, int lo, int hi, double guess
             return rpiv_fail(RPIV_ENUMERIC, "ccm: flat correlation around shift %d", m);
         }
     }
-    if (l->wq && newton_line(l, m - 1.0, m + 1.0, t0, tmax, rmax))
+    /* Newton's start: the sub-pixel estimate where it lies within a pixel of m */
+    double tn = guess > m - 1 && guess < m + 1 ? guess : t0;
+    if (l->wq && newton_line(l, m - 1.0, m + 1.0, tn, tmax, rmax))
         return RPIV_OK;
     gsl_min_fminimizer *s = gsl_min_fminimizer_alloc(gsl_min_fminimizer_brent);
     if (!s)
@@ -660,7 +667,8 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
         return st;
     /* every term is a product of a factor along x and one along y: along a line the factors
      * across it are computed once (wq), and each evaluation costs one factor per term */
-    double *wq = malloc(c->n * sizeof *wq);
+    size_t nw = c->n + (size_t)(s.x1 - s.x0) + 3;
+    double *wq = malloc(nw * sizeof *wq);
     if (!wq)
         return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu terms", c->n);
     /* the sampled plane around the maximum, handed to the PIV engine's estimator for a sum
@@ -702,11 +710,12 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
         if (!wq_set) /* (else the lattice's row my = DY gave them) */
             line_factors(c, 0, s.dy0, wq);
         out->dy = s.dy0;
-        st = line_max(&l, mx, s.x0, s.x1, out->dx_sub, p, &out->dx, &rmax);
+        st = line_max(&l, wq_set ? wq + c->n : NULL, mx, s.x0, s.x1, out->dx_sub, p, &out->dx,
+                      &rmax);
     } else if (s.mode & 2) {
         line_factors(c, 1, s.dx0, wq);
         out->dx = s.dx0;
-        st = line_max(&l, my, s.y0, s.y1, out->dy_sub, p, &out->dy, &rmax);
+        st = line_max(&l, NULL, my, s.y0, s.y1, out->dy_sub, p, &out->dy, &rmax);
     } else {
         double x0 = isfinite(out->dx_sub) ? out->dx_sub : mx;
         double y0 = isfinite(out->dy_sub) ? out->dy_sub : my;
