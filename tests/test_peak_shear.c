@@ -2,13 +2,18 @@
 /* Issue 15's broad, skewed ensemble peaks: a sum of correlation over pairs made by the synth
  * module through the skewed R-PIV sheet (the experiment's default) with the duct's velocity
  * varying across the depth (0 to ~6 px), against the CCM of the same sheet, particles and
- * flow (rpiv_config_ccm_predict, Eq. "statform"): its continuous peak (the ideal) and its
- * prediction of what the engine measures (the engine's estimator on the CCM's sampled
- * correlation). Measured with the ensemble's default estimator (auto: spline) and with the
- * 3-point Gaussian; the CCM also with its terms blurred by the pixels. Study knobs:
- * SHEAR_PAIRS=N (default 100), SHEAR_SIZE=WxH (default 192x128), SHEAR_VERBOSE=1 (every
- * vector), SHEAR_FNUMBER=F (both cases), SHEAR_NODEFORM=1 (integer window offsets), SHEAR_STUDY=D
- * (the last pass again from its result moved by +-D px). */
+ * flow (rpiv_config_ccm_predict, Eq. "statform", pixel-integrated images): its continuous peak
+ * (the ideal) and its prediction of what the engine measures (the engine's estimator on the
+ * CCM's sampled correlation); also the point-sampled ideal (pixel_box 0) and session 5's
+ * Gaussian stand-in for the pixels' triangle. Measured with the ensemble's default estimator
+ * (auto: spline) and with the 3-point Gaussian. Study knobs: SHEAR_PAIRS=N (default 100),
+ * SHEAR_SIZE=WxH (default 192x128), SHEAR_VERBOSE=1 (every vector), SHEAR_FNUMBER=F (both
+ * cases), SHEAR_NODEFORM=1 (integer window offsets), SHEAR_STUDY=D (the last pass again from
+ * its result moved by +-D px), SHEAR_SPREAD_UM=S (the particles' diameter spread),
+ * SHEAR_SPLIT=K (K disjoint groups of the pairs against all: the estimator's noise bias),
+ * SHEAR_PLANE=1 (the engine's summed planes against the CCM's, the window's pair loss and
+ * mean removal, the spline's block; 2: also the window's area average, slow). docs/ccm.md, "What
+ * the engine measures". */
 #include "check.h"
 #include "rpiv/ccm.h"
 #include "rpiv/config.h"
@@ -19,6 +24,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* SHEAR_PLANE=1 (study): the last pass's summed planes and its predictor, kept for the
+ * comparison of the engine's plane with the CCM's samples. */
+static float *g_planes;
+static size_t g_nplanes;
+static rpiv_field *g_pred;
 
 typedef struct run {
     int w, h, npairs;
@@ -50,6 +61,19 @@ static rpiv_field *ensemble(const rpiv_experiment *ex, const run *r, rpiv_subpix
             rpiv_image a = {r->w, r->h, 16, r->img + 2 * (size_t)i * npx};
             rpiv_image b = {r->w, r->h, 16, r->img + (2 * (size_t)i + 1) * npx};
             CHECK_OK(rpiv_ensemble_add(e, &a, &b));
+        }
+        if (e && getenv("SHEAR_PLANE") && k == rpiv_piv_npass(pv) - 1) {
+            size_t nd = 0;
+            const float *d = rpiv_ensemble_data(e, &nd);
+            free(g_planes);
+            rpiv_field_free(g_pred);
+            g_pred = NULL;
+            g_planes = malloc(nd * sizeof *g_planes);
+            if (g_planes)
+                memcpy(g_planes, d, nd * sizeof *g_planes);
+            g_nplanes = nd;
+            if (pred)
+                CHECK_OK(rpiv_field_copy(pred, &g_pred));
         }
         if (e)
             CHECK_OK(rpiv_ensemble_finish(e, &f));
@@ -116,11 +140,222 @@ static void ccm_peak(const rpiv_experiment *ex, double xs, double ys, rpiv_subpi
     rpiv_sheet_free(sheet);
 }
 
-/* Means over the valid vectors, px: [estimator][0] ensemble - ideal, [1] ensemble -
- * predicted, [2] predicted - ideal, [3] ensemble - pixel-blurred ideal; [estimator][4] the
- * largest |ensemble - ideal|, [5] the standard deviation of ensemble - predicted. */
+/* Study (SHEAR_PLANE=1): the engine's summed plane of window k along x through the shift 0
+ * (the predictor, up, vp) against the CCM's (pixel_box of ec) at up + i, both relative to
+ * their value at shift 0; accumulated, printed by plane_report. */
+static double g_ln[2][7], g_cnt, g_est[4], g_avg[2], g_spp, g_blk[3], g_bsub[3];
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+static void plane_study(const rpiv_experiment *ec, double xs, double ys, const rpiv_field *f,
+                        size_t k, double up, double vp)
+{
+    size_t nwin = (size_t)f->nx * (size_t)f->ny;
+    int w = (int)lround(sqrt((double)(g_nplanes - 2 * nwin) / (double)nwin));
+    const float *pl = g_planes + k * (size_t)w * (size_t)w;
+    rpiv_ccm_model mo = rpiv_config_ccm_model(ec, ec->synth.dt_s);
+    rpiv_ccm_params p = rpiv_ccm_params_default();
+    mo.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &ys};
+    rpiv_sheet *sheet = NULL;
+    rpiv_ccm_work *wk = NULL;
+    rpiv_ccm_corr *c = NULL;
+    CHECK_OK(rpiv_sheet_new(&ec->sheet, &sheet));
+    rpiv_ccm_sheet_at at = {sheet, xs};
+    mo.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
+    CHECK_OK(rpiv_ccm_work_new(&p, &wk));
+    CHECK_OK(rpiv_ccm_corr_new(0, &c));
+    if (wk && c && rpiv_ccm_stat_corr(&mo, wk, c) == RPIV_OK) {
+        /* which block the spline reads on this plane: the 7 x 7 around the integer maximum
+         * near 0 if all positive, else the 5 x 5, else the 3-point Gaussian */
+        {
+            int bi = 0, bj = 0;
+            for (int jj = -1; jj <= 1; jj++)
+                for (int ii = -1; ii <= 1; ii++)
+                    if (pl[((jj + w) % w) * w + (ii + w) % w] >
+                        pl[((bj + w) % w) * w + (bi + w) % w]) {
+                        bi = ii;
+                        bj = jj;
+                    }
+            int ok7 = 1, ok5 = 1;
+            for (int jj = -3; jj <= 3; jj++)
+                for (int ii = -3; ii <= 3; ii++) {
+                    float v = pl[((bj + jj + w) % w) * w + (bi + ii + w) % w];
+                    if (!(v > 0)) {
+                        ok7 = 0;
+                        if (abs(ii) <= 2 && abs(jj) <= 2)
+                            ok5 = 0;
+                    }
+                }
+            g_blk[ok7 ? 0 : ok5 ? 1 : 2]++;
+            /* the same estimator after subtracting the plane's far-field level (the median of
+             * the shifts beyond w/4 in x or y: the mean removal's constant baseline) */
+            float *cp = malloc((size_t)w * (size_t)w * sizeof *cp);
+            float *far = malloc((size_t)w * (size_t)w * sizeof *far);
+            if (cp && far) {
+                size_t nf = 0;
+                for (int jj = 0; jj < w; jj++)
+                    for (int ii = 0; ii < w; ii++) {
+                        int sx = ii < w / 2 ? ii : ii - w, sy = jj < w / 2 ? jj : jj - w;
+                        if (abs(sx) > w / 4 || abs(sy) > w / 4)
+                            far[nf++] = pl[jj * w + ii];
+                    }
+                qsort(far, nf, sizeof *far, cmp_float);
+                float med = far[nf / 2];
+                for (int t = 0; t < w * w; t++)
+                    cp[t] = pl[t] - med;
+                rpiv_peak f0, f1;
+                rpiv_peak_find(pl, w, w, 0, RPIV_SUBPIXEL_SPLINE, &f0);
+                rpiv_peak_find(cp, w, w, 0, RPIV_SUBPIXEL_SPLINE, &f1);
+                g_bsub[0] += (f0.ix + f0.dx + up) - (double)f->u[k];
+                g_bsub[1] += (f1.ix + f1.dx) - (f0.ix + f0.dx);
+                g_bsub[2] += (double)med / (double)pl[0];
+            }
+            free(cp);
+            free(far);
+        }
+        double c0 = rpiv_ccm_corr_eval(c, up, vp), e0 = (double)pl[0];
+        for (int i = -3; i <= 3; i++) {
+            double e = (double)pl[(i + w) % w] / e0, r = rpiv_ccm_corr_eval(c, up + i, vp) / c0;
+            g_ln[0][i + 3] += e;
+            g_ln[1][i + 3] += r;
+        }
+        g_cnt++;
+        /* the expected engine plane: each term weighted by the pairs its residual shift keeps
+         * in the circular window, (1 - |sx|/W)(1 - |sy|/W), minus the mean removal's baseline
+         * (the plane sums to 0: minus the weighted volume over W^2); 4 variants */
+        double vol = 0, vol0 = 0;
+        for (size_t t = 0; t < c->n; t++) {
+            double sx = c->g[t].dx - up, sy = c->g[t].dy - vp;
+            double wt = fmax(0, 1 - fabs(sx) / w) * fmax(0, 1 - fabs(sy) / w);
+            vol += c->g[t].amp * wt * M_PI / c->g[t].c;
+            vol0 += c->g[t].amp * M_PI / c->g[t].c;
+        }
+        rpiv_ccm_corr *cw = NULL;
+        CHECK_OK(rpiv_ccm_corr_new(c->n, &cw));
+        for (size_t t = 0; cw && t < c->n; t++) {
+            rpiv_ccm_gauss g = c->g[t];
+            double sx = g.dx - up, sy = g.dy - vp;
+            g.amp *= fmax(0, 1 - fabs(sx) / w) * fmax(0, 1 - fabs(sy) / w);
+            CHECK_OK(rpiv_ccm_corr_add(cw, g));
+        }
+        for (int v = 0; cw && v < 4; v++) {
+            const rpiv_ccm_corr *cc = v & 1 ? cw : c;
+            double base = v & 2 ? -(v & 1 ? vol : vol0) / ((double)w * w) : 0;
+            int mx = 0;
+            double best = -HUGE_VAL;
+            for (int i = -2; i <= 2; i++) {
+                double r = rpiv_ccm_corr_eval(cc, up + i, vp);
+                if (r > best) {
+                    best = r;
+                    mx = i;
+                }
+            }
+            enum { PW = 8 };
+            float pl8[PW * PW];
+            for (int jj = -4; jj < 4; jj++)
+                for (int ii = -4; ii < 4; ii++)
+                    pl8[((jj + PW) % PW) * PW + (ii + PW) % PW] =
+                        (float)(rpiv_ccm_corr_eval(cc, up + mx + ii, vp + jj) + base);
+            rpiv_peak fit;
+            rpiv_peak_find(pl8, PW, PW, 1, RPIV_SUBPIXEL_SPLINE, &fit);
+            g_est[v] += up + mx + fit.ix + fit.dx - (double)f->u[k];
+        }
+        rpiv_ccm_corr_free(cw);
+        /* the window's average over its area (hypothesis 2): the CCM's terms at 4 x 4
+         * sub-positions of the final window, each shifted by the linear part of the
+         * prediction's variation over the window (the deformation follows it), summed; its
+         * continuous peak against the centre's */
+        rpiv_ccm_corr *ca = NULL;
+        if (atoi(getenv("SHEAR_PLANE")) >= 2)
+            CHECK_OK(rpiv_ccm_corr_new(0, &ca));
+        double pj[4][4], dd[4] = {-12, -4, 4, 12};
+        for (int a = 0; ca && a < 4; a++)
+            for (int b = 0; b < 4; b++) {
+                rpiv_ccm_peak pk;
+                double sx = xs + dd[b] * g_spp, sy = ys + dd[a] * g_spp;
+                CHECK_OK(rpiv_config_ccm_predict(ec, ec->synth.dt_s, sx, sy, -1, &pk, NULL));
+                pj[a][b] = pk.dx;
+            }
+        double gx = 0, gy = 0;
+        for (int a = 0; a < 4; a++)
+            for (int b = 0; b < 4; b++) {
+                gx += pj[a][b] * dd[b] / (4 * 320.0);
+                gy += pj[a][b] * dd[a] / (4 * 320.0);
+            }
+        for (int a = 0; ca && a < 4; a++)
+            for (int b = 0; b < 4; b++) {
+                double sy = ys + dd[a] * g_spp, sx = xs + dd[b] * g_spp;
+                rpiv_ccm_model m2 = rpiv_config_ccm_model(ec, ec->synth.dt_s);
+                m2.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &sy};
+                rpiv_ccm_sheet_at at2 = {sheet, sx};
+                m2.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at2};
+                rpiv_ccm_corr *c2 = NULL;
+                CHECK_OK(rpiv_ccm_corr_new(0, &c2));
+                if (c2 && rpiv_ccm_stat_corr(&m2, wk, c2) == RPIV_OK)
+                    for (size_t t = 0; t < c2->n; t++) {
+                        rpiv_ccm_gauss g = c2->g[t];
+                        g.dx -= gx * dd[b] + gy * dd[a];
+                        g.amp /= 16;
+                        CHECK_OK(rpiv_ccm_corr_add(ca, g));
+                    }
+                rpiv_ccm_corr_free(c2);
+            }
+        rpiv_ccm_peak pa, pc;
+        if (ca && rpiv_ccm_corr_peak(ca, &p, &pa) == RPIV_OK &&
+            rpiv_ccm_corr_peak(c, &p, &pc) == RPIV_OK) {
+            g_avg[0] += pa.dx - pc.dx;
+            g_avg[1] += pa.dx_sub - pc.dx_sub;
+        }
+        rpiv_ccm_corr_free(ca);
+    }
+    rpiv_ccm_corr_free(c);
+    rpiv_ccm_work_free(wk);
+    rpiv_sheet_free(sheet);
+}
+
+static void plane_report(void)
+{
+    if (!(g_cnt > 0))
+        return;
+    printf("  plane along x, relative to shift 0 (mean over %g windows):\n   engine", g_cnt);
+    for (int i = 0; i < 7; i++)
+        printf(" %8.5f", g_ln[0][i] / g_cnt);
+    printf("\n   CCM   ");
+    for (int i = 0; i < 7; i++)
+        printf(" %8.5f", g_ln[1][i] / g_cnt);
+    printf("\n");
+    printf("   predicted - ensemble (spline on the expected plane): infinite window %+.4f, pair "
+           "loss %+.4f, baseline %+.4f, both %+.4f px\n",
+           g_est[0] / g_cnt, g_est[1] / g_cnt, g_est[2] / g_cnt, g_est[3] / g_cnt);
+    printf("   the window's area average - its centre: continuous %+.4f, spline %+.4f px\n",
+           g_avg[0] / g_cnt, g_avg[1] / g_cnt);
+    printf(
+        "   the spline's block on the engine's planes: 7 x 7 %g, 5 x 5 %g, 3-point Gaussian %g\n",
+        g_blk[0], g_blk[1], g_blk[2]);
+    printf("   far-field level %+.4f of the peak; subtracting it moves the spline by %+.4f px "
+           "(re-estimate - engine %+.2g)\n",
+           g_bsub[2] / g_cnt, g_bsub[1] / g_cnt, g_bsub[0] / g_cnt);
+    memset(g_bsub, 0, sizeof g_bsub);
+    memset(g_blk, 0, sizeof g_blk);
+    memset(g_avg, 0, sizeof g_avg);
+    memset(g_est, 0, sizeof g_est);
+    memset(g_ln, 0, sizeof g_ln);
+    g_cnt = 0;
+}
+
+/* Means over the valid vectors, px: [estimator][0] ensemble - ideal (the CCM's continuous
+ * peak, pixel-integrated images), [1] ensemble - predicted (the estimator on the CCM's sampled
+ * plane), [2] predicted - ideal, [3] ensemble - continuous peak of point-sampled images
+ * (pixel_box 0, the paper's), [4] ensemble - prediction with the pixels' triangle replaced
+ * by the Gaussian of its variance (session 5's stand-in); [5] the largest |ensemble - ideal|,
+ * [6] the standard deviation of ensemble - predicted; [7] ensemble - ideal and [8] ensemble -
+ * predicted over the interior vectors (not the outer ring of windows, whose deformed windows
+ * reach beyond the images' border). */
 typedef struct shear_result {
-    double m[2][6];
+    double m[2][9];
     int n;
 } shear_result;
 
@@ -145,6 +380,9 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         fnumber = getenv("SHEAR_FNUMBER");
     if (fnumber)
         CHECK_OK(rpiv_config_set(&ex, "camera", "fnumber", fnumber, "test"));
+    if (getenv("SHEAR_SPREAD_UM"))
+        CHECK_OK(rpiv_config_set(&ex, "particles", "diameter_spread_um", getenv("SHEAR_SPREAD_UM"),
+                                 "test"));
     rpiv_synth *s = NULL;
     CHECK_OK(rpiv_config_synth_new(&ex, NULL, &s));
     if (!s)
@@ -155,6 +393,7 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
            "x* %.3f..%.3f\n",
            r.w, r.h, r.npairs, in.nparticles, in.bulk_px, in.de_focus_px, in.x0_star,
            in.x0_star + r.w * in.star_per_px);
+    g_spp = in.star_per_px;
     size_t npx = (size_t)r.w * (size_t)r.h;
     r.img = malloc(2 * npx * (size_t)r.npairs * sizeof *r.img);
     CHECK(r.img != NULL);
@@ -172,11 +411,33 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         rpiv_field *f = ensemble(&ex, &r, ms[q]);
         if (!f)
             continue;
-        rpiv_experiment ec = ex;
-        ec.piv.subpixel = ms[q];
-        ec.bias.pixel_box = 0; /* the ideal: the paper's continuous images; ccm_peak blurs */
+        /* study (SHEAR_SPLIT=K): the ensembles of K disjoint groups of the pairs against the
+         * whole one: the sampled estimator's bias from the plane's noise goes as 1/pairs */
+        int split = getenv("SHEAR_SPLIT") ? atoi(getenv("SHEAR_SPLIT")) : 0;
+        if (split > 1 && q == 0) {
+            double dsum = 0;
+            int dn = 0;
+            for (int g = 0; g < split; g++) {
+                run rg = r;
+                rg.npairs = r.npairs / split;
+                rg.img = r.img + 2 * (size_t)g * (size_t)rg.npairs * (size_t)r.w * (size_t)r.h;
+                rpiv_field *fg = ensemble(&ex, &rg, ms[q]);
+                size_t nv = (size_t)f->nx * (size_t)f->ny;
+                for (size_t k = 0; fg && k < nv; k++)
+                    if (f->flag[k] == RPIV_FLAG_VALID && fg->flag[k] == RPIV_FLAG_VALID) {
+                        dsum += (double)fg->u[k] - (double)f->u[k];
+                        dn++;
+                    }
+                rpiv_field_free(fg);
+            }
+            printf("  %d groups of %d pairs: mean (group - all) %+.4f px over %d vectors\n", split,
+                   r.npairs / split, dn ? dsum / dn : 0.0, dn);
+        }
+        rpiv_experiment ec = ex, e0 = ex;
+        ec.piv.subpixel = e0.piv.subpixel = ms[q];
+        e0.bias.pixel_box = 0; /* the paper's continuous images; ccm_peak blurs them */
         double *m = res->m[q], ss = 0;
-        int n = 0;
+        int n = 0, nin = 0;
         for (int j = 0; j < f->ny; j++)
             for (int i = 0; i < f->nx; i++) {
                 size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
@@ -185,32 +446,49 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                 double x = f->x0 + i * f->dx, y = f->y0 + j * f->dy;
                 double xs = in.x0_star + (x + 0.5) * in.star_per_px;
                 double ys = in.y0_star + (y + 0.5) * in.star_per_px;
-                rpiv_ccm_peak pk, pb;
+                rpiv_ccm_peak pk, p0, pb;
                 double scale, u = (double)f->u[k];
                 CHECK_OK(rpiv_config_ccm_predict(&ec, ex.synth.dt_s, xs, ys, -1, &pk, &scale));
-                ccm_peak(&ec, xs, ys, ms[q], 1, &pb);
+                CHECK_OK(rpiv_config_ccm_predict(&e0, ex.synth.dt_s, xs, ys, -1, &p0, &scale));
+                ccm_peak(&e0, xs, ys, ms[q], 1, &pb);
                 if (getenv("SHEAR_VERBOSE"))
                     printf("    %s (%6.2f, %6.2f) x* %.3f y* %.3f: ensemble %.4f, ideal %.4f, "
-                           "predicted %.4f, pixel-blurred ideal %.4f\n",
-                           rpiv_subpixel_names[ms[q]], x, y, xs, ys, u, pk.dx, pk.dx_sub, pb.dx);
+                           "predicted %.4f, point-sampled %.4f, Gaussian stand-in %.4f (%.4f)\n",
+                           rpiv_subpixel_names[ms[q]], x, y, xs, ys, u, pk.dx, pk.dx_sub, p0.dx,
+                           pb.dx, pb.dx_sub);
+                if (g_planes && g_pred && q == 0)
+                    plane_study(&ec, xs, ys, f, k, (double)g_pred->u[k], (double)g_pred->v[k]);
                 m[0] += u - pk.dx;
                 m[1] += u - pk.dx_sub;
                 m[2] += pk.dx_sub - pk.dx;
-                m[3] += u - pb.dx;
-                m[4] = fmax(m[4], fabs(u - pk.dx));
+                m[3] += u - p0.dx;
+                m[4] += u - pb.dx_sub;
+                m[5] = fmax(m[5], fabs(u - pk.dx));
+                if (i > 0 && j > 0 && i < f->nx - 1 && j < f->ny - 1) {
+                    m[7] += u - pk.dx;
+                    m[8] += u - pk.dx_sub;
+                    nin++;
+                }
                 ss += (u - pk.dx_sub) * (u - pk.dx_sub);
                 n++;
             }
         CHECK(n > 0);
         if (n) {
-            for (int t = 0; t < 4; t++)
+            for (int t = 0; t < 5; t++)
                 m[t] /= n;
-            m[5] = sqrt(fmax(ss / n - m[1] * m[1], 0));
-            printf("  %-5s %d vectors: ensemble - ideal %+.4f (max |.| %.4f), ensemble - "
-                   "predicted %+.4f (std %.4f), predicted - ideal %+.4f, ensemble - "
-                   "pixel-blurred ideal %+.4f px\n",
-                   rpiv_subpixel_names[ms[q]], n, m[0], m[4], m[1], m[5], m[2], m[3]);
+            m[6] = sqrt(fmax(ss / n - m[1] * m[1], 0));
+            m[7] /= nin > 0 ? nin : 1;
+            m[8] /= nin > 0 ? nin : 1;
+            printf(
+                "  %-5s %d vectors: ensemble - ideal %+.4f (max |.| %.4f), ensemble - "
+                "predicted %+.4f (std %.4f), predicted - ideal %+.4f; ensemble - "
+                "point-sampled ideal %+.4f, ensemble - Gaussian stand-in's prediction %+.4f px\n",
+                rpiv_subpixel_names[ms[q]], n, m[0], m[5], m[1], m[6], m[2], m[3], m[4]);
+            printf("        %d interior vectors: ensemble - ideal %+.4f, ensemble - predicted "
+                   "%+.4f px\n",
+                   nin, m[7], m[8]);
         }
+        plane_report();
         res->n = n;
         rpiv_field_free(f);
     }
@@ -219,18 +497,22 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
 }
 
 /* The experiment's particles (d_e 1.8 px in focus): the spline removes the estimator's bias on
- * the CCM's own planes (predicted - ideal), and the ensemble moves towards the ideal; the
- * rest is image formation the CCM's sum of Gaussians leaves out (pixels, interpolation). */
+ * the CCM's own planes (predicted - ideal); the pixels' box (the exact triangle) explains most
+ * of the gap to the point-sampled ideal, and the Gaussian that stood for the triangle gives
+ * nearly the same prediction (hypothesis 1 of issue 15: not the rest). What remains at 100
+ * pairs (-0.04 px) is listed in docs/ccm.md, "What the engine measures". */
 static void small_particle_images(void)
 {
     shear_result r;
     shear_case(NULL, 100, &r);
     if (!r.n)
         return;
-    CHECK(fabs(r.m[0][2]) <= 0.01); /* spline on the CCM's plane: -0.003 px */
-    CHECK(r.m[1][2] <= -0.06);      /* the 3-point Gaussian: -0.077 px    */
+    CHECK(fabs(r.m[0][2]) <= 0.01); /* spline on the CCM's plane: +0.003 px */
+    CHECK(r.m[1][2] <= -0.04);      /* the 3-point Gaussian: -0.049 px    */
     CHECK(fabs(r.m[0][0]) < fabs(r.m[1][0]) - 0.03);
-    CHECK(fabs(r.m[0][3]) < fabs(r.m[0][0])); /* the pixels explain part of the rest */
+    CHECK(fabs(r.m[0][0]) < fabs(r.m[0][3]) - 0.04); /* pixels: -0.092 -> -0.039 px */
+    CHECK(fabs(r.m[0][0]) <= 0.05);
+    CHECK(fabs(r.m[0][1] - r.m[0][4]) < 0.005); /* triangle vs its Gaussian: 0.002 px */
 }
 
 /* Particle images of 4.8 px (f# 16): the issue's targets, on the mean over the vectors. */

@@ -51,12 +51,15 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_params_check(const rpiv_ccm_params *p);
 
 /* ---- the correlation as a sum of Gaussians ------------------------------------------------ */
 
-/* One term amp * exp(-c ((dx - DX)^2 + (dy - DY)^2)) of R_D. */
+/* One term amp * exp(-c ((dx - DX)^2 + (dy - DY)^2)) of R_D; with box = b > 0 the same
+ * Gaussian convolved along each axis with the triangle (b - |t|)/b^2 (the autocorrelation of
+ * a pixel's box of side b: pixel-integrated images), same volume (docs/ccm.md). */
 typedef struct rpiv_ccm_gauss {
-    double amp; /* peak value (relative, see above)           */
-    double c;   /* 4 beta^2 / (d_e1^2 + d_e2^2), 1/px^2        */
-    double dx;  /* displacement DX of the particle image, px  */
-    double dy;  /* displacement DY, px                         */
+    double amp; /* peak value of the Gaussian (relative, see above) */
+    double c;   /* 4 beta^2 / (d_e1^2 + d_e2^2), 1/px^2              */
+    double dx;  /* displacement DX of the particle image, px        */
+    double dy;  /* displacement DY, px                               */
+    double box; /* side of the pixels' box, px; 0: the Gaussian     */
 } rpiv_ccm_gauss;
 
 /* A growable list of terms. Owned by the caller: rpiv_ccm_corr_new / rpiv_ccm_corr_free. */
@@ -120,8 +123,9 @@ typedef struct rpiv_ccm_model {
     size_t nbreaks;                     /* sheet's centre), where quadrature intervals split */
     double pixel_box; /* side of the square each pixel integrates the image over, px: 1 (a
                        * full-fill sensor, as rpiv synth renders), 0 (point samples: the
-                       * paper's continuous images); adds pixel_box^2/12 px^2 to each image's
-                       * variance per axis, at constant volume (docs/ccm.md, "Pixel
+                       * paper's continuous images); every term is convolved with the box's
+                       * autocorrelation, per axis the triangle of half-width pixel_box, at
+                       * constant volume (rpiv_ccm_gauss.box; docs/ccm.md, "Pixel
                        * integration") */
 } rpiv_ccm_model;
 

@@ -147,33 +147,33 @@ double rpiv_ccm_sheet_fn(const void *user, double zstar)
 
 /* ---- Eq. "CCM_gen" and Eq. "CCM_simp" ------------------------------------------------- */
 
-/* Peak and variance (px^2) of the image of Eq. "int" of a particle at z with intensity i, as
- * the pixels record it. A pixel integrates the image over a square of side b = pixel_box: the
- * recorded image is the Gaussian convolved with a box of variance b^2/12 per axis, sampled at
- * the pixel centres. Averaged over the particles' sub-pixel positions, the correlation of two
- * such images is the continuous one convolved with the box's autocorrelation, a triangle of
- * variance b^2/6: each image's variance grows by b^2/12, its volume (peak x 2 pi var) is
- * unchanged. The triangle is replaced by the Gaussian of the same variance (its fourth
- * cumulant, -b^4/60, is dropped; docs/ccm.md, "Pixel integration"). */
+/* Peak and variance (px^2) of the continuous image of Eq. "int" of a particle at z with
+ * intensity i. */
 static void image_of(const ccm_frame *f, double z, double i, double dp, double *peak, double *var)
 {
     const rpiv_camera *cam = &f->m->camera;
     double zd = rpiv_imaging_defocus_m(cam, f->m->h_m, z);
     double de = rpiv_imaging_de_m(cam, dp, zd);
     double s = rpiv_imaging_sigma_m(cam, de) / f->pixel_m;
-    double v0 = s * s, b = f->m->pixel_box;
-    *var = v0 + b * b / 12;
-    *peak = rpiv_imaging_peak(cam, i * dp * dp, de, zd) * (v0 / *var);
+    *var = s * s;
+    *peak = rpiv_imaging_peak(cam, i * dp * dp, de, zd);
 }
 
+/* A pixel integrates the image over a square of side b = pixel_box: the recorded image is the
+ * Gaussian convolved with that box, sampled at the pixel centres. Averaged over the particles'
+ * sub-pixel positions, the correlation of two such images is the continuous one convolved with
+ * the box's autocorrelation, per axis the triangle (b - |t|)/b^2: every term carries .box = b
+ * and is evaluated exactly (ccm_axis; docs/ccm.md, "Pixel integration"). */
 void ccm_frame_init(ccm_frame *f, const rpiv_ccm_model *m)
 {
     f->m = m;
     f->pixel_m = rpiv_camera_pixel_m(&m->camera);
-    double pk, var;
-    /* the reference particle: in focus (z = z*_OP), I0 = 1, d_p of the model */
+    double pk, var, fa, d1, d2;
+    /* the reference particle: in focus (z = z*_OP), I0 = 1, d_p of the model; its term's
+     * peak value, the pixels' triangle included */
     image_of(f, m->camera.zop_star, 1.0, m->dp_m, &pk, &var);
-    f->ref = pk * pk * M_PI * var;
+    ccm_axis(0, 1 / (4 * var), m->pixel_box, &fa, &d1, &d2);
+    f->ref = pk * pk * M_PI * var * fa * fa;
     f->pnorm = 1;
 }
 
@@ -186,8 +186,11 @@ rpiv_ccm_gauss ccm_term(const ccm_frame *f, double z1, double z2, double i1, dou
     image_of(f, z1, i1, dp1, &p1, &v1);
     image_of(f, z2, i2, dp2, &p2, &v2);
     double vs = v1 + v2;
-    return (rpiv_ccm_gauss){
-        .amp = p1 * p2 * 2 * M_PI * v1 * v2 / vs / f->ref, .c = 1 / (2 * vs), .dx = ddx, .dy = ddy};
+    return (rpiv_ccm_gauss){.amp = p1 * p2 * 2 * M_PI * v1 * v2 / vs / f->ref,
+                            .c = 1 / (2 * vs),
+                            .dx = ddx,
+                            .dy = ddy,
+                            .box = f->m->pixel_box};
 }
 
 rpiv_ccm_gauss ccm_amp_term(const ccm_frame *f, double z)
@@ -196,7 +199,8 @@ rpiv_ccm_gauss ccm_amp_term(const ccm_frame *f, double z)
     double i0 = m->illum.fn(m->illum.user, z);
     double p, v;
     image_of(f, z, i0 > 0 ? i0 : 0, m->dp_m, &p, &v);
-    return (rpiv_ccm_gauss){.amp = p * p * M_PI * v / f->ref, .c = 1 / (4 * v), .dx = 0, .dy = 0};
+    return (rpiv_ccm_gauss){
+        .amp = p * p * M_PI * v / f->ref, .c = 1 / (4 * v), .dx = 0, .dy = 0, .box = m->pixel_box};
 }
 
 rpiv_ccm_gauss ccm_simp_term(const ccm_frame *f, double z)

@@ -55,6 +55,12 @@ void ccm_utab_free(ccm_utab *t);
 /* Presence law P(z) (unnormalised; 1 when the model has none). */
 double ccm_presence(const rpiv_ccm_model *m, double z);
 
+/* Along one axis, exp(-c e^2) convolved with the unit-area triangle of half-width b (the
+ * pixels' box of side b correlated with itself; b = 0: the Gaussian): value, first and second
+ * derivatives at e. ccm_term_eval: one term at offset (ex, ey) from its displacement. */
+void ccm_axis(double e, double c, double b, double *f, double *fd, double *fdd);
+double ccm_term_eval(const rpiv_ccm_gauss *g, double ex, double ey);
+
 /* The integer-sampled maximum of R (1-D along the common DY row when all DY are equal). */
 RPIV_NODISCARD rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
                                            int *mx, int *my);

@@ -159,6 +159,15 @@ static int res_f(const gsl_vector *x, void *u, gsl_vector *f)
     return GSL_SUCCESS;
 }
 
+/* d^2 R_n / d delta^2 of one term on its row (DY = 0) at delta; dR'/dDX_n is its negative. */
+static double term_d2(const rpiv_ccm_gauss *g, double d)
+{
+    double fx, fxd, fxdd, fy, fyd, fydd;
+    ccm_axis(d - g->dx, g->c, g->box, &fx, &fxd, &fxdd);
+    ccm_axis(0, g->c, g->box, &fy, &fyd, &fydd);
+    return g->amp * fxdd * fy;
+}
+
 /* dU_j/dc_k by implicit differentiation of R'(delta; c) = 0 at the continuous peak. */
 static int res_df(const gsl_vector *x, void *u, gsl_matrix *J)
 {
@@ -170,11 +179,8 @@ static int res_df(const gsl_vector *x, void *u, gsl_matrix *J)
     for (size_t j = 0; j < v->nm; j++) {
         const meas *m = &v->m[j];
         double d = m->delta, r2 = 0;
-        for (size_t n = 0; n < m->corr->n; n++) {
-            const rpiv_ccm_gauss *g = &m->corr->g[n];
-            double e = g->dx - d, t = g->amp * exp(-g->c * e * e) * 2 * g->c;
-            r2 += t * (2 * g->c * e * e - 1);
-        }
+        for (size_t n = 0; n < m->corr->n; n++)
+            r2 += term_d2(&m->corr->g[n], d);
         if (!(r2 < 0)) {
             v->fail = RPIV_ENUMERIC;
             snprintf(v->failmsg, sizeof v->failmsg,
@@ -182,9 +188,7 @@ static int res_df(const gsl_vector *x, void *u, gsl_matrix *J)
             return GSL_EFAILED;
         }
         for (size_t n = 0; n < m->corr->n; n++) {
-            const rpiv_ccm_gauss *g = &m->corr->g[n];
-            double e = g->dx - d, t = g->amp * exp(-g->c * e * e) * 2 * g->c;
-            double dn = -v->wt[j] * t * (1 - 2 * g->c * e * e) / r2;
+            double dn = v->wt[j] * term_d2(&m->corr->g[n], d) / r2;
             const double *b = m->b + ORDER * n;
             for (int q = 0; q < ORDER; q++) {
                 int col = v->map[m->i0[n] + (size_t)q];

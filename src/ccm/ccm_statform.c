@@ -131,6 +131,8 @@ size_t ccm_breakpoints(const rpiv_ccm_model *m, rpiv_ccm_work *w, double *pts, s
 typedef struct integ {
     ccm_frame f;
     int nshift; /* 0: amplitude alone; else sum over the shifts */
+    int exact;  /* boxed terms: 1 exact; 0 the Gaussian of the same variance (the rule's
+                 * adaptive pass only chooses subintervals; the rule's terms are exact) */
     double sx[5], sy[5];
 } integ;
 
@@ -145,8 +147,13 @@ static double integrand(double z, void *u)
         return a;
     double s = 0;
     for (int k = 0; k < q->nshift; k++) {
-        double ex = q->sx[k] - g.dx, ey = q->sy[k] - g.dy;
-        s += exp(-g.c * (ex * ex + ey * ey));
+        rpiv_ccm_gauss unit = g;
+        unit.amp = 1;
+        if (!q->exact && g.box > 0) {
+            double cc = g.c / (1 + g.c * g.box * g.box / 3);
+            unit = (rpiv_ccm_gauss){cc / g.c, cc, g.dx, g.dy, 0};
+        }
+        s += ccm_term_eval(&unit, q->sx[k] - g.dx, q->sy[k] - g.dy);
     }
     return a * s;
 }
@@ -204,6 +211,7 @@ rpiv_status rpiv_ccm_stat_eval(const rpiv_ccm_model *m, rpiv_ccm_work *w, double
     if (st)
         return st;
     q.nshift = 1;
+    q.exact = 1;
     q.sx[0] = dx;
     q.sy[0] = dy;
     gsl_function F = {integrand, &q};
