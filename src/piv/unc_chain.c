@@ -11,6 +11,7 @@
  * level) sharing pixels share noise: cov(n_a, n_b) = s_a s_b |W_a & W_b| / sqrt(|W_a| |W_b|),
  * s the windows' correlation-statistics sigmas. The error of a vector is expanded back through
  * the levels into the window noises and its variance summed with these covariances. */
+#include "piv_impl.h"
 #include "uncertainty_impl.h"
 
 #include "rpiv/deform.h"
@@ -78,29 +79,29 @@ uint64_t unc_field_hash(const rpiv_field *f)
     return hash_bytes(h, f->v, n * sizeof *f->v);
 }
 
-/* The refinement's denoiser (refine_filter.c) on a line of pure noise: every detail falls
- * below its universal threshold and is dropped, leaving the [1/4, 1/2, 1/4] smoothing inside
- * and, at an end, the least-squares line through the first three samples, (5 U0 + 2 U1 - U2) / 6.
- * Linear, so it carries the predictor's noise as the engine's nonlinear denoiser does where
- * the field is smooth. */
-static void denoise_line(float *u, int n)
+/* The refinement's denoiser (refine_filter.c) on noise: at each of its levels (dilations 1,
+ * 2 and 4 grid steps) nearly every detail falls below its universal threshold and is dropped,
+ * so it acts on the predictor's noise as the linear smoothings it keeps, level after level:
+ * the filter's own code with every detail dropped (piv_pred_denoise_linear: at dilations 1
+ * and 4 [1/4, 1/2, 1/4] and, at an end, the least-squares line through the first three
+ * samples; at dilation 2 [-1/16, 1/4, 5/8, 1/4, -1/16] on the line continued by odd
+ * reflection, the end samples kept). Separable: the x and y lines' operators commute. */
+int unc_denoise_line(float *u, int n, int nx, int ny)
 {
-    float *t = malloc((size_t)n * sizeof *t);
-    if (!t)
-        return; /* the map without the denoiser: a larger, not a smaller, sigma */
-    memcpy(t, u, (size_t)n * sizeof *t);
-    for (int i = 1; i < n - 1; i++)
-        u[i] = 0.25f * t[i - 1] + 0.5f * t[i] + 0.25f * t[i + 1];
-    u[0] = (5 * t[0] + 2 * t[1] - t[2]) / 6;
-    u[n - 1] = (5 * t[n - 1] + 2 * t[n - 2] - t[n - 3]) / 6;
-    free(t);
+    double *line = malloc((size_t)n * sizeof *line);
+    if (!line)
+        return -1;
+    piv_pred_denoise_linear(u, n, nx, ny, line);
+    free(line);
+    return 0;
 }
 
-/* One axis of the map: the previous grid has pn nodes at p0 + k pd; this level's n windows
+/* One axis of the map: the previous grid has pn nodes at p0 + k pd (pother across: the grid
+ * the denoiser sees is pn x pother); this level's n windows
  * start at pixel w0 + i st and are ww wide; the predictor is the spline of the previous field
  * filtered by [a/2, 1 - a, a/2] (the engine's pred_filter: edge nodes unfiltered), sampled at
  * pixel + shift. Fills h and m ([k * n + i]). */
-static rpiv_status axis_map(int pn, double p0, double pd, int n, int w0, int st, int ww,
+static rpiv_status axis_map(int pn, int pother, double p0, double pd, int n, int w0, int st, int ww,
                             double shift, double filter, int denoise, int img, double *h, double *m)
 {
     rpiv_status s = RPIV_OK;
@@ -121,9 +122,9 @@ static rpiv_status axis_map(int pn, double p0, double pd, int n, int w0, int st,
             if (k + 1 <= pn - 2)
                 f->u[k + 1] = c1;
         }
-        if (denoise && pn > 2)
-            denoise_line(f->u, pn);
-        if (!(s = rpiv_deform_pred_new(f, img, 1, shift, &p))) {
+        if (denoise && unc_denoise_line(f->u, pn, pn, pother))
+            s = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+        if (!s && !(s = rpiv_deform_pred_new(f, img, 1, shift, &p))) {
             for (int i = 0; i < n; i++) {
                 double u, v, sum = 0;
                 const int x0 = w0 + i * st;
@@ -216,10 +217,10 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         if (!l->hx || !l->ax || !l->hy || !l->ay)
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
         if (!st)
-            st = axis_map(p->nx, p->x0, p->dx, f->nx, g->wx0, g->sx, g->ww, g->shift, filter,
+            st = axis_map(p->nx, p->ny, p->x0, p->dx, f->nx, g->wx0, g->sx, g->ww, g->shift, filter,
                           g->denoise, g->img_w, l->hx, l->ax);
         if (!st)
-            st = axis_map(p->ny, p->y0, p->dy, f->ny, g->wy0, g->sy, g->wh, g->shift, filter,
+            st = axis_map(p->ny, p->nx, p->y0, p->dy, f->ny, g->wy0, g->sy, g->wh, g->shift, filter,
                           g->denoise, g->img_h, l->hy, l->ay);
         if (st) {
             level_free(l);
