@@ -77,6 +77,14 @@ RPIV_NODISCARD rpiv_status unc_chain_push(unc_chain **chain, int linked, const u
                                           double filter, const rpiv_field *f, const float *su,
                                           const float *sv);
 
+/* The newest level's predictor went through the refinement's denoiser, which removed
+ * `removed` (the level before's field minus the denoised one, on its grid) from it: its
+ * shrinkage of the true field enters the vectors' variance (unc_chain_total; docs/
+ * uncertainty.md, "The vortex"). g: the newest level's windows. No-op unless the newest level
+ * is linked. */
+RPIV_NODISCARD rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g,
+                                            const rpiv_field *removed);
+
 /* Remember f as the field the newest level returned (unc_chain_links compares with it). */
 void unc_chain_set_hash(unc_chain *c, const rpiv_field *f);
 
