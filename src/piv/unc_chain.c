@@ -54,20 +54,28 @@ struct unc_chain {
     uint64_t hash; /* of the field the newest level returned */
 };
 
-static void level_free(unc_level *l)
+/* Free the shrinkage data of a level (only the newest level's is used). */
+static void shrink_free(unc_level *l)
 {
-    free(l->s[0]);
-    free(l->s[1]);
-    free(l->hx);
-    free(l->ax);
-    free(l->hy);
-    free(l->ay);
     free(l->hx0);
     free(l->ax0);
     free(l->hy0);
     free(l->ay0);
     free(l->rm[0]);
     free(l->rm[1]);
+    l->hx0 = l->ax0 = l->hy0 = l->ay0 = NULL;
+    l->rm[0] = l->rm[1] = NULL;
+}
+
+static void level_free(unc_level *l)
+{
+    shrink_free(l);
+    free(l->s[0]);
+    free(l->s[1]);
+    free(l->hx);
+    free(l->ax);
+    free(l->hy);
+    free(l->ay);
     memset(l, 0, sizeof *l);
 }
 
@@ -176,6 +184,8 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         free(c->lv[0].ay);
         c->lv[0].hx = c->lv[0].ax = c->lv[0].hy = c->lv[0].ay = NULL;
     }
+    if (c->n) /* the shrinkage term is the newest level's only */
+        shrink_free(&c->lv[c->n - 1]);
     unc_level *l = &c->lv[c->n];
     memset(l, 0, sizeof *l);
     *l = (unc_level){.nx = f->nx,
@@ -251,6 +261,7 @@ rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g, const rpiv_field *
         return RPIV_OK;
     const size_t mx = (size_t)p->nx * (size_t)l->nx, my = (size_t)p->ny * (size_t)l->ny;
     const size_t n = (size_t)p->nx * (size_t)p->ny;
+    shrink_free(l);
     l->hx0 = malloc(mx * sizeof *l->hx0);
     l->ax0 = malloc(mx * sizeof *l->ax0);
     l->hy0 = malloc(my * sizeof *l->hy0);
@@ -267,14 +278,7 @@ rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g, const rpiv_field *
         st = axis_map(p->ny, p->nx, p->y0, p->dy, l->ny, g->wy0, g->sy, g->wh, g->shift, 0, 0,
                       g->img_h, l->hy0, l->ay0);
     if (st) {
-        free(l->hx0);
-        free(l->ax0);
-        free(l->hy0);
-        free(l->ay0);
-        free(l->rm[0]);
-        free(l->rm[1]);
-        l->hx0 = l->ax0 = l->hy0 = l->ay0 = NULL;
-        l->rm[0] = l->rm[1] = NULL;
+        shrink_free(l);
         return st;
     }
     memcpy(l->rm[0], removed->u, n * sizeof *l->rm[0]);

@@ -51,7 +51,7 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
     if (st)
         return st;
     if (linked && g.denoise && pass == pv->npass - 1 && !(refines && pv->p.refine_filter > 0) &&
-        !getenv("UNC_NOSHRINK") && (st = unc_shrink(pv, predictor, &g)))
+        (st = unc_shrink(pv, predictor, &g)))
         return st;
     if (pass == pv->npass - 1) {
         float *su, *sv;
