@@ -90,6 +90,11 @@ int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
  * field's own noise level (pv: the window of the pass the field's grid belongs to;
  * src/piv/refine_filter.c). */
 RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
+/* The denoiser's linear part along one axis (docs/uncertainty.md, part 2): what
+ * piv_pred_denoise does to a line u of the n samples along x (n = nx) or y (n = ny) of an
+ * nx x ny grid when every detail of every level falls below its threshold and is dropped; the
+ * filter's own code at an infinite threshold. line: scratch of n doubles. */
+void piv_pred_denoise_linear(float *u, int n, int nx, int ny, double *line);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

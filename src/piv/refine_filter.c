@@ -256,3 +256,13 @@ int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
     return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
            pv->pass[k].wh == pv->pass[k - 1].wh;
 }
+
+void piv_pred_denoise_linear(float *u, int n, int nx, int ny, double *line)
+{
+    /* piv_pred_denoise runs no level when no grid direction has 8 inner second differences at
+     * dilation 1 (noise_sigma's count; the coarser levels then have fewer still) */
+    if ((nx - 2) * ny < 8 && nx * (ny - 2) < 8)
+        return;
+    for (int lev = 0, step = 1; lev < LEVELS; lev++, step *= 2)
+        shrink_axis(u, 1, n, 1, (size_t)n, step, ORDER[lev], (double)INFINITY, line);
+}

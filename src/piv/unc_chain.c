@@ -11,6 +11,7 @@
  * level) sharing pixels share noise: cov(n_a, n_b) = s_a s_b |W_a & W_b| / sqrt(|W_a| |W_b|),
  * s the windows' correlation-statistics sigmas. The error of a vector is expanded back through
  * the levels into the window noises and its variance summed with these covariances. */
+#include "piv_impl.h"
 #include "uncertainty_impl.h"
 
 #include "rpiv/deform.h"
@@ -41,6 +42,10 @@ typedef struct unc_level {
      * window i ([k * n + i]); NULL when the level before does not reach this one */
     double *hx, *ax, *hy, *ay;
     int pnx, pny; /* the grid of the level before */
+    /* the denoiser's shrinkage of the true field (unc_chain_shrink): the map without the
+     * denoiser, and the part the denoiser removed from the level before's field, u and v */
+    double *hx0, *ax0, *hy0, *ay0;
+    float *rm[2];
 } unc_level;
 
 struct unc_chain {
@@ -49,8 +54,22 @@ struct unc_chain {
     uint64_t hash; /* of the field the newest level returned */
 };
 
+/* Free the shrinkage data of a level (only the newest level's is used). */
+static void shrink_free(unc_level *l)
+{
+    free(l->hx0);
+    free(l->ax0);
+    free(l->hy0);
+    free(l->ay0);
+    free(l->rm[0]);
+    free(l->rm[1]);
+    l->hx0 = l->ax0 = l->hy0 = l->ay0 = NULL;
+    l->rm[0] = l->rm[1] = NULL;
+}
+
 static void level_free(unc_level *l)
 {
+    shrink_free(l);
     free(l->s[0]);
     free(l->s[1]);
     free(l->hx);
@@ -78,29 +97,29 @@ uint64_t unc_field_hash(const rpiv_field *f)
     return hash_bytes(h, f->v, n * sizeof *f->v);
 }
 
-/* The refinement's denoiser (refine_filter.c) on a line of pure noise: every detail falls
- * below its universal threshold and is dropped, leaving the [1/4, 1/2, 1/4] smoothing inside
- * and, at an end, the least-squares line through the first three samples, (5 U0 + 2 U1 - U2) / 6.
- * Linear, so it carries the predictor's noise as the engine's nonlinear denoiser does where
- * the field is smooth. */
-static void denoise_line(float *u, int n)
+/* The refinement's denoiser (refine_filter.c) on noise: at each of its levels (dilations 1,
+ * 2 and 4 grid steps) nearly every detail falls below its universal threshold and is dropped,
+ * so it acts on the predictor's noise as the linear smoothings it keeps, level after level:
+ * the filter's own code with every detail dropped (piv_pred_denoise_linear: at dilations 1
+ * and 4 [1/4, 1/2, 1/4] and, at an end, the least-squares line through the first three
+ * samples; at dilation 2 [-1/16, 1/4, 5/8, 1/4, -1/16] on the line continued by odd
+ * reflection, the end samples kept). Separable: the x and y lines' operators commute. */
+int unc_denoise_line(float *u, int n, int nx, int ny)
 {
-    float *t = malloc((size_t)n * sizeof *t);
-    if (!t)
-        return; /* the map without the denoiser: a larger, not a smaller, sigma */
-    memcpy(t, u, (size_t)n * sizeof *t);
-    for (int i = 1; i < n - 1; i++)
-        u[i] = 0.25f * t[i - 1] + 0.5f * t[i] + 0.25f * t[i + 1];
-    u[0] = (5 * t[0] + 2 * t[1] - t[2]) / 6;
-    u[n - 1] = (5 * t[n - 1] + 2 * t[n - 2] - t[n - 3]) / 6;
-    free(t);
+    double *line = malloc((size_t)n * sizeof *line);
+    if (!line)
+        return -1;
+    piv_pred_denoise_linear(u, n, nx, ny, line);
+    free(line);
+    return 0;
 }
 
-/* One axis of the map: the previous grid has pn nodes at p0 + k pd; this level's n windows
+/* One axis of the map: the previous grid has pn nodes at p0 + k pd (pother across: the grid
+ * the denoiser sees is pn x pother); this level's n windows
  * start at pixel w0 + i st and are ww wide; the predictor is the spline of the previous field
  * filtered by [a/2, 1 - a, a/2] (the engine's pred_filter: edge nodes unfiltered), sampled at
  * pixel + shift. Fills h and m ([k * n + i]). */
-static rpiv_status axis_map(int pn, double p0, double pd, int n, int w0, int st, int ww,
+static rpiv_status axis_map(int pn, int pother, double p0, double pd, int n, int w0, int st, int ww,
                             double shift, double filter, int denoise, int img, double *h, double *m)
 {
     rpiv_status s = RPIV_OK;
@@ -121,9 +140,9 @@ static rpiv_status axis_map(int pn, double p0, double pd, int n, int w0, int st,
             if (k + 1 <= pn - 2)
                 f->u[k + 1] = c1;
         }
-        if (denoise && pn > 2)
-            denoise_line(f->u, pn);
-        if (!(s = rpiv_deform_pred_new(f, img, 1, shift, &p))) {
+        if (denoise && unc_denoise_line(f->u, pn, pn, pother))
+            s = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+        if (!s && !(s = rpiv_deform_pred_new(f, img, 1, shift, &p))) {
             for (int i = 0; i < n; i++) {
                 double u, v, sum = 0;
                 const int x0 = w0 + i * st;
@@ -165,6 +184,8 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         free(c->lv[0].ay);
         c->lv[0].hx = c->lv[0].ax = c->lv[0].hy = c->lv[0].ay = NULL;
     }
+    if (c->n) /* the shrinkage term is the newest level's only */
+        shrink_free(&c->lv[c->n - 1]);
     unc_level *l = &c->lv[c->n];
     memset(l, 0, sizeof *l);
     *l = (unc_level){.nx = f->nx,
@@ -216,10 +237,10 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         if (!l->hx || !l->ax || !l->hy || !l->ay)
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
         if (!st)
-            st = axis_map(p->nx, p->x0, p->dx, f->nx, g->wx0, g->sx, g->ww, g->shift, filter,
+            st = axis_map(p->nx, p->ny, p->x0, p->dx, f->nx, g->wx0, g->sx, g->ww, g->shift, filter,
                           g->denoise, g->img_w, l->hx, l->ax);
         if (!st)
-            st = axis_map(p->ny, p->y0, p->dy, f->ny, g->wy0, g->sy, g->wh, g->shift, filter,
+            st = axis_map(p->ny, p->nx, p->y0, p->dy, f->ny, g->wy0, g->sy, g->wh, g->shift, filter,
                           g->denoise, g->img_h, l->hy, l->ay);
         if (st) {
             level_free(l);
@@ -227,6 +248,41 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         }
     }
     c->n++;
+    return RPIV_OK;
+}
+
+rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g, const rpiv_field *removed)
+{
+    if (!c || c->n < 2 || !c->lv[c->n - 1].hx)
+        return RPIV_OK;
+    unc_level *l = &c->lv[c->n - 1];
+    const unc_level *p = &c->lv[c->n - 2];
+    if (removed->nx != p->nx || removed->ny != p->ny)
+        return RPIV_OK;
+    const size_t mx = (size_t)p->nx * (size_t)l->nx, my = (size_t)p->ny * (size_t)l->ny;
+    const size_t n = (size_t)p->nx * (size_t)p->ny;
+    shrink_free(l);
+    l->hx0 = malloc(mx * sizeof *l->hx0);
+    l->ax0 = malloc(mx * sizeof *l->ax0);
+    l->hy0 = malloc(my * sizeof *l->hy0);
+    l->ay0 = malloc(my * sizeof *l->ay0);
+    l->rm[0] = malloc(n * sizeof *l->rm[0]);
+    l->rm[1] = malloc(n * sizeof *l->rm[1]);
+    rpiv_status st = RPIV_OK;
+    if (!l->hx0 || !l->ax0 || !l->hy0 || !l->ay0 || !l->rm[0] || !l->rm[1])
+        st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+    if (!st)
+        st = axis_map(p->nx, p->ny, p->x0, p->dx, l->nx, g->wx0, g->sx, g->ww, g->shift, 0, 0,
+                      g->img_w, l->hx0, l->ax0);
+    if (!st)
+        st = axis_map(p->ny, p->nx, p->y0, p->dy, l->ny, g->wy0, g->sy, g->wh, g->shift, 0, 0,
+                      g->img_h, l->hy0, l->ay0);
+    if (st) {
+        shrink_free(l);
+        return st;
+    }
+    memcpy(l->rm[0], removed->u, n * sizeof *l->rm[0]);
+    memcpy(l->rm[1], removed->v, n * sizeof *l->rm[1]);
     return RPIV_OK;
 }
 
@@ -328,18 +384,58 @@ static void reach(int i0, int i1, int w0, int st, int ww, double shift, double p
     *k1 = *k1 > pn - 1 ? pn - 1 : *k1;
 }
 
-/* The variance of vector (ix, iy) of the newest level, u and v. Returns 0, or -1 when out of
- * memory. */
-static int vector_var(const unc_chain *c, int ix, int iy, double var[2])
+/* Add w times level l's map (h*, a*: per axis, eta_k at the window centres and its window
+ * mean, [k * n + i]) applied to the coefficients cf of l's nodes bx0.. (bw) x by0.. (bh) to
+ * out, the coefficients of the level before's nodes kx0.. (kw) x ky0.. (kh):
+ * out[ky][kx] += w sum (hy[ky][iy] hx[kx][ix] - ay ax) cf[iy][ix]. 0, or -1 out of memory. */
+static int back_map(const unc_level *l, const double *hx, const double *ax, const double *hy,
+                    const double *ay, double w, const double *cf, int bx0, int bw, int by0, int bh,
+                    int kx0, int kw, int ky0, int kh, double *out)
 {
-    int L = c->n - 1;
-    int bx0 = ix, bx1 = ix, by0 = iy, by1 = iy;
-    double *cf = malloc(sizeof *cf), *nx_cf = NULL, *th = NULL, *ta = NULL;
+    double *th = malloc((size_t)bh * (size_t)kw * sizeof *th);
+    double *ta = malloc((size_t)bh * (size_t)kw * sizeof *ta);
+    if (!th || !ta) {
+        free(th);
+        free(ta);
+        return -1;
+    }
+    for (int j = 0; j < bh; j++)
+        for (int k = 0; k < kw; k++) {
+            double sh = 0, sa = 0;
+            const size_t row = (size_t)(kx0 + k) * (size_t)l->nx;
+            for (int i = 0; i < bw; i++) {
+                const double a = cf[(size_t)j * (size_t)bw + (size_t)i];
+                sh += a * hx[row + (size_t)(bx0 + i)];
+                sa += a * ax[row + (size_t)(bx0 + i)];
+            }
+            th[(size_t)j * (size_t)kw + (size_t)k] = w * sh;
+            ta[(size_t)j * (size_t)kw + (size_t)k] = w * sa;
+        }
+    for (int m = 0; m < kh; m++) {
+        const size_t row = (size_t)(ky0 + m) * (size_t)l->ny;
+        for (int j = 0; j < bh; j++) {
+            const double y = hy[row + (size_t)(by0 + j)], a = ay[row + (size_t)(by0 + j)];
+            for (int k = 0; k < kw; k++)
+                out[(size_t)m * (size_t)kw + (size_t)k] +=
+                    y * th[(size_t)j * (size_t)kw + (size_t)k] -
+                    a * ta[(size_t)j * (size_t)kw + (size_t)k];
+        }
+    }
+    free(th);
+    free(ta);
+    return 0;
+}
+
+/* The variance, u and v, of sum_k cf_k e_k, e the errors of the nodes bx0..bx1 x by0..by1 of
+ * level L (cf: their coefficients, taken over and freed): each level's window noises and,
+ * through the maps, those of the levels before. Returns 0, or -1 when out of memory. */
+static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int by1, double *cf,
+                      double var[2])
+{
+    double *nx_cf = NULL;
     term *t = NULL;
     size_t nt = 0, cap = 0;
     int bad = !cf;
-    if (!bad)
-        cf[0] = 1;
     var[0] = var[1] = 0;
     for (int lev = L; lev >= 0 && !bad; lev--) {
         const unc_level *l = &c->lv[lev];
@@ -372,46 +468,19 @@ static int vector_var(const unc_chain *c, int ix, int iy, double var[2])
             }
         if (bad || !l->hx || lev == 0)
             break;
-        /* back to the level before: c'[ky][kx] = sum hy[ky][iy] hx[kx][ix] c - ay ax c */
+        /* back to the level before */
         int kx0, kx1, ky0, ky1;
         reach(bx0, bx1, l->wx0, l->sx, l->ww, l->shift, c->lv[lev - 1].x0, c->lv[lev - 1].dx,
               l->pnx, &kx0, &kx1);
         reach(by0, by1, l->wy0, l->sy, l->wh, l->shift, c->lv[lev - 1].y0, c->lv[lev - 1].dy,
               l->pny, &ky0, &ky1);
         const int kw = kx1 - kx0 + 1, kh = ky1 - ky0 + 1;
-        th = malloc((size_t)bh * (size_t)kw * sizeof *th);
-        ta = malloc((size_t)bh * (size_t)kw * sizeof *ta);
         nx_cf = calloc((size_t)kh * (size_t)kw, sizeof *nx_cf);
-        if (!th || !ta || !nx_cf) {
+        if (!nx_cf || back_map(l, l->hx, l->ax, l->hy, l->ay, 1, cf, bx0, bw, by0, bh, kx0, kw, ky0,
+                               kh, nx_cf)) {
             bad = 1;
             break;
         }
-        for (int j = 0; j < bh; j++)
-            for (int k = 0; k < kw; k++) {
-                double sh = 0, sa = 0;
-                const size_t row = (size_t)(kx0 + k) * (size_t)l->nx;
-                for (int i = 0; i < bw; i++) {
-                    const double a = cf[(size_t)j * (size_t)bw + (size_t)i];
-                    sh += a * l->hx[row + (size_t)(bx0 + i)];
-                    sa += a * l->ax[row + (size_t)(bx0 + i)];
-                }
-                th[(size_t)j * (size_t)kw + (size_t)k] = sh;
-                ta[(size_t)j * (size_t)kw + (size_t)k] = sa;
-            }
-        for (int m = 0; m < kh; m++) {
-            const size_t row = (size_t)(ky0 + m) * (size_t)l->ny;
-            for (int j = 0; j < bh; j++) {
-                const double hy = l->hy[row + (size_t)(by0 + j)];
-                const double ay = l->ay[row + (size_t)(by0 + j)];
-                for (int k = 0; k < kw; k++)
-                    nx_cf[(size_t)m * (size_t)kw + (size_t)k] +=
-                        hy * th[(size_t)j * (size_t)kw + (size_t)k] -
-                        ay * ta[(size_t)j * (size_t)kw + (size_t)k];
-            }
-        }
-        free(th);
-        free(ta);
-        th = ta = NULL;
         free(cf);
         cf = nx_cf;
         nx_cf = NULL;
@@ -427,10 +496,62 @@ static int vector_var(const unc_chain *c, int ix, int iy, double var[2])
         bad = terms_var(t, nt, var);
     free(cf);
     free(nx_cf);
-    free(th);
-    free(ta);
     free(t);
     return bad ? -1 : 0;
+}
+
+/* The variance of vector (ix, iy) of the newest level, u and v. Returns 0, or -1 when out of
+ * memory. */
+static int vector_var(const unc_chain *c, int ix, int iy, double var[2])
+{
+    double *cf = malloc(sizeof *cf);
+    if (cf)
+        cf[0] = 1;
+    return expand_var(c, c->n - 1, ix, ix, iy, iy, cf, var);
+}
+
+/* The denoiser's shrinkage of the true field, for vector (ix, iy) of the newest level (docs/
+ * uncertainty.md, "The vortex"): the predictor's nodes hold t + n (truth, noise) and the
+ * denoiser removed r = (t - D t) + (I - L) n from them (L its linear part on noise), so the
+ * vector carries -G0 (t - D t) besides the noise the chain counts (G0: the spline and the
+ * window without the denoiser; G = G0 L the chain's map). Estimated by eh = -G0 r, whose noise
+ * -G0 (I - L) n = -(G0 - G) n has the variance vn the chain gives for those coefficients:
+ * add[q] = max(0, eh^2 - vn), u and v. Returns 0, or -1 when out of memory. */
+static int shrink_var(const unc_chain *c, int ix, int iy, double add[2])
+{
+    const unc_level *l = &c->lv[c->n - 1], *p = &c->lv[c->n - 2];
+    int kx0, kx1, ky0, ky1;
+    reach(ix, ix, l->wx0, l->sx, l->ww, l->shift, p->x0, p->dx, l->pnx, &kx0, &kx1);
+    reach(iy, iy, l->wy0, l->sy, l->wh, l->shift, p->y0, p->dy, l->pny, &ky0, &ky1);
+    const int kw = kx1 - kx0 + 1, kh = ky1 - ky0 + 1;
+    const double one = 1;
+    double *g0 = calloc((size_t)kh * (size_t)kw, sizeof *g0);
+    double *d = calloc((size_t)kh * (size_t)kw, sizeof *d);
+    if (!g0 || !d ||
+        back_map(l, l->hx0, l->ax0, l->hy0, l->ay0, 1, &one, ix, 1, iy, 1, kx0, kw, ky0, kh, g0)) {
+        free(g0);
+        free(d);
+        return -1;
+    }
+    double eh[2] = {0, 0}, vn[2];
+    for (int m = 0; m < kh; m++)
+        for (int k = 0; k < kw; k++) {
+            const double a = g0[(size_t)m * (size_t)kw + (size_t)k];
+            const size_t node = (size_t)(ky0 + m) * (size_t)p->nx + (size_t)(kx0 + k);
+            eh[0] -= a * (double)l->rm[0][node];
+            eh[1] -= a * (double)l->rm[1][node];
+            d[(size_t)m * (size_t)kw + (size_t)k] = a;
+        }
+    free(g0);
+    if (back_map(l, l->hx, l->ax, l->hy, l->ay, -1, &one, ix, 1, iy, 1, kx0, kw, ky0, kh, d)) {
+        free(d);
+        return -1;
+    }
+    if (expand_var(c, c->n - 2, kx0, kx1, ky0, ky1, d, vn))
+        return -1;
+    for (int q = 0; q < 2; q++)
+        add[q] = fmax(0, eh[q] * eh[q] - vn[q]);
+    return 0;
 }
 
 rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, float *sv,
@@ -444,10 +565,14 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
         if (f->flag[k] != RPIV_FLAG_VALID)
             continue;
         double var[2];
-        if (vector_var(c, (int)(k % (size_t)l->nx), (int)(k / (size_t)l->nx), var)) {
+        const int ix = (int)(k % (size_t)l->nx), iy = (int)(k / (size_t)l->nx);
+        double add[2] = {0, 0};
+        if (vector_var(c, ix, iy, var) || (l->rm[0] && shrink_var(c, ix, iy, add))) {
             bad = 1;
             continue;
         }
+        var[0] += add[0];
+        var[1] += add[1];
         su[k] = (float)fmin(sqrt(var[0] > 0 ? var[0] : 0), UNC_SIGMA_MAX);
         sv[k] = (float)fmin(sqrt(var[1] > 0 ? var[1] : 0), UNC_SIGMA_MAX);
     }

@@ -5,6 +5,36 @@
 #include "piv_impl.h"
 #include "uncertainty_impl.h"
 
+#include "rpiv/validate.h"
+
+#include <stdlib.h>
+
+/* What the refinement's denoiser removed from the predictor, prepared as piv_pred_new does
+ * (the replaced vectors taken as they are, the masked ones filled; no low-pass filter), handed
+ * to the chain (unc_chain_shrink). */
+static rpiv_status unc_shrink(const rpiv_piv *pv, const rpiv_field *predictor, const unc_geom *g)
+{
+    rpiv_field *f = NULL, *d = NULL;
+    rpiv_status st = rpiv_field_copy(predictor, &f);
+    if (st)
+        return st;
+    const size_t n = (size_t)f->nx * (size_t)f->ny;
+    for (size_t k = 0; k < n; k++)
+        if (f->flag[k] == RPIV_FLAG_REPLACED)
+            f->flag[k] = RPIV_FLAG_VALID;
+    if (!(st = rpiv_validate_replace(f, 1, NULL)) && !(st = rpiv_field_copy(f, &d)) &&
+        !(st = piv_pred_denoise(pv, d))) {
+        for (size_t k = 0; k < n; k++) {
+            d->u[k] = f->u[k] - d->u[k];
+            d->v[k] = f->v[k] - d->v[k];
+        }
+        st = unc_chain_shrink(pv->unc, g, d);
+    }
+    rpiv_field_free(d);
+    rpiv_field_free(f);
+    return st;
+}
+
 rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpiv_field *predictor,
                                  int refines, rpiv_field *f, const float *cs)
 {
@@ -19,6 +49,9 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
     rpiv_status st = unc_chain_push(&pv->unc, linked, &g, refines ? pv->p.refine_filter : 0, f, cs,
                                     cs + ps->nwin);
     if (st)
+        return st;
+    if (linked && g.denoise && pass == pv->npass - 1 && !(refines && pv->p.refine_filter > 0) &&
+        (st = unc_shrink(pv, predictor, &g)))
         return st;
     if (pass == pv->npass - 1) {
         float *su, *sv;

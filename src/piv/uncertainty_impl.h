@@ -52,12 +52,19 @@ typedef struct unc_chain unc_chain;
 /* A pass's windows: window (i, j) covers pixels [wx0 + i sx, + ww) x [wy0 + j sy, + wh); a
  * deforming pass samples its predictor at pixel + shift; the image is img_w x img_h. denoise:
  * its predictor went through the refinement's denoiser (refine_filter.c), whose effect on
- * noise is taken as the smoothing it keeps when it drops the detail (below the threshold). */
+ * noise is taken as the smoothings it keeps when it drops every level's detail (below the
+ * thresholds; unc_denoise_line). */
 typedef struct unc_geom {
     int wx0, wy0, sx, sy, ww, wh, img_w, img_h;
     double shift;
     int denoise;
 } unc_geom;
+
+/* The chain's model of the refinement's denoiser on noise, along one axis: line u of the n
+ * samples along x (n = nx) or y (n = ny) of an nx x ny grid, every level's detail dropped
+ * (piv_pred_denoise_linear; its grid test is symmetric in nx and ny). Returns 0, or -1 when
+ * out of memory. */
+int unc_denoise_line(float *u, int n, int nx, int ny);
 
 void unc_chain_free(unc_chain *c); /* NULL is a no-op */
 
@@ -69,6 +76,14 @@ void unc_chain_free(unc_chain *c); /* NULL is a no-op */
 RPIV_NODISCARD rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g,
                                           double filter, const rpiv_field *f, const float *su,
                                           const float *sv);
+
+/* The newest level's predictor went through the refinement's denoiser, which removed
+ * `removed` (the level before's field minus the denoised one, on its grid) from it: its
+ * shrinkage of the true field enters the vectors' variance (unc_chain_total; docs/
+ * uncertainty.md, "The vortex"). g: the newest level's windows. No-op unless the newest level
+ * is linked. */
+RPIV_NODISCARD rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g,
+                                            const rpiv_field *removed);
 
 /* Remember f as the field the newest level returned (unc_chain_links compares with it). */
 void unc_chain_set_hash(unc_chain *c, const rpiv_field *f);
