@@ -201,6 +201,23 @@ static void gen_out_of_plane_motion_and_unlit_frame(void)
 
 /* ---- the peak --------------------------------------------------------------------------- */
 
+/* The engine's estimator on the 7 x 7 plane of whole-term evaluations around the peak's
+ * integer maximum gives the sub-pixel peak rpiv_ccm_corr_peak reports. */
+static void check_estimator_plane(const rpiv_ccm_corr *c, const rpiv_ccm_peak *pk)
+{
+    enum { PW = 8 };
+    float pl[PW * PW] = {0};
+    double r0 = rpiv_ccm_corr_eval(c, pk->mx, pk->my);
+    for (int j = -3; j <= 3; j++)
+        for (int i = -3; i <= 3; i++)
+            pl[((j + PW) % PW) * PW + (i + PW) % PW] =
+                (float)(rpiv_ccm_corr_eval(c, pk->mx + i, pk->my + j) / r0);
+    rpiv_peak fit;
+    rpiv_peak_find(pl, PW, PW, 1, rpiv_subpixel_resolve(P.subpixel, 1), &fit);
+    CHECK_NEAR(pk->dx_sub, pk->mx + fit.dx, 1e-6);
+    CHECK_NEAR(pk->dy_sub, pk->my + fit.dy, 1e-6);
+}
+
 static void peak_of_one_gaussian_is_exact(void)
 {
     rpiv_ccm_gauss g = {.amp = 0.77, .c = 0.6131, .dx = 3.3187, .dy = -1.2093};
@@ -255,17 +272,7 @@ static void peak_of_a_sum_is_a_stationary_maximum(void)
         CHECK(fabs(pk.dx - pk.dx_sub) < 0.3); /* the estimator is close, not exact */
         /* the estimator's plane as rpiv_ccm_corr_peak samples it (row factors, shared q
          * values) against whole-term evaluations */
-        enum { PW = 8 };
-        float pl[PW * PW] = {0};
-        double r0 = rpiv_ccm_corr_eval(&c, pk.mx, pk.my);
-        for (int j = -3; j <= 3; j++)
-            for (int i = -3; i <= 3; i++)
-                pl[((j + PW) % PW) * PW + (i + PW) % PW] =
-                    (float)(rpiv_ccm_corr_eval(&c, pk.mx + i, pk.my + j) / r0);
-        rpiv_peak fit;
-        rpiv_peak_find(pl, PW, PW, 1, rpiv_subpixel_resolve(P.subpixel, 1), &fit);
-        CHECK_NEAR(pk.dx_sub, pk.mx + fit.dx, 1e-6);
-        CHECK_NEAR(pk.dy_sub, pk.my + fit.dy, 1e-6);
+        check_estimator_plane(&c, &pk);
     }
 }
 
@@ -307,17 +314,7 @@ static void sampled_plane_matches_whole_terms(void)
                     by = y;
                 }
         CHECK(pk.mx == bx && pk.my == by);
-        enum { PW = 8 };
-        float pl[PW * PW] = {0};
-        double r0 = rpiv_ccm_corr_eval(&c, pk.mx, pk.my);
-        for (int j = -3; j <= 3; j++)
-            for (int i = -3; i <= 3; i++)
-                pl[((j + PW) % PW) * PW + (i + PW) % PW] =
-                    (float)(rpiv_ccm_corr_eval(&c, pk.mx + i, pk.my + j) / r0);
-        rpiv_peak fit;
-        rpiv_peak_find(pl, PW, PW, 1, rpiv_subpixel_resolve(P.subpixel, 1), &fit);
-        CHECK_NEAR(pk.dx_sub, pk.mx + fit.dx, 1e-6);
-        CHECK_NEAR(pk.dy_sub, pk.my + fit.dy, 1e-6);
+        check_estimator_plane(&c, &pk);
         CHECK_NEAR(pk.value, rpiv_ccm_corr_eval(&c, pk.dx, pk.dy), 1e-14);
         if (k == 0 || k == 3)
             CHECK(pk.dy == 1);

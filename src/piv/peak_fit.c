@@ -91,6 +91,14 @@ static void eval(int n, double L[NMAX][NMAX], double x, double y, double *f, dou
     h[2] = hyy;
 }
 
+/* The plane's sample at (col, row), one period away at most: the plane is circular. */
+static double sample(const float *plane, int w, int h, int col, int row)
+{
+    row = row < 0 ? row + h : (row >= h ? row - h : row);
+    col = col < 0 ? col + w : (col >= w ? col - w : col);
+    return (double)plane[(size_t)row * (size_t)w + (size_t)col];
+}
+
 /* The logarithms of the n x n samples around (bi, bj) relative to the centre; 0 if one of
  * them is not positive or not finite. */
 static int logs(const float *plane, int w, int h, int bi, int bj, int n, double L[NMAX][NMAX])
@@ -102,12 +110,8 @@ static int logs(const float *plane, int w, int h, int bi, int bj, int n, double 
     if (!(c0 > 0) || !isfinite(c0))
         return 0;
     for (int j = 0; j < n; j++) {
-        int row = bj + j - r;
-        row = row < 0 ? row + h : (row >= h ? row - h : row);
         for (int i = 0; i < n; i++) {
-            int col = bi + i - r;
-            col = col < 0 ? col + w : (col >= w ? col - w : col);
-            double v = (double)plane[(size_t)row * (size_t)w + (size_t)col];
+            double v = sample(plane, w, h, bi + i - r, bj + j - r);
             if (!(v > 0) || !isfinite(v))
                 return 0;
             L[j][i] = log(v / c0);
@@ -201,12 +205,8 @@ int peak_spline_sens(const float *plane, int w, int h, int bi, int bj, double fx
     out->hxy = H[1];
     out->hyy = H[2];
     for (int j = 0; j < n; j++) {
-        int row = bj + j - r;
-        row = row < 0 ? row + h : (row >= h ? row - h : row);
         for (int i = 0; i < n; i++) {
-            int col = bi + i - r;
-            col = col < 0 ? col + w : (col >= w ? col - w : col);
-            const double c = (double)plane[(size_t)row * (size_t)w + (size_t)col];
+            const double c = sample(plane, w, h, bi + i - r, bj + j - r);
             /* d g / d c_ji: g is linear in L, dL_ji = dc_ji / c_ji - dc_0 / c_0, and the
              * weights of each gradient component sum to 0 (the spline's slope of a constant) */
             const double gx = wy[j] * wxd[i] / c, gy = wyd[j] * wx[i] / c;
