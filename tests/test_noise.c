@@ -25,7 +25,7 @@ typedef struct sweep {
 /* The sweep 0 .. smax px of one configuration at density ppp (seeds as bench_noise's first). */
 static sweep run_sweep(const rpiv_piv_params *prm, double ppp, double smax)
 {
-    sweep r = {NAN, NAN};
+    sweep r = {(double)NAN, (double)NAN};
     const int ns = (int)lround(smax / 0.1) + 1;
     float *a = malloc(sizeof *a * N * N), *b = malloc(sizeof *b * N * N);
     double fr[64], me[64], sq = 0;

@@ -170,8 +170,8 @@ static double worst_repeat(const pair *p, ti_flow_fn fn, void *user, int reps, d
     rpiv_piv_params d = rpiv_piv_params_default();
     rpiv_piv *pv = NULL;
     rpiv_field *prev = NULL, *f = NULL;
-    double worst = NAN;
-    *first = NAN;
+    double worst = (double)NAN;
+    *first = (double)NAN;
     CHECK_OK(rpiv_piv_new(&d, p->w, p->h, NULL, &pv));
     if (!pv || rpiv_piv_load(pv, &p->ia, &p->ib))
         goto out_free;
@@ -188,7 +188,7 @@ static double worst_repeat(const pair *p, ti_flow_fn fn, void *user, int reps, d
     for (int k = 0; k < reps; k++) {
         CHECK_OK(rpiv_piv_step(pv, 2, prev, &f));
         if (!f) {
-            worst = NAN;
+            worst = (double)NAN;
             break;
         }
         worst = fmax(worst, field_rms(f, fn, user));

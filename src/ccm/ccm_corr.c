@@ -521,7 +521,7 @@ static double line_int(const pkline *l, const double *lv, int lo, int hi, int t)
 static rpiv_status line_max(const pkline *l, const double *lv, int m, int lo, int hi, double guess,
                             const rpiv_ccm_params *p, double *tmax, double *rmax)
 {
-    *rmax = NAN;
+    *rmax = (double)NAN;
     double fm = line_int(l, lv, lo, hi, m), fa = line_int(l, lv, lo, hi, m - 1);
     double fb = line_int(l, lv, lo, hi, m + 1);
     /* walk to a local maximum of the samples on this line */
@@ -706,7 +706,7 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     out->dy_sub = my + fit.dy;
     /* the continuous maximum; its value along the line (one factor per term) */
     pkline l = {c, s.mode & 1 ? 0 : 1, s.mode & 1 ? s.dy0 : s.dx0, wq};
-    double rmax = NAN;
+    double rmax = (double)NAN;
     if (s.mode == 3) {
         out->dx = s.dx0;
         out->dy = s.dy0;

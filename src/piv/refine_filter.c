@@ -88,7 +88,7 @@ static double noise_sigma(const float *g, int nx, int ny, int step, int order, d
         for (int j = iy; j < ny - iy; j += step)
             for (int i = ix; i < nx - ix; i += step) {
                 const float *c = g + (size_t)j * (size_t)nx + (size_t)i;
-                const double c0 = c[0], c1 = (double)c[-e] + (double)c[e];
+                const double c0 = (double)c[0], c1 = (double)c[-e] + (double)c[e];
                 buf[m++] =
                     order == 4
                         ? fabs(6.0 * c0 - 4.0 * c1 + (double)c[-2 * e] + (double)c[2 * e]) / 16.0
