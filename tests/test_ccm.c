@@ -432,6 +432,57 @@ static void window_model_matches_closed_form(void)
     CHECK_OK(rpiv_ccm_model_check(&m));
 }
 
+/* The window's area average (rpiv_ccm_predict_area): a flow linear across the window and
+ * uniform across the depth (every sub-position's correlation one peak at DX_k, symmetric) is
+ * followed exactly by the deformation (the estimate at each sub-position is DX_k on the lattice
+ * about it), so the average is the centre's displacement; identical sub-positions give the
+ * centre's prediction; too few or collinear sub-positions fail. */
+static void window_area_average(void)
+{
+    enum { NS = 9 };
+    rpiv_ccm_model mk[NS];
+    double uk[NS], ox[NS], oy[NS];
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    if (!w)
+        return;
+    for (int k = 0; k < NS; k++) {
+        ox[k] = 8.0 * (k % 3 - 1);
+        oy[k] = 8.0 * (k / 3 - 1);
+        mk[k] = rpiv_ccm_model_default();
+        mk[k].window_w = mk[k].window_h = 32;
+        mk[k].window_deform = 1;
+        uk[k] = 0.6 + 0.01 * ox[k] - 0.004 * oy[k]; /* U*, DX = U* scale_px */
+        mk[k].u = (rpiv_ccm_func){rpiv_ccm_const_fn, &uk[k]};
+    }
+    rpiv_ccm_peak pa, pc;
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa));
+    CHECK_OK(rpiv_ccm_predict(&mk[4], w, &pc));
+    double dx = uk[4] * mk[4].scale_px;
+    printf("  linear flow: area average %.6f, centre %.6f (DX %.6f) px\n", pa.dx_sub, pc.dx_sub,
+           dx);
+    CHECK_NEAR(pc.dx_sub, dx, 1e-4);
+    CHECK_NEAR(pa.dx_sub, dx, 1e-4);
+    CHECK_NEAR(pa.dy_sub, 0, 1e-6);
+    for (int k = 0; k < NS; k++)
+        mk[k] = mk[4];
+    rpiv_ccm_model dm = rpiv_ccm_model_default(); /* the duct across the depth */
+    for (int k = 0; k < NS; k++) {
+        mk[k].u = dm.u;
+        mk[k].window_deform = 0;
+    }
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa));
+    CHECK_OK(rpiv_ccm_predict(&mk[0], w, &pc));
+    CHECK_NEAR(pa.dx_sub, pc.dx_sub, 1e-9);
+    CHECK_NEAR(pa.dx, pc.dx, 1e-9);
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, 2, w, &pa), RPIV_EINVAL);
+    double line[NS] = {0};
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, line, 3, w, &pa), RPIV_EINVAL);
+    mk[1].window_w = 16;
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa), RPIV_EINVAL);
+    rpiv_ccm_work_free(w);
+}
+
 /* ---- Eq. "statform" --------------------------------------------------------------------- */
 
 /* d_e constant (h -> 0: every particle in focus), I0 Gaussian, U linear in z: the integral is
@@ -1541,6 +1592,7 @@ int main(void)
     RUN_TEST(sampled_plane_matches_whole_terms);
     RUN_TEST(peak_errors);
     RUN_TEST(window_model_matches_closed_form);
+    RUN_TEST(window_area_average);
     RUN_TEST(statform_gaussian_case_matches_closed_form);
     RUN_TEST(uniform_velocity_gives_zero_bias_for_any_sheet);
     RUN_TEST(thin_sheet_returns_u_at_its_height);

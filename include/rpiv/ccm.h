@@ -266,6 +266,20 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_stat_corr_fixed(const rpiv_ccm_model *m, rpi
 RPIV_NODISCARD rpiv_status rpiv_ccm_predict(const rpiv_ccm_model *m, rpiv_ccm_work *w,
                                             rpiv_ccm_peak *out);
 
+/* What the engine measures over a window across which the flow varies (the window's area
+ * average, docs/ccm.md, "The engine's window"): models[k] is the model at the k-th of n
+ * sub-positions of equal area (offsets ox, oy from the window's centre, px; >= 3, not
+ * collinear), every one with the same window. The deformation follows the linear part of the
+ * field: the least-squares plane through what the engine measures at each sub-position
+ * (rpiv_ccm_predict's dx_sub, dy_sub); every sub-position's correlation, amplitude / n, is
+ * moved by minus that plane at it, and the sum's peak is taken as rpiv_ccm_corr_peak_window.
+ * out->dx_sub, dy_sub: the prediction; out->dx, dy: the continuous maximum of the averaged
+ * correlation (the centre's ideal is rpiv_ccm_predict of the centre's model). Uses w's rule
+ * (w->corr is left with the last sub-position's). */
+RPIV_NODISCARD rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox,
+                                                 const double *oy, size_t n, rpiv_ccm_work *w,
+                                                 rpiv_ccm_peak *out);
+
 /* ---- Monte-Carlo sum of correlation ------------------------------------------------------ */
 
 typedef struct rpiv_ccm_mc_params {
