@@ -340,6 +340,146 @@ static void peak_errors(void)
     rpiv_ccm_corr_free(NULL);
 }
 
+/* The engine's window (rpiv_ccm_corr_peak_window) against the closed form computed here in
+ * double: two Gaussian terms along x, the 3-point Gaussian estimator, a 16 px window; every
+ * term weighted by its pairs kept, (1 - |DX - p|/W), the plane lowered by the baseline
+ * -sum(w amp pi / c)/W^2 and sampled at integer shifts (deform 0) or at integer shifts about
+ * the predictor p (deform 1), p iterated until the estimate is its own predictor. Also: the
+ * baseline's volume amp pi / c is the lattice sum of a pixel-integrated term (the plane of
+ * mean-removed windows sums to zero), a huge window gives the infinite one, bad windows fail. */
+static double win_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int w, int deform)
+{
+    double p = p0, est = p0;
+    for (int it = 0; it < 50; it++) {
+        double vol = 0, r[9], o = deform ? p : 0;
+        for (int k = 0; k < n; k++)
+            vol += fmax(0, 1 - fabs(g[k].dx - p) / w) * g[k].amp * M_PI / g[k].c;
+        int m = 0;
+        for (int i = -4; i <= 4; i++) {
+            r[i + 4] = -vol / ((double)w * w);
+            for (int k = 0; k < n; k++) {
+                double e = o + i - g[k].dx;
+                r[i + 4] += fmax(0, 1 - fabs(g[k].dx - p) / w) * g[k].amp * exp(-g[k].c * e * e);
+            }
+        }
+        for (int i = -3; i <= 3; i++)
+            if (r[i + 4] > r[m + 4])
+                m = i;
+        double a = log(r[m + 3]), b = log(r[m + 4]), c = log(r[m + 5]);
+        est = o + m + 0.5 * (a - c) / (a - 2 * b + c);
+        if (fabs(est - p) < 1e-9)
+            break;
+        p = est;
+    }
+    return est;
+}
+
+static void window_model_matches_closed_form(void)
+{
+    rpiv_ccm_gauss g[2] = {{1.0, 1.0, 0.3, 0, 0}, {0.4, 0.5, 2.2, 0, 0}};
+    rpiv_ccm_corr *c = NULL;
+    CHECK_OK(rpiv_ccm_corr_new(2, &c));
+    if (!c)
+        return;
+    CHECK_OK(rpiv_ccm_corr_add(c, g[0]));
+    CHECK_OK(rpiv_ccm_corr_add(c, g[1]));
+    rpiv_ccm_params p = P;
+    p.subpixel = RPIV_SUBPIXEL_GAUSS;
+    rpiv_ccm_peak inf, pw;
+    CHECK_OK(rpiv_ccm_corr_peak(c, &p, &inf));
+    for (int deform = 0; deform <= 1; deform++) {
+        CHECK_OK(rpiv_ccm_corr_peak_window(c, &p, 16, 16, deform, &pw));
+        double want = win_closed_form(g, 2, inf.dx_sub, 16, deform);
+        printf("  deform %d: infinite window %.5f, 16 px window %.5f (closed form %.5f), "
+               "continuous %.5f px\n",
+               deform, inf.dx_sub, pw.dx_sub, want, pw.dx);
+        CHECK_NEAR(pw.dx_sub, want, 2e-5);
+        CHECK_NEAR(pw.dy_sub, 0, 1e-6);
+        CHECK(fabs(pw.dx_sub - inf.dx_sub) > 1e-3); /* the window moves it */
+        CHECK(pw.dx == inf.dx && pw.value == inf.value);
+    }
+    /* a huge window is the infinite one (weights within 2.2/4096, baseline 4e-7 of the peak) */
+    CHECK_OK(rpiv_ccm_corr_peak_window(c, &p, 4096, 4096, 0, &pw));
+    CHECK_NEAR(pw.dx_sub, inf.dx_sub, 1e-3);
+    CHECK_OK(rpiv_ccm_corr_peak_window(c, &p, 0, 0, 1, &pw));
+    CHECK(pw.dx_sub == inf.dx_sub);
+    CHECK_FAILS(rpiv_ccm_corr_peak_window(c, &p, 3, 16, 1, &pw), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_ccm_corr_peak_window(c, &p, 16, 0, 1, &pw), RPIV_EINVAL);
+    rpiv_ccm_corr_free(c);
+    /* the volume amp pi / c against the lattice sum of a pixel-integrated term (c of a 1.8 px
+     * particle image pair) over a 32 px plane: Poisson's summation, exp(-pi^2 / c) */
+    rpiv_ccm_gauss t = {1.0, 1 / (2 * 0.33 * 0.33 * 2), 0.37, -0.21, 1};
+    rpiv_ccm_corr *one = NULL;
+    CHECK_OK(rpiv_ccm_corr_new(1, &one));
+    if (one) {
+        CHECK_OK(rpiv_ccm_corr_add(one, t));
+        double sum = 0;
+        for (int j = -16; j < 16; j++)
+            for (int i = -16; i < 16; i++)
+                sum += rpiv_ccm_corr_eval(one, i, j);
+        printf("  lattice sum %.8f, volume amp pi / c %.8f\n", sum, M_PI / t.c);
+        CHECK_NEAR(sum, M_PI / t.c, 1e-6 * M_PI / t.c);
+    }
+    rpiv_ccm_corr_free(one);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.window_w = 3;
+    m.window_h = 32;
+    CHECK_FAILS(rpiv_ccm_model_check(&m), RPIV_EINVAL);
+    m.window_w = 32;
+    CHECK_OK(rpiv_ccm_model_check(&m));
+}
+
+/* The window's area average (rpiv_ccm_predict_area): a flow linear across the window and
+ * uniform across the depth (every sub-position's correlation one peak at DX_k, symmetric) is
+ * followed exactly by the deformation (the estimate at each sub-position is DX_k on the lattice
+ * about it), so the average is the centre's displacement; identical sub-positions give the
+ * centre's prediction; too few or collinear sub-positions fail. */
+static void window_area_average(void)
+{
+    enum { NS = 9 };
+    rpiv_ccm_model mk[NS];
+    double uk[NS], ox[NS], oy[NS];
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    if (!w)
+        return;
+    for (int k = 0; k < NS; k++) {
+        ox[k] = 8.0 * (k % 3 - 1);
+        oy[k] = 8.0 * (k / 3 - 1);
+        mk[k] = rpiv_ccm_model_default();
+        mk[k].window_w = mk[k].window_h = 32;
+        mk[k].window_deform = 1;
+        uk[k] = 0.6 + 0.01 * ox[k] - 0.004 * oy[k]; /* U*, DX = U* scale_px */
+        mk[k].u = (rpiv_ccm_func){rpiv_ccm_const_fn, &uk[k]};
+    }
+    rpiv_ccm_peak pa, pc;
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa));
+    CHECK_OK(rpiv_ccm_predict(&mk[4], w, &pc));
+    double dx = uk[4] * mk[4].scale_px;
+    printf("  linear flow: area average %.6f, centre %.6f (DX %.6f) px\n", pa.dx_sub, pc.dx_sub,
+           dx);
+    CHECK_NEAR(pc.dx_sub, dx, 1e-4);
+    CHECK_NEAR(pa.dx_sub, dx, 1e-4);
+    CHECK_NEAR(pa.dy_sub, 0, 1e-6);
+    for (int k = 0; k < NS; k++)
+        mk[k] = mk[4];
+    rpiv_ccm_model dm = rpiv_ccm_model_default(); /* the duct across the depth */
+    for (int k = 0; k < NS; k++) {
+        mk[k].u = dm.u;
+        mk[k].window_deform = 0;
+    }
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa));
+    CHECK_OK(rpiv_ccm_predict(&mk[0], w, &pc));
+    CHECK_NEAR(pa.dx_sub, pc.dx_sub, 1e-9);
+    CHECK_NEAR(pa.dx, pc.dx, 1e-9);
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, 2, w, &pa), RPIV_EINVAL);
+    double line[NS] = {0};
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, line, 3, w, &pa), RPIV_EINVAL);
+    mk[1].window_w = 16;
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa), RPIV_EINVAL);
+    rpiv_ccm_work_free(w);
+}
+
 /* ---- Eq. "statform" --------------------------------------------------------------------- */
 
 /* d_e constant (h -> 0: every particle in focus), I0 Gaussian, U linear in z: the integral is
@@ -1448,6 +1588,8 @@ int main(void)
     RUN_TEST(peak_of_a_sum_is_a_stationary_maximum);
     RUN_TEST(sampled_plane_matches_whole_terms);
     RUN_TEST(peak_errors);
+    RUN_TEST(window_model_matches_closed_form);
+    RUN_TEST(window_area_average);
     RUN_TEST(statform_gaussian_case_matches_closed_form);
     RUN_TEST(uniform_velocity_gives_zero_bias_for_any_sheet);
     RUN_TEST(thin_sheet_returns_u_at_its_height);

@@ -94,6 +94,21 @@ typedef struct rpiv_ccm_peak {
 RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
                                               rpiv_ccm_peak *out);
 
+/* The same peak with the sub-pixel estimate (dx_sub, dy_sub) of the engine's plane for a
+ * win_w x win_h top-hat window (docs/ccm.md, "The engine's window"): every term weighted by the
+ * share of its pairs that stay inside the window, (1 - |DX - px|/W)+ (1 - |DY - py|/H)+ for
+ * residual shifts about the predictor (px, py); the whole plane lowered by the mean removal's
+ * constant baseline -V/(W H), V = sum amp pi / c of the weighted terms (the circular plane of
+ * mean-removed windows sums to zero); with deform = 1 the plane sampled at integer shifts about
+ * the predictor (the deformed frames' residual shifts), with 0 at integer shifts (whole-pixel
+ * window offsets). The predictor starts at the infinite window's estimate and is the estimate
+ * itself at convergence (the passes repeated to 1e-5 px). dx, dy, value, mx, my: the infinite
+ * window's, as rpiv_ccm_corr_peak. win_w = win_h = 0: rpiv_ccm_corr_peak. RPIV_EINVAL for a
+ * window outside 4..4096 px. */
+RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c,
+                                                     const rpiv_ccm_params *p, int win_w, int win_h,
+                                                     int deform, rpiv_ccm_peak *out);
+
 /* ---- inputs of the model ------------------------------------------------------------------ */
 
 /* A function of the height z*; user is passed back unchanged. */
@@ -121,12 +136,18 @@ typedef struct rpiv_ccm_model {
     double zlo, zhi;        /* heights the particles occupy (0, 1)                           */
     double breaks[RPIV_CCM_MAX_BREAKS]; /* known kinks or narrow peaks of I0 or P (a thin  */
     size_t nbreaks;                     /* sheet's centre), where quadrature intervals split */
-    double pixel_box; /* side of the square each pixel integrates the image over, px: 1 (a
-                       * full-fill sensor, as rpiv synth renders), 0 (point samples: the
-                       * paper's continuous images); every term is convolved with the box's
-                       * autocorrelation, per axis the triangle of half-width pixel_box, at
-                       * constant volume (rpiv_ccm_gauss.box; docs/ccm.md, "Pixel
-                       * integration") */
+    double pixel_box;       /* side of the square each pixel integrates the image over, px: 1 (a
+                             * full-fill sensor, as rpiv synth renders), 0 (point samples: the
+                             * paper's continuous images); every term is convolved with the box's
+                             * autocorrelation, per axis the triangle of half-width pixel_box, at
+                             * constant volume (rpiv_ccm_gauss.box; docs/ccm.md, "Pixel
+                             * integration") */
+    int window_w, window_h; /* the engine's interrogation window, px, for the prediction of
+                             * what the engine measures (rpiv_ccm_peak.dx_sub; 4..4096 each):
+                             * rpiv_ccm_corr_peak_window; 0 (both): an infinite window, the
+                             * paper's. The continuous peak (dx, dy) never depends on it */
+    int window_deform;      /* 1: the engine deforms its final pass by the predictor (the
+                             * plane is sampled about it), 0: whole-pixel window offsets */
 } rpiv_ccm_model;
 
 /* The paper's channel defaults: the camera of imaging.h, h = 8 mm, d_p = 10 um, scale_px of
@@ -240,9 +261,24 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_stat_corr(const rpiv_ccm_model *m, rpiv_ccm_
 RPIV_NODISCARD rpiv_status rpiv_ccm_stat_corr_fixed(const rpiv_ccm_model *m, rpiv_ccm_work *w,
                                                     rpiv_ccm_corr *out);
 
-/* The measured displacement predicted by Eq. "statform": the peak of <R_D>. */
+/* The measured displacement predicted by Eq. "statform": the peak of <R_D> (with the model's
+ * window: rpiv_ccm_corr_peak_window). */
 RPIV_NODISCARD rpiv_status rpiv_ccm_predict(const rpiv_ccm_model *m, rpiv_ccm_work *w,
                                             rpiv_ccm_peak *out);
+
+/* What the engine measures over a window across which the flow varies (the window's area
+ * average, docs/ccm.md, "The engine's window"): models[k] is the model at the k-th of n
+ * sub-positions of equal area (offsets ox, oy from the window's centre, px; >= 3, not
+ * collinear), every one with the same window. The deformation follows the linear part of the
+ * field: the least-squares plane through what the engine measures at each sub-position
+ * (rpiv_ccm_predict's dx_sub, dy_sub); every sub-position's correlation, amplitude / n, is
+ * moved by minus that plane at it, and the sum's peak is taken as rpiv_ccm_corr_peak_window.
+ * out->dx_sub, dy_sub: the prediction; out->dx, dy: the continuous maximum of the averaged
+ * correlation (the centre's ideal is rpiv_ccm_predict of the centre's model). Uses w's rule
+ * (w->corr is left with the last sub-position's). */
+RPIV_NODISCARD rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox,
+                                                 const double *oy, size_t n, rpiv_ccm_work *w,
+                                                 rpiv_ccm_peak *out);
 
 /* ---- Monte-Carlo sum of correlation ------------------------------------------------------ */
 
@@ -432,6 +468,11 @@ typedef struct rpiv_ccm_bias_params {
                                     rpiv_ccm_bias_field (it uses base->pixel_box):
                                     rpiv_config_ccm_model copies it into every model made
                                     from a configuration (rpiv ccm, --sheet-bias, demo)    */
+    int window_model;            /* [bias] window_model: 1 = the CCM's prediction of what the
+                                    engine measures models the [piv] final window (pair
+                                    loss, mean removal: rpiv_ccm_model.window_w/h, copied
+                                    by rpiv_config_ccm_model); 0 = an infinite window. Not
+                                    read by rpiv_ccm_bias_field (the continuous peak)      */
     int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
 } rpiv_ccm_bias_params;
 

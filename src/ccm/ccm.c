@@ -116,6 +116,10 @@ rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m)
                          m->zhi);
     if (!(m->pixel_box >= 0 && m->pixel_box <= 4))
         return rpiv_fail(RPIV_EINVAL, "ccm: pixel_box %g px outside 0..4", m->pixel_box);
+    if (!(m->window_w == 0 && m->window_h == 0) &&
+        !(m->window_w >= 4 && m->window_h >= 4 && m->window_w <= 4096 && m->window_h <= 4096))
+        return rpiv_fail(RPIV_EINVAL, "ccm: window %d x %d px outside 4..4096 px (0 x 0: infinite)",
+                         m->window_w, m->window_h);
     if (m->nbreaks > RPIV_CCM_MAX_BREAKS)
         return rpiv_fail(RPIV_EINVAL, "ccm: %zu breakpoints, at most %d", m->nbreaks,
                          RPIV_CCM_MAX_BREAKS);

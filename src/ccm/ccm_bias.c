@@ -26,6 +26,7 @@ rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void)
     bp.rel_thickness = 0.1;
     bp.dz = 0.01;
     bp.pixel_box = 1;
+    bp.window_model = 1;
     bp.threads = 0;
     return bp;
 }
@@ -46,6 +47,8 @@ rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params *bp)
         return rpiv_fail(RPIV_EINVAL, "bias: dz %g outside 0..0.5", bp->dz);
     if (!(bp->pixel_box >= 0 && bp->pixel_box <= 4))
         return rpiv_fail(RPIV_EINVAL, "bias: pixel_box %g px outside 0..4", bp->pixel_box);
+    if (bp->window_model != 0 && bp->window_model != 1)
+        return rpiv_fail(RPIV_EINVAL, "bias: window_model %d is neither 0 nor 1", bp->window_model);
     if (bp->threads < 0 || bp->threads > 1024)
         return rpiv_fail(RPIV_EINVAL, "bias: %d threads outside 0..1024", bp->threads);
     return RPIV_OK;

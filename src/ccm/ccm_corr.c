@@ -664,6 +664,48 @@ out_free:
     return st;
 }
 
+int ccm_subpixel_rad(const rpiv_ccm_params *p)
+{
+    return rpiv_subpixel_resolve(p->subpixel, 1) == RPIV_SUBPIXEL_SPLINE ? 3 : 1;
+}
+
+/* The sampled plane around the maximum (mx, my), plus base everywhere, handed to the PIV
+ * engine's estimator for a sum of correlation (peak.h, rpiv_subpixel_resolve) as the 8 x 8
+ * float plane in circular order that it reads after an FFT: shifts -4..3, the search over
+ * -1..1, normalised by the centre; the samples the estimator reads (the 3-point fits: the row
+ * and the column through the centre; the centroid: 3 x 3; the spline: 7 x 7). */
+void ccm_subpixel(double rows[7][7], const rpiv_ccm_params *p, double base, int mx, int my,
+                  double *dx_sub, double *dy_sub)
+{
+    enum { PW = 8 };
+    float plane[PW * PW] = {0};
+    rpiv_subpixel method = rpiv_subpixel_resolve(p->subpixel, 1);
+    int rad = ccm_subpixel_rad(p);
+    double r0 = rows[rad][rad] + base;
+    for (int j = -rad; j <= rad; j++)
+        for (int i = -rad; i <= rad; i++) {
+            if (i && j && method != RPIV_SUBPIXEL_CENTROID && method != RPIV_SUBPIXEL_SPLINE)
+                continue;
+            double v = i || j ? (rows[j + rad][i + rad] + base) / r0 : 1.0;
+            plane[((j + PW) % PW) * PW + (i + PW) % PW] = (float)v;
+        }
+    rpiv_peak fit;
+    rpiv_peak_find(plane, PW, PW, 1, method, &fit);
+    *dx_sub = mx + fit.dx;
+    *dy_sub = my + fit.dy;
+}
+
+rpiv_status ccm_sampled_rows(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, double rows[7][7],
+                             int *mx, int *my)
+{
+    span s;
+    int wq_set = 0;
+    rpiv_status st = corr_span(c, p, &s);
+    if (!st)
+        st = sample_plane(c, &s, ccm_subpixel_rad(p), rows, NULL, &wq_set, mx, my);
+    return st;
+}
+
 rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, rpiv_ccm_peak *out)
 {
     span s;
@@ -676,15 +718,7 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     double *wq = malloc(nw * sizeof *wq);
     if (!wq)
         return rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu terms", c->n);
-    /* the sampled plane around the maximum, handed to the PIV engine's estimator for a sum
-     * of correlation (peak.h, rpiv_subpixel_resolve) as the 8 x 8 float plane in circular
-     * order that it reads after an FFT: shifts -4..3, the search over -1..1, normalised by
-     * the centre; the samples the estimator reads (the 3-point fits: the row and the column
-     * through the centre; the centroid: 3 x 3; the spline: 7 x 7) */
-    enum { PW = 8 };
-    float plane[PW * PW] = {0};
-    rpiv_subpixel method = rpiv_subpixel_resolve(p->subpixel, 1);
-    int rad = method == RPIV_SUBPIXEL_SPLINE ? 3 : 1, mx = 0, my = 0, wq_set = 0;
+    int rad = ccm_subpixel_rad(p), mx = 0, my = 0, wq_set = 0;
     double rows[2 * 3 + 1][2 * 3 + 1] = {{0}};
     if ((st = sample_plane(c, &s, rad, rows, wq, &wq_set, &mx, &my))) {
         free(wq);
@@ -692,18 +726,7 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     }
     out->mx = mx;
     out->my = my;
-    double r0 = rows[rad][rad];
-    for (int j = -rad; j <= rad; j++)
-        for (int i = -rad; i <= rad; i++) {
-            if (i && j && method != RPIV_SUBPIXEL_CENTROID && method != RPIV_SUBPIXEL_SPLINE)
-                continue;
-            double v = i || j ? rows[j + rad][i + rad] / r0 : 1.0;
-            plane[((j + PW) % PW) * PW + (i + PW) % PW] = (float)v;
-        }
-    rpiv_peak fit;
-    rpiv_peak_find(plane, PW, PW, 1, method, &fit);
-    out->dx_sub = mx + fit.dx;
-    out->dy_sub = my + fit.dy;
+    ccm_subpixel(rows, p, 0, mx, my, &out->dx_sub, &out->dy_sub);
     /* the continuous maximum; its value along the line (one factor per term) */
     pkline l = {c, s.mode & 1 ? 0 : 1, s.mode & 1 ? s.dy0 : s.dx0, wq};
     double rmax = (double)NAN;

@@ -65,6 +65,16 @@ double ccm_term_eval(const rpiv_ccm_gauss *g, double ex, double ey);
 RPIV_NODISCARD rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
                                            int *mx, int *my);
 
+/* The sampled plane (R at (mx + i, my + j), |i|, |j| <= ccm_subpixel_rad(p), into
+ * rows[j + rad][i + rad]) around the integer-sampled maximum (mx, my), and the engine's
+ * sub-pixel estimator on it with base added to every sample (ccm_subpixel: the estimate
+ * (dx_sub, dy_sub), px). rad: 3 for the spline, else 1. */
+int ccm_subpixel_rad(const rpiv_ccm_params *p);
+RPIV_NODISCARD rpiv_status ccm_sampled_rows(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
+                                            double rows[7][7], int *mx, int *my);
+void ccm_subpixel(double rows[7][7], const rpiv_ccm_params *p, double base, int mx, int my,
+                  double *dx_sub, double *dy_sub);
+
 /* Breakpoints for the quadrature over [zlo, zhi]: zlo, the model's breaks, z*_OP, the sampled
  * maxima and quarter-height crossings of I0 and P, zhi; sorted, unique. Returns the count. */
 size_t ccm_breakpoints(const rpiv_ccm_model *m, rpiv_ccm_work *w, double *pts, size_t cap);

@@ -339,7 +339,8 @@ rpiv_status rpiv_ccm_predict(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm
     rpiv_status st = rpiv_ccm_stat_corr(m, w, w->corr);
     if (st)
         return st;
-    return rpiv_ccm_corr_peak(w->corr, &w->p, out);
+    return rpiv_ccm_corr_peak_window(w->corr, &w->p, m->window_w, m->window_h, m->window_deform,
+                                     out);
 }
 
 /* ---- the tabulated velocity profile ----------------------------------------------------- */

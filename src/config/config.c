@@ -273,6 +273,10 @@ static const key_spec keys[] = {
      "the CCM's pixel integration: side of the square a pixel integrates over (0 = the "
      "paper's point-sampled images)",
      0},
+    {"bias", "window_model", KEY_BOOL, OFF(bias.window_model), 0, 1, 1, "-",
+     "the CCM's prediction of what the engine measures models the [piv] final window (pairs "
+     "lost at its edges, the mean removal's baseline; 0 = an infinite window)",
+     0},
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
 };

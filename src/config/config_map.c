@@ -35,6 +35,11 @@ rpiv_ccm_model rpiv_config_ccm_model(const rpiv_experiment *e, double dt_s)
     m.dp_m = e->particles.dp_m;
     m.scale_px = rpiv_ccm_scale_px(&e->camera, &e->channel, dt_s);
     m.pixel_box = e->bias.pixel_box;
+    if (e->bias.window_model && e->piv.npass >= 1) { /* the final window (docs/ccm.md) */
+        m.window_w = e->piv.win_w[e->piv.npass - 1];
+        m.window_h = e->piv.win_h[e->piv.npass - 1];
+        m.window_deform = e->piv.deform;
+    }
     return m;
 }
 
