@@ -98,9 +98,14 @@ static const expect table[] = {
     /* u = 3e39 does not fit the field's float: it became +inf in a field that loaded */
     {"vectors_u_beyond_float.txt", VECTORS, 0, RPIV_EFORMAT, ":1: column 3"},
     /* header "# scale_mm_per_px = 0.0065e9999" (infinite): the field loaded with an infinite
-     * scale, and its mm and m/s columns came out infinite when saved; now the header is
-     * ignored as a value <= 0 is (the field is left unscaled) */
-    {"vectors_scale_overflows.txt", VECTORS, 0, RPIV_OK, NULL},
+     * scale, and its mm and m/s columns came out infinite when saved; then it was ignored
+     * (the field left unscaled), and a finite 6.5e87 mm/px wrote coordinates of 4e89 mm that
+     * no float reads back (fuzz_vectors, session 6): now a scale outside the [piv] key's
+     * (0, 1e6] or a dt outside [1e-12, 1e6] s is refused, naming the line */
+    {"vectors_scale_overflows.txt", VECTORS, 0, RPIV_EFORMAT, ":2: scale_mm_per_px = inf"},
+    {"vectors_scale_beyond_float.txt", VECTORS, 0, RPIV_EFORMAT, ":12: scale_mm_per_px = 6.5e+87"},
+    /* in range, but 3e35 px at 1000 mm/px and 1 us is 3e41 m/s: refused as well */
+    {"vectors_velocity_beyond_float_in_m_s.txt", VECTORS, 0, RPIV_EFORMAT, "beyond a float"},
     /* the fuzzer's file: header "# zm1 1e3086" (infinite) loaded and I0 evaluated to NaN;
      * its line 5 holds NUL bytes, refused first since lines with a NUL are */
     {"sheet_header_not_finite.sheet", SHEET, 0, RPIV_EFORMAT, ":5: NUL byte"},

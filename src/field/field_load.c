@@ -95,10 +95,16 @@ static rpiv_status header_line(const char *s, header *h, const char *path, long 
         return RPIV_OK;
     }
     if (sscanf(s, "%31[A-Za-z0-9_] = %lf", key, &val) == 2) {
-        /* an unusable value (<= 0, or infinite after an overflow) leaves the field unscaled */
-        if (strcmp(key, "scale_mm_per_px") == 0 && val > 0 && isfinite(val))
+        /* the ranges of the [piv] keys, dt at least 1 ps: within them the mm and m/s columns
+         * of any vector fit a float, so what is loaded can be written and read back (a scale
+         * of 6.5e87 mm/px gave coordinates of 4e89 mm that no float holds: the fuzzer) */
+        const int is_scale = strcmp(key, "scale_mm_per_px") == 0, is_dt = strcmp(key, "dt_s") == 0;
+        if ((is_scale && !(val > 0 && val <= 1e6)) || (is_dt && !(val >= 1e-12 && val <= 1e6)))
+            return rpiv_fail(RPIV_EFORMAT, "%s:%ld: %s = %g is outside %s", path, lineno, key, val,
+                             is_scale ? "(0, 1e6] mm/px" : "[1e-12, 1e6] s");
+        if (is_scale)
             h->scale = val;
-        else if (strcmp(key, "dt_s") == 0 && val > 0 && isfinite(val))
+        else if (is_dt)
             h->dt = val;
     }
     return RPIV_OK;
@@ -228,6 +234,23 @@ static rpiv_status build_field(const rows *r, const char *path, const header *h,
     if (st) {
         rpiv_field_free(f);
         return st;
+    }
+    if (h->scale > 0) {
+        /* the physical columns a save would add (mm, and m/s or mm per pair) must fit a
+         * float, or the file written from this field could not be read back */
+        double mx = 0, mu = 0;
+        for (size_t k = 0; k < r->n; k++) {
+            mx = fmax(mx, fmax(fabs(r->x[k]), fabs(r->y[k])));
+            mu = fmax(mu, fmax(fabs((double)r->u[k]), fabs((double)r->v[k])));
+        }
+        const double ku = h->scale * (h->dt > 0 ? fmax(1.0, 1e-3 / h->dt) : 1.0);
+        if (!(mx * h->scale <= (double)FLT_MAX && mu * ku <= (double)FLT_MAX)) {
+            rpiv_field_free(f);
+            return rpiv_fail(RPIV_EFORMAT,
+                             "%s: scale_mm_per_px = %g puts the physical columns beyond a float "
+                             "(coordinates up to %g px, velocities up to %g px)",
+                             path, h->scale, mx, mu);
+        }
     }
     f->scale_mm_per_px = h->scale;
     f->dt_s = h->dt;
