@@ -82,9 +82,15 @@ rpiv_status cmd_derive(int argc, char **argv)
     if (!what)
         return cli_usage_error("derive", "--derived: nothing to derive");
     const char *in = argv[optind];
+    const rpiv_field_format fmt = rpiv_field_format_of(in, NULL);
+    if (fmt == RPIV_FIELD_DAT || fmt == RPIV_FIELD_VTK)
+        return rpiv_fail(RPIV_EINVAL,
+                         "%s: rpiv derive reads text (.txt) and NetCDF (.nc) vector files only",
+                         in);
     rpiv_field *f = NULL;
     rpiv_meta meta = {0};
-    if ((st = rpiv_field_load_txt(in, &f)))
+    /* a NetCDF series: its first field */
+    if ((st = fmt == RPIV_FIELD_NC ? rpiv_field_load_nc(in, 0, &f) : rpiv_field_load_txt(in, &f)))
         return st;
     if (o.dt > 0)
         f->dt_s = o.dt;

@@ -19,6 +19,9 @@ RPIV_NODISCARD rpiv_status field_write_tecplot(const rpiv_field *f, const rpiv_m
                                                const char *path);
 RPIV_NODISCARD rpiv_status field_write_vtk(const rpiv_field *f, const rpiv_meta *meta, FILE *fp,
                                            const char *path);
+/* RPIV_EFORMAT naming path when f's scale would put its mm or m/s columns beyond a float
+ * (field_load.c; both loaders). */
+RPIV_NODISCARD rpiv_status field_check_units(const rpiv_field *f, const char *path);
 RPIV_NODISCARD rpiv_status field_save_nc(const rpiv_field *f, const rpiv_meta *meta,
                                          const char *path);
 

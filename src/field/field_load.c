@@ -165,6 +165,27 @@ static rpiv_status infer_axis(const double *v, size_t n, double *o0, double *ste
     return RPIV_OK;
 }
 
+/* The physical columns a save would add to f (mm, and m/s or mm per pair) must fit a float,
+ * or the file written from this field could not be read back. */
+rpiv_status field_check_units(const rpiv_field *f, const char *path)
+{
+    const double scale = f->scale_mm_per_px, dt = f->dt_s;
+    if (!(scale > 0))
+        return RPIV_OK;
+    const double mx = fmax(fmax(fabs(f->x0), fabs(f->x0 + (f->nx - 1) * f->dx)),
+                           fmax(fabs(f->y0), fabs(f->y0 + (f->ny - 1) * f->dy)));
+    double mu = 0;
+    for (size_t k = 0, n = (size_t)f->nx * (size_t)f->ny; k < n; k++)
+        mu = fmax(mu, fmax(fabs((double)f->u[k]), fabs((double)f->v[k])));
+    const double ku = scale * (dt > 0 ? fmax(1.0, 1e-3 / dt) : 1.0);
+    if (!(mx * scale <= (double)FLT_MAX && mu * ku <= (double)FLT_MAX))
+        return rpiv_fail(RPIV_EFORMAT,
+                         "%s: scale_mm_per_px = %g puts the physical columns beyond a float "
+                         "(coordinates up to %g px, velocities up to %g px)",
+                         path, scale, mx, mu);
+    return RPIV_OK;
+}
+
 static rpiv_status build_field(const rows *r, const char *path, const header *h, rpiv_field **out)
 {
     double x0, y0, dx, dy;
@@ -235,26 +256,13 @@ static rpiv_status build_field(const rows *r, const char *path, const header *h,
         rpiv_field_free(f);
         return st;
     }
-    if (h->scale > 0) {
-        /* the physical columns a save would add (mm, and m/s or mm per pair) must fit a
-         * float, or the file written from this field could not be read back */
-        double mx = 0, mu = 0;
-        for (size_t k = 0; k < r->n; k++) {
-            mx = fmax(mx, fmax(fabs(r->x[k]), fabs(r->y[k])));
-            mu = fmax(mu, fmax(fabs((double)r->u[k]), fabs((double)r->v[k])));
-        }
-        const double ku = h->scale * (h->dt > 0 ? fmax(1.0, 1e-3 / h->dt) : 1.0);
-        if (!(mx * h->scale <= (double)FLT_MAX && mu * ku <= (double)FLT_MAX)) {
-            rpiv_field_free(f);
-            return rpiv_fail(RPIV_EFORMAT,
-                             "%s: scale_mm_per_px = %g puts the physical columns beyond a float "
-                             "(coordinates up to %g px, velocities up to %g px)",
-                             path, h->scale, mx, mu);
-        }
-    }
     f->scale_mm_per_px = h->scale;
     f->dt_s = h->dt;
     f->y_up = h->y_up;
+    if ((st = field_check_units(f, path))) {
+        rpiv_field_free(f);
+        return st;
+    }
     *out = f;
     return RPIV_OK;
 }

@@ -309,7 +309,8 @@ rpiv_status rpiv_field_load_nc(const char *path, size_t t, rpiv_field **out)
         st = rpiv_fail(RPIV_ENOMEM, "%s: out of memory for a %zu x %zu field", path, c.nx, c.ny);
         goto cleanup_nc;
     }
-    if ((st = read_vectors(&c, f, px, buf, tmp)) || (st = read_quantities(&c, f, buf, tmp)))
+    if ((st = read_vectors(&c, f, px, buf, tmp)) || (st = read_quantities(&c, f, buf, tmp)) ||
+        (st = field_check_units(f, path)))
         goto cleanup_nc;
     *out = f;
     f = NULL;

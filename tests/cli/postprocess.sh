@@ -45,6 +45,17 @@ grep -q 'vorticity_per_s' "$tmp/s.txt" && grep -q 'q_criterion_per_s2' "$tmp/s.t
 [ $? -eq 2 ] && ok || ko "derive --derived curl: exit not 2"
 "$bin" derive "$tmp/missing.txt" -o "$tmp/x.txt" 2>/dev/null
 [ $? -ne 0 ] && ok || ko "derive of a missing file exited 0"
+# a NetCDF input (its first field) gives what the text file of the same field gives; .vtk is
+# refused with a one-line error naming it (it was read as text: "'\x89HDF' is not a number")
+"$bin" piv "${o[@]}" "$a" "$b" -o "$tmp/plain.nc" 2>/dev/null && ok || ko "piv -> .nc"
+"$bin" derive --quiet --derived vorticity "$tmp/plain.nc" -o "$tmp/dn.txt" && ok ||
+    ko "derive of a .nc file"
+cmp -s <(col8 "$tmp/d.txt") <(col8 "$tmp/dn.txt") && ok || ko "derive of .nc != derive of .txt"
+"$bin" derive "$tmp/all.nc" -o "$tmp/x.txt" --derived vorticity 2>/dev/null && ok ||
+    ko "derive of a derived .nc"
+touch "$tmp/f.vtk"
+"$bin" derive "$tmp/f.vtk" -o "$tmp/x.txt" 2>"$tmp/err"
+[ $? -ne 0 ] && grep -q 'f.vtk: rpiv derive reads text' "$tmp/err" && ok || ko "derive of .vtk"
 
 # validation options run; all off by default: the default run is unchanged by naming them off
 "$bin" piv "${o[@]}" --peak-ratio 1.2 --std 4 --limits -8,8,-8,8 --replace inpaint \
