@@ -50,9 +50,9 @@ static const cli_opt options[] = {
 const cli_spec cmd_derive_spec = {
     .name = "derive",
     .usage = "usage: rpiv derive FIELD -o OUT [--derived LIST] [--dt S] [--scale MM_PER_PX]\n\n"
-             "Add derived quantities to a vector text file (rpiv's own, or columns x y u v\n"
-             "[flag] on a regular grid) and write it to OUT: vorticity, divergence,\n"
-             "shear_strain, normal_strain, swirling_strength, q_criterion, by the\n"
+             "Add derived quantities to a vector file (.txt: rpiv's own, or columns x y u v\n"
+             "[flag] on a regular grid; .nc: its first field) and write it to OUT: vorticity,\n"
+             "divergence, shear_strain, normal_strain, swirling_strength, q_criterion, by the\n"
              "least-squares stencil over +-2 grid steps (shorter next to masked points), with\n"
              "the physical sign (counter-clockwise as seen on the image is positive vorticity,\n"
              "in image or y-up files alike), in 1/dt (1/dt^2 for Q); with scale and dt the\n"
