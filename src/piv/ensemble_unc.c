@@ -131,17 +131,7 @@ static int plane_curv(const rpiv_ensemble *e, size_t win, double *hx, double *hy
     const float *plane = e->data + win * e->plane;
     rpiv_peak pk;
     rpiv_peak_find(plane, w, h, 0, RPIV_SUBPIXEL_GAUSS, &pk);
-    const int bi = (pk.ix + w) % w, bj = (pk.iy + h) % h;
-    const double c0 = (double)plane[(size_t)bj * (size_t)w + (size_t)bi];
-    const double cxm = (double)plane[(size_t)bj * (size_t)w + (size_t)((bi + w - 1) % w)];
-    const double cxp = (double)plane[(size_t)bj * (size_t)w + (size_t)((bi + 1) % w)];
-    const double cym = (double)plane[(size_t)((bj + h - 1) % h) * (size_t)w + (size_t)bi];
-    const double cyp = (double)plane[(size_t)((bj + 1) % h) * (size_t)w + (size_t)bi];
-    if (!(c0 > 0 && cxm > 0 && cxp > 0 && cym > 0 && cyp > 0))
-        return 0;
-    *hx = log(cxm) - 2 * log(c0) + log(cxp);
-    *hy = log(cym) - 2 * log(c0) + log(cyp);
-    return *hx < 0 && *hy < 0;
+    return unc_curv_at(plane, w, h, (pk.ix + w) % w, (pk.iy + h) % h, hx, hy) && *hx < 0 && *hy < 0;
 }
 
 /* The final pass's systematic term (docs/uncertainty.md, "The systematic floor"): the

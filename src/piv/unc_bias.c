@@ -122,16 +122,7 @@ static int model_curv(const unc_model *m, double dx, double dy, double px, doubl
             return 1;
         }
     }
-    const double c0 = (double)plane[bj * MW + bi];
-    const double cxm = (double)plane[bj * MW + (bi + MW - 1) % MW],
-                 cxp = (double)plane[bj * MW + (bi + 1) % MW];
-    const double cym = (double)plane[((bj + MW - 1) % MW) * MW + bi],
-                 cyp = (double)plane[((bj + 1) % MW) * MW + bi];
-    if (!(c0 > 0 && cxm > 0 && cxp > 0 && cym > 0 && cyp > 0))
-        return 0;
-    *hx = log(cxm) - 2 * log(c0) + log(cxp);
-    *hy = log(cym) - 2 * log(c0) + log(cyp);
-    return 1;
+    return unc_curv_at(plane, MW, MW, bi, bj, hx, hy);
 }
 
 int unc_model_fit(unc_model *m, double hx, double hy, double dx, double dy, double px, double py)

@@ -121,6 +121,21 @@ static double curv3(double c0, double cp, double cm)
     return c0 > 0 && cp > 0 && cm > 0 ? log(cm) - 2 * log(c0) + log(cp) : 0;
 }
 
+int unc_curv_at(const float *plane, int w, int h, int bi, int bj, double *hx, double *hy)
+{
+    const size_t W = (size_t)w, row = (size_t)bj * W;
+    const double c0 = (double)plane[row + (size_t)bi];
+    const double cxm = (double)plane[row + (size_t)((bi + w - 1) % w)];
+    const double cxp = (double)plane[row + (size_t)((bi + 1) % w)];
+    const double cym = (double)plane[(size_t)((bj + h - 1) % h) * W + (size_t)bi];
+    const double cyp = (double)plane[(size_t)((bj + 1) % h) * W + (size_t)bi];
+    if (!(c0 > 0 && cxm > 0 && cxp > 0 && cym > 0 && cyp > 0))
+        return 0;
+    *hx = curv3(c0, cxp, cxm);
+    *hy = curv3(c0, cyp, cym);
+    return 1;
+}
+
 void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
             float *scratch, double *su, double *sv, double curv[2])
 {

@@ -30,6 +30,10 @@ void unc_cs(const float *a, size_t sa, const float *b, size_t sb, int w, int h, 
 void unc_cs_sums(const float *a, size_t sa, const float *b, size_t sb, int w, int h, int ix, int iy,
                  float *scratch, double sums[8]);
 
+/* The 3-point curvature of ln c at (bi, bj) of the circular w x h plane, x and y (ln c- -
+ * 2 ln c0 + ln c+); 0 where one of the five samples is not positive. */
+int unc_curv_at(const float *plane, int w, int h, int bi, int bj, double *hx, double *hy);
+
 /* The peak fit's sigma (px, 0..UNC_SIGMA_MAX) from C0, C+, C- and var(C+ - C-). */
 double unc_cs_sigma(double c0, double cp, double cm, double var);
 

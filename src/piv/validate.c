@@ -258,7 +258,7 @@ rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, int 
      * round before (see below which), until a round rejects nothing (a clean field: one
      * round, as before). */
     const int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
-    unsigned char *retest = calloc(n, 1);
+    unsigned char *retest = malloc(n);
     if (!retest) {
         free(rej);
         return rpiv_fail(RPIV_ENOMEM, "validate: out of memory");
