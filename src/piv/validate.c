@@ -281,6 +281,10 @@ rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, int 
                     !(lines && agrees_along_a_line(f, ok, i, j, threshold, eps)))
                     rej[k] = 1;
             }
+        for (size_t k = 0; k < n; k++)
+            fresh += rej[k] && ok[k] == 1;
+        if (!fresh)
+            break;
         /* a survivor is tested again when at least half of the usable vectors of its block
          * were rejected in this round: it passed against a neighbourhood of outliers. (Not
          * every neighbour of a rejection: on a shear's crests that cascade eroded true
@@ -303,12 +307,8 @@ rpiv_status validate_median_nt(rpiv_field *f, double threshold, double eps, int 
                 retest[k] = bad > 0 && 2 * bad >= all;
             }
         for (size_t k = 0; k < n; k++)
-            if (rej[k] && ok[k] == 1) {
+            if (rej[k])
                 ok[k] = 0;
-                fresh++;
-            }
-        if (!fresh)
-            break;
     }
     free(retest);
     for (size_t k = 0; k < n; k++)
