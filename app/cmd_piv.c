@@ -247,6 +247,7 @@ static rpiv_status add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_p
         (st = rpiv_meta_add(m, "deform", "%s", p->deform ? "cubic B-spline, symmetric" : "off")) ||
         (st = rpiv_meta_add(m, "median_threshold", "%g", p->median_thr)) ||
         (st = rpiv_meta_add(m, "median_eps_px", "%g", p->median_eps)) ||
+        (st = rpiv_meta_add(m, "search_radius_px", "%d", p->search_radius)) ||
         (st = rpiv_meta_add(m, "background", "%s", bg[p->background])) ||
         (st = rpiv_meta_add(m, "mask", "%s", p->mask[0] ? p->mask : "none")) ||
         (st = rpiv_meta_add(m, "roi", "%d,%d,%d,%d", p->roi[0], p->roi[1], p->roi[2], p->roi[3])) ||
@@ -438,6 +439,10 @@ static const cli_opt options[] = {
      .arg = "V",
      .fn = set_validate_opt,
      .help = "median:T (threshold T, default 2) or none [median_threshold]"},
+    PIV_KEY("search-radius", "R", "search_radius_px",
+            "passes with a predictor: take the highest correlation peak within R px\n"
+            "of the predicted shift; 0 = whole plane, -1 = an eighth of the previous\n"
+            "pass's window, at least 2 px (-1; docs/piv.md) [search_radius_px]"),
     PIV_KEY("peak-ratio", "R", "peak_ratio_min",
             "also reject vectors whose correlation peak ratio is below R\n"
             "(off; 1.2 to 1.5 usual) [peak_ratio_min]"),

@@ -3,6 +3,7 @@
 #include "rpiv/peak.h"
 #include "test_peak_ref.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -140,6 +141,43 @@ static void peak_search_range_is_honoured(void)
     CHECK_NEAR(pk.dx, 2.2389, 1e-3);
     rpiv_peak_find(p, W, H, 0, RPIV_SUBPIXEL_GAUSS, &pk);
     CHECK(pk.ix == 10 && pk.iy == 0);
+}
+
+/* rpiv_peak_find_near: the highest local maximum within the radius, not the plane's highest
+ * value; the ratio against the higher peak outside (< 1); the flank of a peak outside the
+ * square is no peak (the plane's highest is taken then); column maxima given or not, the
+ * same answer. */
+static void peak_near_takes_the_local_maximum_within_the_radius(void)
+{
+    float p[W * H] = {0};
+    add_gauss(p, 9, -6, 0.7, 1.0);           /* higher, outside |s| <= 4 */
+    add_gauss(p, 1.3187, -0.7413, 0.9, 0.6); /* inside */
+    float cm[W];
+    for (int i = 0; i < W; i++) {
+        cm[i] = -INFINITY;
+        for (int j = 0; j < H; j++)
+            cm[i] = p[j * W + i] > cm[i] ? p[j * W + i] : cm[i];
+    }
+    rpiv_peak pk, pc;
+    rpiv_peak_find_near(p, W, H, 4, NULL, RPIV_SUBPIXEL_GAUSS, &pk);
+    rpiv_peak_find_near(p, W, H, 4, cm, RPIV_SUBPIXEL_GAUSS, &pc);
+    CHECK(pk.ix == 1 && pk.iy == -1 && pk.fit_ok);
+    CHECK_NEAR(pk.dx, 1.3187, 1e-3);
+    CHECK_NEAR(pk.dy, -0.7413, 1e-3);
+    CHECK_NEAR(pk.second, 1.0, 1e-4);
+    CHECK_NEAR(pk.ratio, (double)pk.value, 1e-5);
+    CHECK(pk.ratio < 1.0f);
+    CHECK(pc.ix == pk.ix && pc.iy == pk.iy && pc.dx == pk.dx && pc.ratio == pk.ratio);
+    /* radius 0 or a square covering the plane: the whole plane */
+    rpiv_peak_find_near(p, W, H, 0, cm, RPIV_SUBPIXEL_GAUSS, &pk);
+    CHECK(pk.ix == 9 && pk.iy == -6);
+    rpiv_peak_find_near(p, W, H, 16, cm, RPIV_SUBPIXEL_GAUSS, &pk);
+    CHECK(pk.ix == 9 && pk.iy == -6);
+    /* only the flank of the outside peak reaches into the square: no local maximum there */
+    float q[W * H] = {0};
+    add_gauss(q, 7, 0, 2.0, 1.0);
+    rpiv_peak_find_near(q, W, H, 4, NULL, RPIV_SUBPIXEL_GAUSS, &pk);
+    CHECK(pk.ix == 7 && pk.iy == 0);
 }
 
 static void peak_flat_plane_reports_failed_fit(void)
@@ -364,6 +402,7 @@ int main(void)
     RUN_TEST(peak_ratio_of_two_peaks);
     RUN_TEST(peak_second_peak_is_a_local_maximum);
     RUN_TEST(peak_search_range_is_honoured);
+    RUN_TEST(peak_near_takes_the_local_maximum_within_the_radius);
     RUN_TEST(peak_flat_plane_reports_failed_fit);
     RUN_TEST(peak_sizes_outside_the_range_give_no_peak);
     RUN_TEST(peak_find_matches_reference_bit_for_bit);

@@ -64,6 +64,16 @@ void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpix
 void rpiv_peak_find_cm(const float *plane, int w, int h, const float *colmax, rpiv_subpixel method,
                        rpiv_peak *out);
 
+/* The peak near the origin, for a pass whose windows were shifted by a predictor: the
+ * highest local maximum (>= its 8 neighbours) among shifts with |sx| <= radius and |sy| <=
+ * radius, refined with `method`; the plane's highest value if no local maximum lies there
+ * (or radius <= 0, or the square covers the plane). The second peak and the ratio are those
+ * of the whole plane: the highest local maximum outside the chosen peak's neighbourhood,
+ * which may be higher than it (ratio < 1: a higher peak lies farther away). colmax: the
+ * plane's column maxima as rpiv_peak_find_cm takes them, or NULL. */
+void rpiv_peak_find_near(const float *plane, int w, int h, int radius, const float *colmax,
+                         rpiv_subpixel method, rpiv_peak *out);
+
 /* The sub-pixel offset, in -1..1 px, of a peak from three samples c(-1), c(0), c(+1) with
  * c(0) the largest: Gaussian (exact for samples of exp(-(x-x0)^2/k)), parabola (exact for a
  * parabola). The Gaussian falls back to the parabola when a sample is not positive. *ok is 0

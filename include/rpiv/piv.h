@@ -39,6 +39,11 @@ typedef struct rpiv_piv_params {
     double median_eps;              /* median test epsilon, px (0.1)               */
     int median_lines;               /* 1: keep a vector failing the 3x3 test that
                                        agrees with a row, column or diagonal (1)   */
+    int search_radius;              /* passes with a predictor: the peak is the
+                                       highest local maximum within this many px of
+                                       the predicted shift; 0 = whole plane, -1 = an
+                                       eighth of the previous pass's window (the
+                                       predictor's), >= 2 px (-1)                  */
     rpiv_background background;     /* (none)                                      */
     int roi[4];                     /* x0, y0, x1, y1 px; all 0 = whole image      */
     char mask[512];                 /* mask image, 0 = masked ("" = none)          */

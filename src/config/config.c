@@ -149,6 +149,10 @@ static const key_spec keys[] = {
      "normalised median test epsilon", 0},
     {"piv", "median_lines", KEY_BOOL, OFF(piv.median_lines), 0, 1, 1, "-",
      "keep a vector that fails the median test but agrees with a grid line (shear layers)", 0},
+    {"piv", "search_radius_px", KEY_INT, OFF(piv.search_radius), -1, 2048, 1, "px",
+     "passes with a predictor: peak searched within this radius of it (0 = whole plane, -1 = "
+     "the previous pass's window / 8, at least 2)",
+     0},
     {"piv", "peak_ratio_min", KEY_DOUBLE, OFF(piv.peak_ratio_min), 0, 100, 1, "-",
      "reject vectors whose correlation peak ratio is below this (0 = off)", 0},
     {"piv", "u_min_px", KEY_DOUBLE, OFF(piv.u_min_px), -1e6, 1e6, 1, "px",

@@ -380,9 +380,30 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
     return best;
 }
 
-/* rpiv_peak_find, with the column maxima colmax of the plane given (full plane) or not. */
-static void peak_find(const float *plane, int w, int h, int max_shift, const float *colmax,
-                      rpiv_subpixel method, rpiv_peak *out)
+/* The highest local maximum of the plane among shifts within -r..r on both axes (of equal
+ * values the first in raster order); 0 and *bi = -1 if there is none. */
+static float near_max(const float *plane, int w, int h, int r, int *bi, int *bj)
+{
+    int rows[RPIV_PEAK_MAX_SIZE], cols[RPIV_PEAK_MAX_SIZE];
+    const int nr = axis_indices(h, r, rows), nc = axis_indices(w, r, cols);
+    float best = -INFINITY;
+    *bi = *bj = -1;
+    for (int jj = 0; jj < nr; jj++) {
+        const float *row = plane + (size_t)rows[jj] * (size_t)w;
+        for (int ii = 0; ii < nc; ii++)
+            if (row[cols[ii]] > best && local_max(plane, w, h, cols[ii], rows[jj])) {
+                best = row[cols[ii]];
+                *bi = cols[ii];
+                *bj = rows[jj];
+            }
+    }
+    return best;
+}
+
+/* rpiv_peak_find, with the column maxima colmax of the plane given (full plane) or not;
+ * near > 0: rpiv_peak_find_near's choice of the peak. */
+static void peak_find(const float *plane, int w, int h, int max_shift, int near_r,
+                      const float *colmax, rpiv_subpixel method, rpiv_peak *out)
 {
     if (w < 3 || h < 3 || w > RPIV_PEAK_MAX_SIZE || h > RPIV_PEAK_MAX_SIZE) {
         *out = (rpiv_peak){0};
@@ -405,8 +426,11 @@ static void peak_find(const float *plane, int w, int h, int max_shift, const flo
             memcpy(cm, colmax, (size_t)w * sizeof *cm);
         else
             colmax_all(plane, w, h, cm);
-        best = max_index(cm, w, &bi);
-        for (int j = 0; j < h && bi >= 0; j++)
+        if (near_r > 0 && (2 * near_r + 1 < w || 2 * near_r + 1 < h))
+            best = near_max(plane, w, h, near_r, &bi, &bj);
+        if (bi < 0)
+            best = max_index(cm, w, &bi);
+        for (int j = 0; j < h && bi >= 0 && bj < 0; j++)
             if (plane[(size_t)j * (size_t)w + (size_t)bi] == best) {
                 bj = j;
                 break;
@@ -469,11 +493,17 @@ static void peak_find(const float *plane, int w, int h, int max_shift, const flo
 void rpiv_peak_find(const float *plane, int w, int h, int max_shift, rpiv_subpixel method,
                     rpiv_peak *out)
 {
-    peak_find(plane, w, h, max_shift, NULL, method, out);
+    peak_find(plane, w, h, max_shift, 0, NULL, method, out);
 }
 
 void rpiv_peak_find_cm(const float *plane, int w, int h, const float *colmax, rpiv_subpixel method,
                        rpiv_peak *out)
 {
-    peak_find(plane, w, h, 0, colmax, method, out);
+    peak_find(plane, w, h, 0, 0, colmax, method, out);
+}
+
+void rpiv_peak_find_near(const float *plane, int w, int h, int radius, const float *colmax,
+                         rpiv_subpixel method, rpiv_peak *out)
+{
+    peak_find(plane, w, h, 0, radius, colmax, method, out);
 }

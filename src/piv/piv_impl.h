@@ -65,6 +65,9 @@ typedef void (*piv_win_fn)(void *ctx, const float *plane, const float *colmax, s
  * correlated; no deformed frame is ever held whole, and threads never wait for each other. */
 RPIV_NODISCARD rpiv_status piv_pass_run(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
                                         piv_win_fn fn, void *ctx);
+/* piv_pass_run that stops (RPIV_EINTR) when the plan's cancel hook asks (a pair's passes). */
+RPIV_NODISCARD rpiv_status piv_pass_run_cut(rpiv_piv *pv, int k, const rpiv_deform_pred *pred,
+                                            piv_win_fn fn, void *ctx);
 
 /* Has the plan's cancel hook (rpiv_piv_set_cancel) asked to stop? Calling thread only. */
 int piv_cancelled(const rpiv_piv *pv);
@@ -118,10 +121,16 @@ void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, dou
 
 /* The vector of window `win` from its (raw or summed) plane, its column maxima (NULL: not
  * known) and energies: into f at win. ensemble: 1 for a sum of correlation (the estimator
- * of rpiv_subpixel_resolve). */
+ * of rpiv_subpixel_resolve). near > 0: the peak is the highest local maximum within near px
+ * of the window pair's shift (rpiv_peak_find_near); 0: the plane's highest. */
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
                 double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win,
-                int ensemble);
+                int ensemble, int near);
+
+/* The peak search radius of pass `pass` run with a predictor (piv.search_radius; -1: an
+ * eighth of the smaller side of the window of the pass before, which made the predictor, or
+ * of the first pass's own; at least 2 px); 0 without a predictor or when off. */
+int piv_search_radius(const rpiv_piv *pv, int pass, int has_predictor);
 
 /* Validate (median test if enabled) and replace rejected vectors. */
 RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);

@@ -19,6 +19,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .median_thr = 2.0,
                              .median_eps = 0.1,
                              .median_lines = 1,
+                             .search_radius = -1,
                              .background = RPIV_BACKGROUND_NONE,
                              .roi = {0, 0, 0, 0},
                              .mask = "",
@@ -65,6 +66,9 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.median_lines: %d is not 0 or 1", p->median_lines);
     if (p->threads < 0)
         return rpiv_fail(RPIV_EINVAL, "piv.threads: %d < 0", p->threads);
+    if (p->search_radius < -1 || p->search_radius > RPIV_PEAK_MAX_SIZE / 2)
+        return rpiv_fail(RPIV_EINVAL, "piv.search_radius_px: %d outside -1..%d", p->search_radius,
+                         RPIV_PEAK_MAX_SIZE / 2);
     if (p->refine_max < 0 || p->refine_max > 20)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_max: %d outside 0..20", p->refine_max);
     if (!(p->refine_tol_px >= 0 && p->refine_tol_px <= 10))
