@@ -444,6 +444,8 @@ static rpiv_status ens_done(void *user, size_t k, rpiv_status st, int loaded)
 
 /* The ensemble field of npairs pairs of src, every pass; threads; with ckpt (a path) the final
  * pass is saved after half its pairs and resumed from the file. */
+static int g_ens_passes; /* > 0: ens_run stops after this many passes (diagnostics) */
+
 static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const char *ckpt)
 {
     rpiv_piv_params prm = rpiv_piv_params_default();
@@ -453,11 +455,14 @@ static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const ch
     rpiv_piv *pv = NULL;
     rpiv_field *pred = NULL;
     CHECK_OK(rpiv_piv_new(&prm, src->size, src->size, NULL, &pv));
-    for (int k = 0; pv && k < rpiv_piv_npass(pv); k++) {
+    const int npass = pv && g_ens_passes > 0 && g_ens_passes < rpiv_piv_npass(pv)
+                          ? g_ens_passes
+                          : (pv ? rpiv_piv_npass(pv) : 0);
+    for (int k = 0; k < npass; k++) {
         rpiv_ensemble *e = NULL;
         rpiv_field *f = NULL;
         CHECK_OK(rpiv_ensemble_new(pv, k, pred, &e));
-        const int last = k == rpiv_piv_npass(pv) - 1, half = ckpt && last ? npairs / 2 : npairs;
+        const int last = k == npass - 1, half = ckpt && last ? npairs / 2 : npairs;
         if (e)
             CHECK_OK(rpiv_ensemble_add_pairs(e, (size_t)half, ens_load, ens_done, (void *)src));
         if (e && half < npairs) {
@@ -496,6 +501,47 @@ static stats ens_case(const flow *fl, double noise, double d_tau, int nens, int 
         rpiv_field_free(f);
     }
     return acc_end(&c);
+}
+
+/* Where an ensemble's error is: per grid row, the mean and RMS error, the RMS sigma and the
+ * coverage of u and v over nens ensembles (RPIV_UNC_ROWS="flow noise d_tau nens passes"). */
+static void unc_ensemble_rows(const flow *fl, double noise, double d_tau, int nens)
+{
+    enum { NR = 64 };
+    double me[2][NR] = {{0}}, se[2][NR] = {{0}}, ss[2][NR] = {{0}}, sc[2][NR] = {{0}};
+    int nr[NR] = {0}, ny = 0;
+    for (int q = 0; q < nens; q++) {
+        ens_src src = {fl, noise, d_tau, 128, 5000 + 1000 * (uint64_t)q};
+        rpiv_field *f = ens_run(&src, 20, 1, NULL);
+        const rpiv_quantity *qs[2] = {f ? rpiv_field_quantity(f, "sigma_u") : NULL,
+                                      f ? rpiv_field_quantity(f, "sigma_v") : NULL};
+        for (int j = 0; qs[0] && qs[1] && j < f->ny && j < NR; j++)
+            for (int i = 0; i < f->nx; i++) {
+                const size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+                if (f->flag[k] != RPIV_FLAG_VALID)
+                    continue;
+                double t[2];
+                fl->fn(fl->user, f->x0 + i * f->dx, f->y0 + j * f->dy, &t[0], &t[1]);
+                const double e[2] = {(double)f->u[k] - t[0], (double)f->v[k] - t[1]};
+                for (int c = 0; c < 2; c++) {
+                    me[c][j] += e[c];
+                    se[c][j] += e[c] * e[c];
+                    ss[c][j] += (double)qs[c]->data[k] * (double)qs[c]->data[k];
+                    sc[c][j] += fabs(e[c]) <= (double)qs[c]->data[k];
+                }
+                nr[j]++;
+            }
+        ny = f ? f->ny : ny;
+        rpiv_field_free(f);
+    }
+    printf("    %s %.0f %% d_tau %.1f, by row: n, u: mean-err RMS-err RMS-sigma cov, v: same\n",
+           fl->name, 100 * noise, d_tau);
+    for (int j = 0; j < ny && j < NR; j++)
+        if (nr[j])
+            printf("      %2d %4d  u %+.4f %.4f %.4f %.2f  v %+.4f %.4f %.4f %.2f\n", j, nr[j],
+                   me[0][j] / nr[j], sqrt(se[0][j] / nr[j]), sqrt(ss[0][j] / nr[j]),
+                   sc[0][j] / nr[j], me[1][j] / nr[j], sqrt(se[1][j] / nr[j]),
+                   sqrt(ss[1][j] / nr[j]), sc[1][j] / nr[j]);
 }
 
 static void unc_ensemble_sweep(void)
@@ -798,6 +844,12 @@ int main(void)
     if (one && sscanf(one, "%d %lf %lf %d", &q, &nz, &tau, &nens) == 4 && q >= 0 && q < 2) {
         stats s = ens_case(&flows[q], nz, tau, nens, 20, 128);
         print_case(flows[q].name, nz, tau, &s);
+        return check_summary();
+    }
+    const char *rows = getenv("RPIV_UNC_ROWS");
+    if (rows && sscanf(rows, "%d %lf %lf %d %d", &q, &nz, &tau, &nens, &g_ens_passes) == 5 &&
+        q >= 0 && q < 2) {
+        unc_ensemble_rows(&flows[q], nz, tau, nens);
         return check_summary();
     }
     RUN_TEST(unc_off_by_default);

@@ -210,8 +210,18 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
         }
     }
     g.denoise = linked && pv->p.refine_denoise && piv_pred_repeats(pv, p);
-    if ((st = unc_chain_push(&c, linked, &g, 0, f, cs, cs + e->nwin)) ||
-        (st = unc_add(f, &su, &sv)) || (st = unc_chain_total(c, f, su, sv, pv->nthreads)))
+    if ((st = unc_chain_push(&c, linked, &g, 0, f, cs, cs + e->nwin)))
+        goto out_free;
+    if (linked && e->pass == pv->npass - 1 && p->nx == f->nx && p->ny == f->ny) {
+        /* the predictor's error as this pass corrected it (unc_chain_pred_error) */
+        rpiv_field *pe = NULL;
+        if (!(st = unc_pred_error(pv, p, g.denoise, f, &pe)))
+            st = unc_chain_pred_error(c, &g, pe);
+        rpiv_field_free(pe);
+        if (st)
+            goto out_free;
+    }
+    if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(c, f, su, sv, pv->nthreads)))
         goto out_free;
     if (e->pass == pv->npass - 1 && (st = ens_systematic(e, f, su, sv)))
         goto out_free;

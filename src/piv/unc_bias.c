@@ -165,15 +165,79 @@ static double median(double *x, size_t n)
 
 /* Samples of the bias tables over the predictor's period (below). */
 #define UNC_TAB 64
+/* Sub-samples of a window per axis for the average over its pixels' predictors. */
+#define UNC_SUB 8
+
+/* The periodic table tab (UNC_TAB + 1 samples over period) at x, linearly interpolated. */
+static double tab_at(const double *tab, double period, double x)
+{
+    x /= period;
+    x = (x - floor(x)) * UNC_TAB;
+    int i = (int)x;
+    i = i < 0 ? 0 : (i >= UNC_TAB ? UNC_TAB - 1 : i);
+    const double w = x - i;
+    return (1 - w) * tab[i] + w * tab[i + 1];
+}
+
+/* The mean of tab over a window of w x h px whose key varies linearly across it, key0 at its
+ * centre, gradients gx, gy (per px): the window's plane sums its pixels' correlations, each
+ * with the predictor at that pixel, so its bias and its curvature are (to first order) those
+ * of its pixels, averaged. */
+static double tab_window(const double *tab, double period, double key0, double gx, double gy, int w,
+                         int h)
+{
+    double s = 0;
+    for (int j = 0; j < UNC_SUB; j++)
+        for (int i = 0; i < UNC_SUB; i++) {
+            const double x = ((i + 0.5) / UNC_SUB - 0.5) * w, y = ((j + 0.5) / UNC_SUB - 0.5) * h;
+            s += tab_at(tab, period, key0 + gx * x + gy * y);
+        }
+    return s / (UNC_SUB * UNC_SUB);
+}
+
+/* The gradient (per px) of g at node (i, j) of an nx x ny grid of steps dx, dy px: central
+ * differences of the valid neighbours, one-sided where one is missing, 0 where both are. */
+static void node_grad(const double *g, const rpiv_field *f, int i, int j, double *gx, double *gy)
+{
+    const int nx = f->nx, ny = f->ny;
+#define OK(a, b)                                                                                   \
+    ((a) >= 0 && (a) < nx && (b) >= 0 && (b) < ny &&                                               \
+     f->flag[(size_t)(b) * (size_t)nx + (size_t)(a)] == RPIV_FLAG_VALID)
+#define G(a, b) g[(size_t)(b) * (size_t)nx + (size_t)(a)]
+    const int l = OK(i - 1, j), r = OK(i + 1, j), d = OK(i, j - 1), u = OK(i, j + 1);
+    *gx = l && r ? (G(i + 1, j) - G(i - 1, j)) / (2 * f->dx)
+          : r    ? (G(i + 1, j) - G(i, j)) / f->dx
+          : l    ? (G(i, j) - G(i - 1, j)) / f->dx
+                 : 0;
+    *gy = d && u ? (G(i, j + 1) - G(i, j - 1)) / (2 * f->dy)
+          : u    ? (G(i, j + 1) - G(i, j)) / f->dy
+          : d    ? (G(i, j) - G(i, j - 1)) / f->dy
+                 : 0;
+#undef OK
+#undef G
+}
 
 void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const float *hy,
                     const double *pu, const double *pv, int deform, double c, float *su, float *sv,
                     int nthreads)
 {
     const size_t n = (size_t)f->nx * (size_t)f->ny;
-    double *q = malloc(6 * (n ? n : 1) * sizeof *q);
+    /* q: 6 columns for the medians, then the keys (the predictor with deformation, else the
+     * displacement; period 2 and 1 px) and their gradients, u and v */
+    double *q = malloc(12 * (n ? n : 1) * sizeof *q);
     if (!q)
         return; /* no memory for the term: sigma keeps its random part */
+    double *key[2] = {q + 6 * n, q + 7 * n}, *grad = q + 8 * n; /* grad: [4 k + 2 a + axis] */
+    for (size_t k = 0; k < n; k++) {
+        key[0][k] = deform ? (pu ? pu[k] : (double)f->u[k]) : (double)f->u[k];
+        key[1][k] = deform ? (pv ? pv[k] : (double)f->v[k]) : (double)f->v[k];
+    }
+    for (int j = 0; j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            const size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+            for (int a = 0; a < 2; a++)
+                node_grad(key[a], f, i, j, &grad[4 * k + 2 * a], &grad[4 * k + 2 * a + 1]);
+        }
     size_t m = 0;
     for (size_t k = 0; k < n; k++) {
         if (f->flag[k] != RPIV_FLAG_VALID || !(hx[k] < 0) || !(hy[k] < 0))
@@ -187,18 +251,61 @@ void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const 
         m++;
     }
     double med[6];
-    for (int a = 0; a < 6 && m; a++)
+    for (int a = 2; a < 6 && m; a++)
         med[a] = median(q + (size_t)a * n, m);
-    free(q);
+    const double period = deform ? 2.0 : 1.0;
     unc_model md = {0, 0, deform ? c : 0, deform, RPIV_SUBPIXEL_GAUSS, ww, wh};
-    if (!m || !unc_model_fit(&md, med[0], med[1], med[2], med[3], med[4], med[5]))
+    /* The measured curvature depends on the predictor too (the interpolator smooths each frame
+     * by its sampling fraction, c -+ p/2): each window's is brought to the medians' predictor
+     * with the model's own dependence at a first fit's width, and the width refitted to the
+     * median of those. */
+    double ch[2][UNC_TAB + 1] = {{0}}, chref[2] = {0, 0};
+    int ok = m > 0;
+    for (int round = 0; round < 2 && ok; round++) {
+        size_t mm = 0;
+        for (size_t k = 0; k < n; k++) {
+            if (f->flag[k] != RPIV_FLAG_VALID || !(hx[k] < 0) || !(hy[k] < 0))
+                continue;
+            double h[2] = {(double)hx[k], (double)hy[k]};
+            for (int a = 0; a < 2 && round; a++)
+                h[a] -= tab_window(ch[a], period, key[a][k], grad[4 * k + 2 * a],
+                                   grad[4 * k + 2 * a + 1], ww, wh) -
+                        chref[a];
+            q[mm] = h[0];
+            q[n + mm] = h[1];
+            mm++;
+        }
+        med[0] = median(q, mm);
+        med[1] = median(q + n, mm);
+        if (!(ok = unc_model_fit(&md, med[0], med[1], med[2], med[3], med[4], med[5])))
+            break;
+        if (round)
+            break;
+        int bad = 0;
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nthreads) reduction(| : bad)
+        for (int j = 0; j < UNC_TAB; j++) {
+            const double t = period * j / UNC_TAB;
+            if (!model_curv(&md, t, t, deform ? t : 0, deform ? t : 0, &ch[0][j], &ch[1][j]))
+                bad = 1;
+        }
+        ch[0][UNC_TAB] = ch[0][0];
+        ch[1][UNC_TAB] = ch[1][0];
+        /* the medians' own key (the fit's predictor, or displacement without deformation) */
+        chref[0] = tab_at(ch[0], period, deform ? med[4] : med[2]);
+        chref[1] = tab_at(ch[1], period, deform ? med[5] : med[3]);
+        if (bad)
+            break; /* keep the first fit */
+    }
+    if (!ok) {
+        free(q);
         return;
+    }
     /* The bias as a function of one variable per axis, tabulated: with deformation, of the
      * predictor p (frame A is sampled at the fraction c - p/2 and B at c + p/2 of a pixel, so
      * the bias has a period of 2 px in p), the residual d - p taken as 0 (a converged pass;
      * the estimator's own peak locking at the residual is of second order there); without,
-     * of the displacement d (period 1 px). The model's axes are separable: one run gives both. */
-    const double period = deform ? 2.0 : 1.0;
+     * of the displacement d (period 1 px). The model's axes are separable: one run gives both.
+     * Each window's bias is the table's mean over its pixels' predictors. */
     double tx[UNC_TAB + 1], ty[UNC_TAB + 1];
 #pragma omp parallel for schedule(dynamic, 4) num_threads(nthreads)
     for (int j = 0; j < UNC_TAB; j++) {
@@ -211,20 +318,11 @@ void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const 
     for (size_t k = 0; k < n; k++) {
         if (f->flag[k] != RPIV_FLAG_VALID)
             continue;
-        const double u = (double)f->u[k], v = (double)f->v[k];
-        const double kx = deform ? (pu ? pu[k] : u) : u, ky = deform ? (pv ? pv[k] : v) : v;
-        double b[2];
-        const double key[2] = {kx, ky}, *tab[2] = {tx, ty};
-        for (int a = 0; a < 2; a++) {
-            /* linear interpolation on the periodic table */
-            double x = key[a] / period;
-            x = (x - floor(x)) * UNC_TAB;
-            int i = (int)x;
-            i = i < 0 ? 0 : (i >= UNC_TAB ? UNC_TAB - 1 : i);
-            const double w = x - i;
-            b[a] = (1 - w) * tab[a][i] + w * tab[a][i + 1];
-        }
-        su[k] = (float)hypot((double)su[k], b[0]);
-        sv[k] = (float)hypot((double)sv[k], b[1]);
+        const double bx = tab_window(tx, period, key[0][k], grad[4 * k], grad[4 * k + 1], ww, wh);
+        const double by =
+            tab_window(ty, period, key[1][k], grad[4 * k + 2], grad[4 * k + 3], ww, wh);
+        su[k] = (float)hypot((double)su[k], bx);
+        sv[k] = (float)hypot((double)sv[k], by);
     }
+    free(q);
 }

@@ -42,10 +42,10 @@ typedef struct unc_level {
      * window i ([k * n + i]); NULL when the level before does not reach this one */
     double *hx, *ax, *hy, *ay;
     int pnx, pny; /* the grid of the level before */
-    /* the denoiser's shrinkage of the true field (unc_chain_shrink): the map without the
-     * denoiser, and the part the denoiser removed from the level before's field, u and v */
+    /* the predictor's error carried in (unc_chain_pred_error): the map without the denoiser,
+     * and the error's estimate at the level before's nodes, u and v */
     double *hx0, *ax0, *hy0, *ay0;
-    float *rm[2];
+    float *pe[2];
 } unc_level;
 
 struct unc_chain {
@@ -61,10 +61,10 @@ static void shrink_free(unc_level *l)
     free(l->ax0);
     free(l->hy0);
     free(l->ay0);
-    free(l->rm[0]);
-    free(l->rm[1]);
+    free(l->pe[0]);
+    free(l->pe[1]);
     l->hx0 = l->ax0 = l->hy0 = l->ay0 = NULL;
-    l->rm[0] = l->rm[1] = NULL;
+    l->pe[0] = l->pe[1] = NULL;
 }
 
 static void level_free(unc_level *l)
@@ -251,13 +251,13 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
     return RPIV_OK;
 }
 
-rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g, const rpiv_field *removed)
+rpiv_status unc_chain_pred_error(unc_chain *c, const unc_geom *g, const rpiv_field *err)
 {
     if (!c || c->n < 2 || !c->lv[c->n - 1].hx)
         return RPIV_OK;
     unc_level *l = &c->lv[c->n - 1];
     const unc_level *p = &c->lv[c->n - 2];
-    if (removed->nx != p->nx || removed->ny != p->ny)
+    if (err->nx != p->nx || err->ny != p->ny)
         return RPIV_OK;
     const size_t mx = (size_t)p->nx * (size_t)l->nx, my = (size_t)p->ny * (size_t)l->ny;
     const size_t n = (size_t)p->nx * (size_t)p->ny;
@@ -266,10 +266,10 @@ rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g, const rpiv_field *
     l->ax0 = malloc(mx * sizeof *l->ax0);
     l->hy0 = malloc(my * sizeof *l->hy0);
     l->ay0 = malloc(my * sizeof *l->ay0);
-    l->rm[0] = malloc(n * sizeof *l->rm[0]);
-    l->rm[1] = malloc(n * sizeof *l->rm[1]);
+    l->pe[0] = malloc(n * sizeof *l->pe[0]);
+    l->pe[1] = malloc(n * sizeof *l->pe[1]);
     rpiv_status st = RPIV_OK;
-    if (!l->hx0 || !l->ax0 || !l->hy0 || !l->ay0 || !l->rm[0] || !l->rm[1])
+    if (!l->hx0 || !l->ax0 || !l->hy0 || !l->ay0 || !l->pe[0] || !l->pe[1])
         st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
     if (!st)
         st = axis_map(p->nx, p->ny, p->x0, p->dx, l->nx, g->wx0, g->sx, g->ww, g->shift, 0, 0,
@@ -281,8 +281,8 @@ rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g, const rpiv_field *
         shrink_free(l);
         return st;
     }
-    memcpy(l->rm[0], removed->u, n * sizeof *l->rm[0]);
-    memcpy(l->rm[1], removed->v, n * sizeof *l->rm[1]);
+    memcpy(l->pe[0], err->u, n * sizeof *l->pe[0]);
+    memcpy(l->pe[1], err->v, n * sizeof *l->pe[1]);
     return RPIV_OK;
 }
 
@@ -538,8 +538,8 @@ static int shrink_var(const unc_chain *c, int ix, int iy, double add[2])
         for (int k = 0; k < kw; k++) {
             const double a = g0[(size_t)m * (size_t)kw + (size_t)k];
             const size_t node = (size_t)(ky0 + m) * (size_t)p->nx + (size_t)(kx0 + k);
-            eh[0] -= a * (double)l->rm[0][node];
-            eh[1] -= a * (double)l->rm[1][node];
+            eh[0] += a * (double)l->pe[0][node];
+            eh[1] += a * (double)l->pe[1][node];
             d[(size_t)m * (size_t)kw + (size_t)k] = a;
         }
     free(g0);
@@ -567,7 +567,7 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
         double var[2];
         const int ix = (int)(k % (size_t)l->nx), iy = (int)(k / (size_t)l->nx);
         double add[2] = {0, 0};
-        if (vector_var(c, ix, iy, var) || (l->rm[0] && shrink_var(c, ix, iy, add))) {
+        if (vector_var(c, ix, iy, var) || (l->pe[0] && shrink_var(c, ix, iy, add))) {
             bad = 1;
             continue;
         }

@@ -9,29 +9,56 @@
 
 #include <stdlib.h>
 
-/* What the refinement's denoiser removed from the predictor, prepared as piv_pred_new does
- * (the replaced vectors taken as they are, the masked ones filled; no low-pass filter), handed
- * to the chain (unc_chain_shrink). */
-static rpiv_status unc_shrink(const rpiv_piv *pv, const rpiv_field *predictor, const unc_geom *g)
+/* A field as piv_pred_new prepares it (the replaced vectors taken as they are, the masked ones
+ * filled), into *out. */
+static rpiv_status unc_prepared(const rpiv_field *src, rpiv_field **out)
 {
-    rpiv_field *f = NULL, *d = NULL;
-    rpiv_status st = rpiv_field_copy(predictor, &f);
+    rpiv_status st = rpiv_field_copy(src, out);
     if (st)
         return st;
-    const size_t n = (size_t)f->nx * (size_t)f->ny;
+    const size_t n = (size_t)(*out)->nx * (size_t)(*out)->ny;
     for (size_t k = 0; k < n; k++)
-        if (f->flag[k] == RPIV_FLAG_REPLACED)
-            f->flag[k] = RPIV_FLAG_VALID;
-    if (!(st = rpiv_validate_replace(f, 1, NULL)) && !(st = rpiv_field_copy(f, &d)) &&
-        !(st = piv_pred_denoise(pv, d))) {
-        for (size_t k = 0; k < n; k++) {
-            d->u[k] = f->u[k] - d->u[k];
-            d->v[k] = f->v[k] - d->v[k];
-        }
-        st = unc_chain_shrink(pv->unc, g, d);
+        if ((*out)->flag[k] == RPIV_FLAG_REPLACED)
+            (*out)->flag[k] = RPIV_FLAG_VALID;
+    if ((st = rpiv_validate_replace(*out, 1, NULL))) {
+        rpiv_field_free(*out);
+        *out = NULL;
     }
+    return st;
+}
+
+rpiv_status unc_pred_error(const rpiv_piv *pv, const rpiv_field *predictor, int denoise,
+                           const rpiv_field *f, rpiv_field **out)
+{
+    rpiv_field *q = NULL, *d = NULL;
+    rpiv_status st;
+    *out = NULL;
+    if ((st = unc_prepared(predictor, &q)) || (st = unc_prepared(f, &d)) ||
+        (denoise && (st = piv_pred_denoise(pv, q)))) {
+        rpiv_field_free(q);
+        rpiv_field_free(d);
+        return st;
+    }
+    const size_t n = (size_t)d->nx * (size_t)d->ny;
+    for (size_t k = 0; k < n; k++) {
+        d->u[k] = q->u[k] - d->u[k];
+        d->v[k] = q->v[k] - d->v[k];
+    }
+    rpiv_field_free(q);
+    *out = d;
+    return RPIV_OK;
+}
+
+/* The predictor's error: what the refinement's denoiser removed from it (unc_pred_error
+ * against the predictor's own field, docs/uncertainty.md "The vortex"), handed to the chain
+ * (unc_chain_pred_error). */
+static rpiv_status unc_shrink(const rpiv_piv *pv, const rpiv_field *predictor, const unc_geom *g)
+{
+    rpiv_field *d = NULL;
+    rpiv_status st = unc_pred_error(pv, predictor, 1, predictor, &d);
+    if (!st)
+        st = unc_chain_pred_error(pv->unc, g, d);
     rpiv_field_free(d);
-    rpiv_field_free(f);
     return st;
 }
 

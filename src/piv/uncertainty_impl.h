@@ -6,6 +6,7 @@
 
 #include "rpiv/field.h"
 #include "rpiv/peak.h"
+#include "rpiv/piv.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -81,13 +82,19 @@ RPIV_NODISCARD rpiv_status unc_chain_push(unc_chain **chain, int linked, const u
                                           double filter, const rpiv_field *f, const float *su,
                                           const float *sv);
 
-/* The newest level's predictor went through the refinement's denoiser, which removed
- * `removed` (the level before's field minus the denoised one, on its grid) from it: its
- * shrinkage of the true field enters the vectors' variance (unc_chain_total; docs/
- * uncertainty.md, "The vortex"). g: the newest level's windows. No-op unless the newest level
- * is linked. */
-RPIV_NODISCARD rpiv_status unc_chain_shrink(unc_chain *c, const unc_geom *g,
-                                            const rpiv_field *removed);
+/* The newest level's predictor had the error err at the level before's nodes (estimated by
+ * unc_pred_error): its part the chain does not count as noise enters the vectors' variance
+ * (unc_chain_total; docs/uncertainty.md, "The predictor's systematic error"). g: the newest
+ * level's windows. No-op unless the newest level is linked and err is on its predictor's grid. */
+RPIV_NODISCARD rpiv_status unc_chain_pred_error(unc_chain *c, const unc_geom *g,
+                                                const rpiv_field *err);
+
+/* The error of the predictor of a final field f, at the nodes of the field `predictor` it was
+ * built from (f on the same grid), as the final pass measured it: the predictor's nodes as
+ * piv_pred_new prepares them (the replaced vectors as they are, the masked ones filled),
+ * through the refinement's denoiser if `denoise`, minus f (prepared alike). *out: a new field. */
+RPIV_NODISCARD rpiv_status unc_pred_error(const rpiv_piv *pv, const rpiv_field *predictor,
+                                          int denoise, const rpiv_field *f, rpiv_field **out);
 
 /* Remember f as the field the newest level returned (unc_chain_links compares with it). */
 void unc_chain_set_hash(unc_chain *c, const rpiv_field *f);
