@@ -9,6 +9,7 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #if defined(__SSE__)
 #include <xmmintrin.h>
@@ -426,15 +427,24 @@ static void peak_find(const float *plane, int w, int h, int max_shift, int near_
             memcpy(cm, colmax, (size_t)w * sizeof *cm);
         else
             colmax_all(plane, w, h, cm);
-        if (near_r > 0 && (2 * near_r + 1 < w || 2 * near_r + 1 < h))
-            best = near_max(plane, w, h, near_r, &bi, &bj);
-        if (bi < 0)
-            best = max_index(cm, w, &bi);
-        for (int j = 0; j < h && bi >= 0 && bj < 0; j++)
+        best = max_index(cm, w, &bi);
+        for (int j = 0; j < h && bi >= 0; j++)
             if (plane[(size_t)j * (size_t)w + (size_t)bi] == best) {
                 bj = j;
                 break;
             }
+        /* near: the highest value, if it lies within the radius, is the highest local
+         * maximum there (the plane's own choice, at no cost); otherwise look there */
+        if (near_r > 0 && bi >= 0 && bj >= 0 &&
+            (abs(shift_of(bi, w)) > near_r || abs(shift_of(bj, h)) > near_r)) {
+            int ni, nj;
+            float nb = near_max(plane, w, h, near_r, &ni, &nj);
+            if (ni >= 0) {
+                best = nb;
+                bi = ni;
+                bj = nj;
+            }
+        }
     } else {
         for (int jj = 0; jj < nr; jj++) {
             const float *row = plane + (size_t)rows[jj] * (size_t)w;
