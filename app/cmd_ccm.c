@@ -19,7 +19,7 @@ typedef struct opts {
     double thick[8];
     size_t nthick;
     double range[3];
-    int have_range, have_zop, nomirror, symmetric, compare;
+    int have_range, have_zop, nomirror, symmetric, compare, measured;
     long particles, repeats, seed, coef;
     size_t nim[64], nnim;
 } opts;
@@ -225,6 +225,12 @@ static const cli_opt options[] = {
      .min = 0,
      .max = 1e6,
      .help = "measurement sigma, U* (default: from the data)"},
+    {.name = "measured",
+     .kind = CLI_FLAG,
+     .off = OFF(measured),
+     .help = "invert: fit what the engine measures (the [piv] estimator on its\n"
+             "final window's plane, [bias] window_model) instead of the continuous\n"
+             "peak; for measured R-PIV rows (docs/bias.md)"},
     {.name = "compare",
      .kind = CLI_FLAG,
      .off = OFF(compare),
@@ -432,6 +438,7 @@ static rpiv_status do_invert(run *r)
     if (r->o.lambda >= 0)
         ip.lambda = r->o.lambda;
     ip.symmetric = r->o.symmetric;
+    ip.measured = r->o.measured;
     ip.sigma = r->o.sigma;
     if (r->o.have_zop)
         r->m.camera.zop_star = r->o.zop;
@@ -445,8 +452,8 @@ static rpiv_status do_invert(run *r)
     header(r, "invert", h0, sizeof h0);
     snprintf(hdr, sizeof hdr,
              "%s\ninput = %s\nz*_OP = %g, B-spline coefficients = %zu, lambda = %g, "
-             "symmetric = %d",
-             h0, r->o.input, r->m.camera.zop_star, ip.ncoef, ip.lambda, ip.symmetric);
+             "symmetric = %d, measured = %d",
+             h0, r->o.input, r->m.camera.zop_star, ip.ncoef, ip.lambda, ip.symmetric, ip.measured);
     snprintf(path, sizeof path, "%s/ccm_invert.txt", r->out);
     if ((st = rpiv_ccm_invert_save(res, hdr, path)))
         goto out_free;

@@ -9,6 +9,8 @@
 #include "rpiv/flow.h"
 #include "rpiv/synth.h"
 
+#include <gsl/gsl_randist.h>
+#include <gsl/gsl_rng.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -349,6 +351,70 @@ out_free:
     free(img);
 }
 
+/* The inversion fed with what the engine measures (the estimator on the windowed plane of the
+ * CCM, dx_sub, 32 px windows, deformation) along the default sheet, object plane 0.45 as in the
+ * demo, noise 0.003 U*: with measured = 1 it fits that forward model and recovers the duct;
+ * the continuous-peak model (measured = 0) leaves the window's offsets in the profile. */
+static void invert_fits_what_the_engine_measures(void)
+{
+    rpiv_sheet_params sp = rpiv_sheet_params_default();
+    rpiv_sheet *s = make_sheet(sp);
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.camera.zop_star = 0.45;
+    m.window_w = m.window_h = 32;
+    m.window_deform = 1;
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    enum { NM = 24 };
+    double x[NM], um[NM], off = 0;
+    gsl_rng *rng = gsl_rng_alloc(gsl_rng_mt19937);
+    gsl_rng_set(rng, 5);
+    for (int j = 0; j < NM; j++) {
+        x[j] = 0.5 + (6.3 - 0.5) * j / (NM - 1);
+        rpiv_ccm_sheet_at at = {s, x[j]};
+        m.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
+        rpiv_ccm_peak pk = {0};
+        CHECK_OK(rpiv_ccm_predict(&m, w, &pk));
+        off = fmax(off, fabs(pk.dx_sub - pk.dx) / m.scale_px);
+        um[j] = pk.dx_sub / m.scale_px + gsl_ran_gaussian(rng, 0.003);
+    }
+    gsl_rng_free(rng);
+    rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
+    ip.symmetric = 1;
+    rpiv_ccm_invert_result *r0 = NULL, *r1 = NULL;
+    rpiv_ccm_func duct = {rpiv_ccm_duct_fn, NULL};
+    double a0 = 0, c0 = 0, a1 = 0, c1 = 0;
+    CHECK_OK(rpiv_ccm_invert(&m, s, x, um, NULL, NM, &ip, &P, NULL, &r0));
+    ip.measured = 1;
+    CHECK_OK(rpiv_ccm_invert(&m, s, x, um, NULL, NM, &ip, &P, NULL, &r1));
+    if (r0 && r1) {
+        CHECK_OK(rpiv_ccm_invert_e1(r0, duct, 1, &a0, &c0));
+        CHECK_OK(rpiv_ccm_invert_e1(r1, duct, 1, &a1, &c1));
+        printf("  largest dx_sub - dx %.5f U*; E1 association %.5f, continuous model %.5f, "
+               "the engine's estimate %.5f (%zu fits, %zu iterations, offsets up to %.5f U*, "
+               "sigma %.5f)\n",
+               off, a1, c0, c1, r1->rounds, r1->iterations, r1->offset_max, r1->sigma);
+        CHECK(a0 == a1);
+        CHECK(r0->rounds == 1 && r0->offset_max == 0);
+        CHECK(r1->rounds >= 2 && r1->rounds <= 10);
+        CHECK_NEAR(r1->offset_max, off, 0.2 * off); /* the offsets of a profile near the duct */
+        CHECK(c1 <= 0.25 * a1);                     /* the correction pays ... */
+        CHECK(c1 <= 0.5 * c0);                      /* ... and more than the continuous model */
+        CHECK(r1->sigma < 0.006);                   /* the data fitted to their noise */
+        /* the fitted measurements are the windowed estimate of the fitted profile */
+        double rms = 0;
+        for (size_t j = 0; j < r1->nmeas; j++)
+            rms += (r1->ufit[j] - um[j]) * (r1->ufit[j] - um[j]) / (double)r1->nmeas;
+        CHECK(sqrt(rms) < 0.006);
+    }
+    rpiv_ccm_invert_free(r0);
+    rpiv_ccm_invert_free(r1);
+    ip.measured = 2;
+    CHECK_FAILS(rpiv_ccm_invert(&m, s, x, um, NULL, NM, &ip, &P, NULL, &r1), RPIV_EINVAL);
+    rpiv_ccm_work_free(w);
+    rpiv_sheet_free(s);
+}
+
 static void bad_input(void)
 {
     rpiv_sheet *s = make_gauss(0.5, 0.05);
@@ -383,6 +449,7 @@ int main(void)
     RUN_TEST(field_gradient_is_a_linear_profile);
     RUN_TEST(duct_vector_matches_predict);
     RUN_TEST(correction_pays_on_images);
+    RUN_TEST(invert_fits_what_the_engine_measures);
     RUN_TEST(bad_input);
     return check_summary();
 }

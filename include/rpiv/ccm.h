@@ -387,6 +387,13 @@ typedef struct rpiv_ccm_invert_params {
     double gtol;
     double ftol;
     size_t nout; /* samples of the reconstructed profile on [0, 1] (129)                 */
+    int measured; /* 1: U_pred is what the engine measures, the estimator p->subpixel on the
+                     plane of base's window (rpiv_ccm_corr_peak_window with base->window_w,
+                     window_h, window_deform: dx_sub); 0: the continuous peak (0). With 1 the
+                     fit runs on the continuous peak plus the offset dx_sub - dx of each
+                     measurement, the offsets recomputed at the fitted profile and the fit
+                     repeated until none moves by more than 1e-6 px (at most 10 rounds;
+                     docs/bias.md, "The inversion's forward model")                      */
 } rpiv_ccm_invert_params;
 
 rpiv_ccm_invert_params rpiv_ccm_invert_params_default(void);
@@ -404,7 +411,10 @@ typedef struct rpiv_ccm_invert_result {
     double *coef; /* B-spline coefficients                                          */
     double sigma; /* measurement sigma used for the band                            */
     double chi2;  /* sum of squared data residuals                                  */
-    size_t iterations;
+    size_t iterations; /* Levenberg-Marquardt iterations, summed over the rounds      */
+    size_t rounds;     /* fits with updated offsets (measured = 1; 1 otherwise)        */
+    double offset_max; /* largest |dx_sub - dx| of the fitted profile, U* (0 with
+                          measured = 0)                                                */
 } rpiv_ccm_invert_result;
 
 /* Reconstruct U*(z*) from R-PIV measurements umeas[j] at sections xstar[j] (U* units, i.e.

@@ -16,7 +16,12 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit_nlinear.h>
 
-#define ORDER 4 /* cubic */
+#define ORDER      4  /* cubic */
+#define MAX_ROUNDS 10 /* fits with updated offsets (measured = 1) */
+/* the offsets have converged when none moves by more than 1e-4 px (3e-5 U* at the default
+ * scale, 1e-3 of an ensemble's scatter; above the window's own fixed point, 1e-5 px) */
+#define OFFSET_TOL 1e-4
+#define LOOSE_TOL  1e-6 /* the fits' tolerances while the offsets move */
 
 rpiv_ccm_invert_params rpiv_ccm_invert_params_default(void)
 {
@@ -28,7 +33,8 @@ rpiv_ccm_invert_params rpiv_ccm_invert_params_default(void)
                                     .xtol = 1e-10,
                                     .gtol = 1e-10,
                                     .ftol = 1e-12,
-                                    .nout = 129};
+                                    .nout = 129,
+                                    .measured = 0};
 }
 
 rpiv_status rpiv_ccm_invert_params_check(const rpiv_ccm_invert_params *p)
@@ -45,6 +51,8 @@ rpiv_status rpiv_ccm_invert_params_check(const rpiv_ccm_invert_params *p)
         return rpiv_fail(RPIV_EINVAL, "ccm invert: tolerances must be in (0, 1)");
     if (p->nout < 2 || p->nout > 1000000)
         return rpiv_fail(RPIV_EINVAL, "ccm invert: %zu output samples outside 2..1e6", p->nout);
+    if (p->measured != 0 && p->measured != 1)
+        return rpiv_fail(RPIV_EINVAL, "ccm invert: measured %d is neither 0 nor 1", p->measured);
     return RPIV_OK;
 }
 
@@ -69,6 +77,8 @@ typedef struct meas {
     size_t *i0;          /* first non-zero basis function at node n */
     double *b;           /* ORDER values per node */
     double delta;        /* last peak, px */
+    double off;          /* what the engine measures less the continuous peak, px (measured) */
+    double off_new;      /* the same at the last fitted profile */
 } meas;
 
 typedef struct inv {
@@ -89,6 +99,7 @@ typedef struct inv {
     const rpiv_progress *progress;
     size_t max_iter;
     int stop;
+    int win_w, win_h, win_deform; /* the engine's window (measured = 1) */
 } inv;
 
 static void expand(inv *v, const gsl_vector *x)
@@ -153,7 +164,7 @@ static int res_f(const gsl_vector *x, void *u, gsl_vector *f)
     if (gs)
         return gs;
     for (size_t j = 0; j < v->nm; j++)
-        gsl_vector_set(f, j, v->wt[j] * (v->m[j].delta / v->scale - v->umeas[j]));
+        gsl_vector_set(f, j, v->wt[j] * ((v->m[j].delta + v->m[j].off) / v->scale - v->umeas[j]));
     for (size_t k = 0; k + 2 < v->ncoef; k++)
         gsl_vector_set(f, v->nm + k, v->slam * (v->coef[k] - 2 * v->coef[k + 1] + v->coef[k + 2]));
     return GSL_SUCCESS;
@@ -213,6 +224,42 @@ static void on_iter(const size_t iter, void *u, const gsl_multifit_nlinear_works
     inv *v = u;
     if (rpiv_progress_report(v->progress, iter, v->max_iter))
         v->stop = 1;
+}
+
+/* What the engine measures less the continuous peak, for every measurement at the unknowns x
+ * (rpiv_ccm_corr_peak_window on the measurement's rule): the offsets of the forward model with
+ * measured = 1; *change: the largest move of an offset, px. */
+static int offsets(inv *v, const gsl_vector *x, double *change)
+{
+    int gs = forward(v, x);
+    if (gs)
+        return gs;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long j = 0; j < (long)v->nm; j++) {
+        meas *m = &v->m[j];
+        rpiv_ccm_peak pk;
+        v->sts[j] =
+            rpiv_ccm_corr_peak_window(m->corr, &v->p, v->win_w, v->win_h, v->win_deform, &pk);
+        if (v->sts[j])
+            snprintf(v->msg[j], sizeof v->msg[j], "%s", rpiv_errmsg());
+        else if (!isfinite(pk.dx_sub)) {
+            v->sts[j] = RPIV_ENUMERIC;
+            snprintf(v->msg[j], sizeof v->msg[j], "no sub-pixel estimate of the peak");
+        } else
+            m->off_new = pk.dx_sub - pk.dx;
+    }
+    double ch = 0;
+    for (size_t j = 0; j < v->nm; j++) {
+        if (v->sts[j]) {
+            v->fail = v->sts[j];
+            snprintf(v->failmsg, sizeof v->failmsg, "measurement %zu: %s", j, v->msg[j]);
+            return GSL_EFAILED;
+        }
+        ch = fmax(ch, fabs(v->m[j].off_new - v->m[j].off));
+        v->m[j].off = v->m[j].off_new;
+    }
+    *change = ch;
+    return GSL_SUCCESS;
 }
 
 /* Piecewise-linear first guess through the "velocity at z*_max" association, mirrored. */
@@ -340,6 +387,9 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     v.p = *p;
     v.progress = progress;
     v.max_iter = ip->max_iter;
+    v.win_w = base->window_w;
+    v.win_h = base->window_h;
+    v.win_deform = base->window_deform;
     rpiv_ccm_invert_result *res = NULL;
     rpiv_ccm_work *w = NULL;
     gsl_bspline_workspace *bw = gsl_bspline_alloc(ORDER, ip->ncoef - ORDER + 2);
@@ -455,11 +505,38 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     fdf.n = nres;
     fdf.p = np;
     fdf.params = &v;
-    int gs = gsl_multifit_nlinear_init(x0, &fdf, nw);
-    int info = 0;
-    if (!gs)
-        gs = gsl_multifit_nlinear_driver(ip->max_iter, ip->xtol, ip->gtol, ip->ftol, on_iter, &v,
-                                         &info, nw);
+    /* measured = 1: the offsets at the first guess, then fit, offsets at the fit, again. While
+     * the offsets still move by more than 10 OFFSET_TOL the fit stops at LOOSE_TOL (its
+     * solution only starts the next round); the fit the offsets settle on is a tight one */
+    double change = 0;
+    int gs = ip->measured ? offsets(&v, x0, &change) : GSL_SUCCESS, tight = 0;
+    for (size_t round = 1; !gs; round++) {
+        int info = 0;
+        tight = !ip->measured || change < 10 * OFFSET_TOL;
+        gs = gsl_multifit_nlinear_init(x0, &fdf, nw);
+        if (!gs)
+            gs = gsl_multifit_nlinear_driver(
+                ip->max_iter, tight ? ip->xtol : fmax(ip->xtol, LOOSE_TOL),
+                tight ? ip->gtol : fmax(ip->gtol, LOOSE_TOL),
+                tight ? ip->ftol : fmax(ip->ftol, LOOSE_TOL), on_iter, &v, &info, nw);
+        res->rounds = round;
+        res->iterations += gsl_multifit_nlinear_niter(nw);
+        if (gs == GSL_ENOPROG)
+            gs = GSL_SUCCESS;
+        if (gs || !ip->measured || (tight && change < OFFSET_TOL))
+            break;
+        gsl_vector_memcpy(x0, gsl_multifit_nlinear_position(nw));
+        gs = offsets(&v, x0, &change);
+        if (gs || (tight && change < OFFSET_TOL))
+            break;
+        if (round == MAX_ROUNDS) {
+            v.fail = RPIV_ENUMERIC;
+            snprintf(v.failmsg, sizeof v.failmsg,
+                     "the engine's offsets still move by %.3g px after %d fits", change,
+                     MAX_ROUNDS);
+            break;
+        }
+    }
     if (v.stop) {
         st = rpiv_fail(RPIV_EINTR, "ccm invert: interrupted");
         goto out_free;
@@ -468,7 +545,7 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
         st = rpiv_fail(v.fail, "ccm invert: %s", v.failmsg);
         goto out_free;
     }
-    if (gs && gs != GSL_ENOPROG) {
+    if (gs) {
         st = ccm_gsl_fail(gs, "the least-squares fit of the profile");
         goto out_free;
     }
@@ -486,7 +563,8 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     }
     double chi2 = 0, edf = 0;
     for (size_t j = 0; j < n; j++) {
-        res->ufit[j] = v.m[j].delta / v.scale;
+        res->ufit[j] = (v.m[j].delta + v.m[j].off) / v.scale;
+        res->offset_max = fmax(res->offset_max, fabs(v.m[j].off / v.scale));
         double d = v.wt[j] * (res->ufit[j] - umeas[j]);
         chi2 += d * d;
         /* effective degrees of freedom: trace of J_d C J_d^T */
@@ -501,7 +579,6 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
         sigma = (double)n > edf + 0.5 ? sqrt(chi2 / ((double)n - edf)) : sqrt(chi2);
     res->sigma = sigma;
     res->chi2 = chi2;
-    res->iterations = gsl_multifit_nlinear_niter(nw);
     memcpy(res->coef, v.coef, nc * sizeof *v.coef);
     for (size_t i = 0; i < ip->nout; i++) {
         double z = (double)i / (double)(ip->nout - 1);
@@ -559,6 +636,11 @@ rpiv_status rpiv_ccm_invert_save(const rpiv_ccm_invert_result *r, const char *hd
     ccm_file_header(fp, hdr);
     fprintf(fp, "# sigma = %.6g\n# chi2 = %.6g\n# iterations = %zu\n", r->sigma, r->chi2,
             r->iterations);
+    if (r->rounds > 1 || r->offset_max > 0)
+        fprintf(fp,
+                "# forward model: the engine's estimate on its window, %zu fits, largest "
+                "offset from the continuous peak %.6g U*\n",
+                r->rounds, r->offset_max);
     fprintf(fp, "# measurements: #m x* z*_max U*_meas U*_fit\n");
     for (size_t j = 0; j < r->nmeas; j++)
         fprintf(fp, "#m %.8g %.8g %.10g %.10g\n", r->xstar[j], r->zmax[j], r->umeas[j], r->ufit[j]);

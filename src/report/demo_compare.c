@@ -308,7 +308,9 @@ static rpiv_status invert(demo_ctx *c)
     rpiv_ccm_model base = rpiv_config_ccm_model(&c->e, c->e.synth.dt_s);
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
     ip.symmetric = 1; /* the duct is symmetric about z* = 0.5, as the paper extends it */
+    ip.measured = 1;  /* the row is what the engine measured: fit the engine's estimate */
     rpiv_ccm_params cp = rpiv_ccm_params_default();
+    cp.subpixel = c->e.piv.subpixel;
     rpiv_ccm_invert_result *inv = NULL;
     rpiv_status st = n >= 4
                          ? rpiv_ccm_invert(&base, c->sheet, xs, um, NULL, n, &ip, &cp, NULL, &inv)

@@ -544,7 +544,9 @@ static void write_body(rep *r, const demo_ctx *c)
     r_p(r,
         "Bias correction (beyond the paper): the R-PIV row at `y* = 0.5` seen through the "
         "sheet at each `x*` is inverted with the CCM into `U*(z*)` (regularised least squares, "
-        "symmetric about z* = 0.5). E1 against the analytic duct: corrected %s, the paper's "
+        "symmetric about z* = 0.5; the model predicts what the engine measures: its sub-pixel "
+        "estimator on the plane of its final window). E1 against the analytic duct: corrected %s, "
+        "the paper's "
         "association of each measurement with `z*_max` %s.",
         pct(a, 32, s->e1_corr), pct(b, 32, s->e1_assoc));
     r_img(r, c, "ccm_invert.png", "Bias-corrected profile against the truth");

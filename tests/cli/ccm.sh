@@ -62,6 +62,10 @@ first=$(grep '^#m' "$tmp/f/ccm_invert.txt" | head -1)
 x1=$(echo "$first" | awk '{print $2}'); u1=$(echo "$first" | awk '{print $4}')
 within "$x1" 1.0342 1.0344 && within "$u1" 1.49999 1.50001 && ok || ko "vector file mapping: $first"
 [ "$(grep -c '^#m' "$tmp/f/ccm_invert.txt")" -eq 80 ] && ok || ko "80 vectors in the row"
+# --measured: the engine's estimate on its window is fitted, and the file says so
+"$bin" ccm invert -q -o "$tmp/fm" --input "$tmp/field.txt" --symmetric --measured $np >/dev/null &&
+    grep -q '^# forward model: the engine' "$tmp/fm/ccm_invert.txt" &&
+    grep -q 'measured = 1' "$tmp/fm/ccm_invert.txt" && ok || ko "invert --measured"
 
 # errors: usage -> 2, files -> 1, one line on stderr naming the culprit
 check() { # expected-rc expected-substring args...
