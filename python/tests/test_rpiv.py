@@ -121,8 +121,8 @@ def test_mask_array_flags_masked(series):
 def test_options_take_config_keys(series):
     a, b = pair(series)
     ds = rpiv.piv(a, b, windows=((48, 32), 32), overlap=0.25, subpixel="parabola",
-                  median_threshold=0, threads=1)
-    assert ds.attrs["windows"] == "48x32,32"
+                  median_threshold=0, threads=1, search_radius_px=0)
+    assert ds.attrs["windows"] == "48x32,32" and ds.attrs["search_radius_px"] == "0"
     assert ds.attrs["subpixel"] == "parabola" and ds.attrs["threads"] == 1
     assert (ds.flag.values == 0).all()  # validation off: nothing replaced
     assert float(ds.x[1] - ds.x[0]) == 24.0  # 32 px windows at 25 % overlap
