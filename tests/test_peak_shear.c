@@ -17,7 +17,9 @@
  * and mean removal, the spline's block; 2: also the window's area average, slow). Each case also
  * gives the prediction with the engine's window modelled ([bias] window_model = 1,
  * rpiv_ccm_corr_peak_window); SHEAR_AREA=1 also with the window's area average
- * (rpiv_ccm_predict_area, slow). docs/ccm.md, "What the engine measures". */
+ * (rpiv_ccm_predict_area, slow), its deformation following the plane, the quadratic, the
+ * engine's spline of it on the grid (the outer ring's border) and, white-box, the engine's own
+ * final-pass predictor. docs/ccm.md, "What the engine measures", "The engine's window". */
 #include "check.h"
 #include "piv_impl.h"
 #include "rpiv/ccm.h"
@@ -447,7 +449,9 @@ static void border_study(const rpiv_experiment *exb, const run *rb, rpiv_subpixe
  * predicted over the interior vectors (not the outer ring of windows, whose deformed windows
  * reach beyond the images' border); [9] ensemble - predicted with the engine's window
  * modelled ([bias] window_model = 1: pair loss, mean removal) and [10] the same over the
- * interior vectors; [11], [12] the same with the window's area average too (SHEAR_AREA=1). */
+ * interior vectors; [11], [12] the same with the window's area average too (SHEAR_AREA=1), the
+ * deformation following the plane; [13], [14] the quadratic; [15], [16] the engine's spline of
+ * it on the grid; [17], [18] the engine's own predictor. */
 typedef struct shear_result {
     double m[2][19];
     int n;
