@@ -39,6 +39,7 @@ static size_t g_nplanes;
 static rpiv_field *g_pred;
 /* SHEAR_AREA=1: the engine's own predictor of the last pass (denoised, as it deforms by) */
 static rpiv_deform_pred *g_dpred;
+static int g_nostudy; /* 1 while ensembles of other pairs run (SHEAR_SPLIT, SHEAR_BORDER) */
 
 typedef struct run {
     int w, h, npairs;
@@ -71,12 +72,12 @@ static rpiv_field *ensemble(const rpiv_experiment *ex, const run *r, rpiv_subpix
             rpiv_image b = {r->w, r->h, 16, r->img + (2 * (size_t)i + 1) * npx};
             CHECK_OK(rpiv_ensemble_add(e, &a, &b));
         }
-        if (e && pred && getenv("SHEAR_AREA") && k == rpiv_piv_npass(pv) - 1) {
+        if (e && pred && !g_nostudy && getenv("SHEAR_AREA") && k == rpiv_piv_npass(pv) - 1) {
             rpiv_deform_pred_free(g_dpred);
             g_dpred = NULL;
             CHECK_OK(piv_pred_new(pv, pred, piv_shift(pv, k), 0, &g_dpred));
         }
-        if (e && getenv("SHEAR_PLANE") && k == rpiv_piv_npass(pv) - 1) {
+        if (e && !g_nostudy && getenv("SHEAR_PLANE") && k == rpiv_piv_npass(pv) - 1) {
             size_t nd = 0;
             const float *d = rpiv_ensemble_data(e, &nd);
             free(g_planes);
@@ -402,7 +403,9 @@ static void area_peak(const rpiv_experiment *ew, double xs, double ys, double sp
 static void border_study(const rpiv_experiment *exb, const run *rb, rpiv_subpixel m,
                          const rpiv_field *f, int pad)
 {
+    g_nostudy = 1;
     rpiv_field *fb = ensemble(exb, rb, m);
+    g_nostudy = 0;
     double s[5] = {0}, n[5] = {0};
     for (int j = 0; fb && j < f->ny; j++)
         for (int i = 0; i < f->nx; i++) {
@@ -542,8 +545,6 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         rpiv_field *f = ensemble(&ex, &r, ms[q]);
         if (!f)
             continue;
-        if (pad > 0)
-            border_study(&exb, &rb, ms[q], f, pad);
         /* study (SHEAR_SPLIT=K): the ensembles of K disjoint groups of the pairs against the
          * whole one: the sampled estimator's bias from the plane's noise goes as 1/pairs */
         int split = getenv("SHEAR_SPLIT") ? atoi(getenv("SHEAR_SPLIT")) : 0;
@@ -554,7 +555,9 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                 run rg = r;
                 rg.npairs = r.npairs / split;
                 rg.img = r.img + 2 * (size_t)g * (size_t)rg.npairs * (size_t)r.w * (size_t)r.h;
+                g_nostudy = 1;
                 rpiv_field *fg = ensemble(&ex, &rg, ms[q]);
+                g_nostudy = 0;
                 size_t nv = (size_t)f->nx * (size_t)f->ny;
                 for (size_t k = 0; fg && k < nv; k++)
                     if (f->flag[k] == RPIV_FLAG_VALID && fg->flag[k] == RPIV_FLAG_VALID) {
@@ -688,6 +691,8 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         }
         plane_report();
         res->n = n;
+        if (pad > 0) /* after the comparison: it replaces the last pass's study state */
+            border_study(&exb, &rb, ms[q], f, pad);
         rpiv_field_free(f);
     }
     free(r.img);
