@@ -7,6 +7,8 @@
 #include "check.h"
 #include "rpiv/ccm.h"
 #include "rpiv/config.h"
+#include "rpiv/deform.h"
+#include "rpiv/field.h"
 #include "rpiv/peak.h"
 
 #include <gsl/gsl_errno.h>
@@ -453,7 +455,7 @@ static void window_area_average(void)
         mk[k].u = (rpiv_ccm_func){rpiv_ccm_const_fn, &uk[k]};
     }
     rpiv_ccm_peak pa, pc;
-    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa));
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, NULL, w, &pa));
     CHECK_OK(rpiv_ccm_predict(&mk[4], w, &pc));
     double dx = uk[4] * mk[4].scale_px;
     printf("  linear flow: area average %.6f, centre %.6f (DX %.6f) px\n", pa.dx_sub, pc.dx_sub,
@@ -468,16 +470,131 @@ static void window_area_average(void)
         mk[k].u = dm.u;
         mk[k].window_deform = 0;
     }
-    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa));
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, NULL, w, &pa));
     CHECK_OK(rpiv_ccm_predict(&mk[0], w, &pc));
     CHECK_NEAR(pa.dx_sub, pc.dx_sub, 1e-9);
     CHECK_NEAR(pa.dx, pc.dx, 1e-9);
-    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, 2, w, &pa), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, 2, NULL, w, &pa), RPIV_EINVAL);
     double line[NS] = {0};
-    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, line, 3, w, &pa), RPIV_EINVAL);
+    rpiv_ccm_area_opts plane = rpiv_ccm_area_opts_default();
+    plane.quadratic = 0;
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, line, 3, &plane, w, &pa), RPIV_EINVAL);
     mk[1].window_w = 16;
-    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, NS, w, &pa), RPIV_EINVAL);
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, NS, NULL, w, &pa), RPIV_EINVAL);
     rpiv_ccm_work_free(w);
+}
+
+/* What the deformation follows across the window (rpiv_ccm_area_opts): a flow quadratic across
+ * the window and uniform across the depth. The engine's predictor (a cubic B-spline through its
+ * vectors) reproduces a quadratic, so the quadratic fit moves every sub-position onto the
+ * centre's displacement: the average is the centre's; following only the plane leaves the
+ * curvature c o^2 at each sub-position, and the average moves by about c mean(o^2). On a grid,
+ * an interior window gives the fit's own result; a window on the grid's edge is deformed by the
+ * engine's predictor continued by its ghost vectors, and equals the model given that
+ * predictor's variation explicitly (def_u, def_v: rpiv_deform_pred on the fit's node values).
+ * A linear flow is followed on the edge too (the ghosts continue it). */
+static void window_area_follows(void)
+{
+    enum { NA = 4, NS = NA * NA };
+    rpiv_ccm_model mk[NS];
+    double uk[NS], ox[NS], oy[NS];
+    const double c = 2e-4; /* U* per px^2: 0.0007 px / px^2 at 3.5 px per U* */
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    if (!w)
+        return;
+    for (int k = 0; k < NS; k++) {
+        ox[k] = 8.0 * (k % NA) - 12;
+        oy[k] = 8.0 * (k / NA) - 12;
+        mk[k] = rpiv_ccm_model_default();
+        mk[k].window_w = mk[k].window_h = 32;
+        mk[k].window_deform = 1;
+        uk[k] = 0.6 + 0.004 * ox[k] + c * (ox[k] * ox[k] + 0.5 * oy[k] * oy[k]);
+        mk[k].u = (rpiv_ccm_func){rpiv_ccm_const_fn, &uk[k]};
+    }
+    const double s = mk[0].scale_px, dx = 0.6 * s, mo2 = 80; /* mean of ox^2 over -12..12 */
+    rpiv_ccm_area_opts o = rpiv_ccm_area_opts_default();
+    rpiv_ccm_peak pq, pp, pi, pe, pd;
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pq));
+    o.quadratic = 0;
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pp));
+    o.quadratic = 1;
+    o.nx = o.ny = 41; /* far from the edges (a window 3 steps from one feels it: 4e-4 px) */
+    o.i = o.j = 20;
+    o.step_x = o.step_y = 16;
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pi));
+    o.i = 0;
+    o.j = 20;
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pe));
+    /* the engine's predictor on the nodes of the grid's first column, as the model builds it */
+    rpiv_field *g = NULL;
+    rpiv_deform_pred *pr = NULL;
+    double du[NS], dv[NS], u0, v0;
+    CHECK_OK(rpiv_field_new(9, 17, 0, -128, 16, 16, &g));
+    for (int j = 0; g && j < 17; j++)
+        for (int i = 0; i < 9; i++) {
+            double x = 16.0 * i, y = 16.0 * j - 128;
+            g->u[j * 9 + i] = (float)(s * (0.004 * x + c * (x * x + 0.5 * y * y)));
+            g->v[j * 9 + i] = 0;
+        }
+    if (g)
+        CHECK_OK(rpiv_deform_pred_new(g, 1, 1, 0, &pr));
+    if (pr) {
+        rpiv_deform_pred_eval(pr, 0, 0, &u0, &v0);
+        for (int k = 0; k < NS; k++) {
+            rpiv_deform_pred_eval(pr, ox[k], oy[k], &du[k], &dv[k]);
+            du[k] -= u0;
+            dv[k] -= v0;
+        }
+        o.def_u = du;
+        o.def_v = dv;
+        CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pd));
+        CHECK_NEAR(pe.dx_sub, pd.dx_sub, 1e-5);
+    }
+    printf("  quadratic flow, centre %.5f px: quadratic followed %.5f, plane %.5f (c mean o^2 "
+           "%+.5f), interior of a grid %.5f, its edge %.5f (%.5f given the predictor)\n",
+           dx, pq.dx_sub, pp.dx_sub, c * mo2 * 1.5 * s, pi.dx_sub, pe.dx_sub, pd.dx_sub);
+    CHECK_NEAR(pq.dx_sub, dx, 1e-4);
+    CHECK_NEAR(pi.dx_sub, pq.dx_sub, 1e-5);
+    CHECK_NEAR(pp.dx_sub - dx, c * mo2 * 1.5 * s, 0.1 * c * mo2 * 1.5 * s);
+    CHECK(fabs(pe.dx_sub - dx) > 1e-3); /* the edge misses part of the curvature */
+    /* a linear flow: followed on the edge as inside */
+    for (int k = 0; k < NS; k++)
+        uk[k] = 0.6 + 0.004 * ox[k] - 0.003 * oy[k];
+    o.def_u = o.def_v = NULL;
+    CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pe));
+    CHECK_NEAR(pe.dx_sub, dx, 1e-4);
+    o.i = 41; /* outside the grid */
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pe), RPIV_EINVAL);
+    o.i = 0;
+    o.step_x = 0;
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, NS, &o, w, &pe), RPIV_EINVAL);
+    o = rpiv_ccm_area_opts_default();
+    CHECK_FAILS(rpiv_ccm_predict_area(mk, ox, oy, 5, &o, w, &pe), RPIV_EINVAL); /* < 6 */
+    rpiv_deform_pred_free(pr);
+    rpiv_field_free(g);
+    rpiv_ccm_work_free(w);
+}
+
+/* The config-level prediction with the window's area average ([bias] window_area = 4: 4 x 4
+ * sub-positions of the 32 px final window): the continuous peak stays the centre's; what the
+ * engine measures moves by less than 1e-4 px on the duct (the deformation follows the flow's
+ * quadratic variation across the window; docs/ccm.md); out-of-range counts are refused. */
+static void config_area_average(void)
+{
+    rpiv_experiment e = rpiv_experiment_default();
+    rpiv_ccm_peak pc, pa;
+    CHECK_OK(rpiv_config_ccm_predict(&e, 0, 3.66, 0.3, -1, &pc, NULL));
+    CHECK_OK(rpiv_config_set(&e, "bias", "window_area", "4", "test"));
+    CHECK_OK(rpiv_config_ccm_predict(&e, 0, 3.66, 0.3, -1, &pa, NULL));
+    printf("  x* 3.66, y* 0.3: centre %.6f, 4 x 4 area average %.6f px (continuous %.6f, %.6f)\n",
+           pc.dx_sub, pa.dx_sub, pc.dx, pa.dx);
+    CHECK(pa.dx == pc.dx && pa.value == pc.value);
+    CHECK(pa.dx_sub != pc.dx_sub);
+    CHECK_NEAR(pa.dx_sub, pc.dx_sub, 1e-4);
+    CHECK_FAILS(rpiv_config_set(&e, "bias", "window_area", "65", "test"), RPIV_ECONFIG);
+    e.bias.window_area = -1;
+    CHECK_FAILS(rpiv_config_ccm_predict(&e, 0, 3.66, 0.3, -1, &pa, NULL), RPIV_EINVAL);
 }
 
 /* ---- Eq. "statform" --------------------------------------------------------------------- */
@@ -1590,6 +1707,8 @@ int main(void)
     RUN_TEST(peak_errors);
     RUN_TEST(window_model_matches_closed_form);
     RUN_TEST(window_area_average);
+    RUN_TEST(window_area_follows);
+    RUN_TEST(config_area_average);
     RUN_TEST(statform_gaussian_case_matches_closed_form);
     RUN_TEST(uniform_velocity_gives_zero_bias_for_any_sheet);
     RUN_TEST(thin_sheet_returns_u_at_its_height);

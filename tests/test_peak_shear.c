@@ -11,12 +11,17 @@
  * cases), SHEAR_NODEFORM=1 (integer window offsets), SHEAR_STUDY=D (the last pass again from
  * its result moved by +-D px), SHEAR_SPREAD_UM=S (the particles' diameter spread),
  * SHEAR_SPLIT=K (K disjoint groups of the pairs against all: the estimator's noise bias),
- * SHEAR_PLANE=1 (the engine's summed planes against the CCM's, the window's pair loss and
- * mean removal, the spline's block; 2: also the window's area average, slow). Each case also
+ * SHEAR_CASE=small|large (one case), SHEAR_SEED=S (another realisation), SHEAR_BORDER=P (the pairs
+ * rendered P px larger on every side and cropped: the border's effect on the engine, same
+ * particles), SHEAR_PLANE=1 (the engine's summed planes against the CCM's, the window's pair loss
+ * and mean removal, the spline's block; 2: also the window's area average, slow). Each case also
  * gives the prediction with the engine's window modelled ([bias] window_model = 1,
  * rpiv_ccm_corr_peak_window); SHEAR_AREA=1 also with the window's area average
- * (rpiv_ccm_predict_area, slow). docs/ccm.md, "What the engine measures". */
+ * (rpiv_ccm_predict_area, slow), its deformation following the plane, the quadratic, the
+ * engine's spline of it on the grid (the outer ring's border) and, white-box, the engine's own
+ * final-pass predictor. docs/ccm.md, "What the engine measures", "The engine's window". */
 #include "check.h"
+#include "piv_impl.h"
 #include "rpiv/ccm.h"
 #include "rpiv/config.h"
 #include "rpiv/ensemble.h"
@@ -32,6 +37,9 @@
 static float *g_planes;
 static size_t g_nplanes;
 static rpiv_field *g_pred;
+/* SHEAR_AREA=1: the engine's own predictor of the last pass (denoised, as it deforms by) */
+static rpiv_deform_pred *g_dpred;
+static int g_nostudy; /* 1 while ensembles of other pairs run (SHEAR_SPLIT, SHEAR_BORDER) */
 
 typedef struct run {
     int w, h, npairs;
@@ -64,7 +72,12 @@ static rpiv_field *ensemble(const rpiv_experiment *ex, const run *r, rpiv_subpix
             rpiv_image b = {r->w, r->h, 16, r->img + (2 * (size_t)i + 1) * npx};
             CHECK_OK(rpiv_ensemble_add(e, &a, &b));
         }
-        if (e && getenv("SHEAR_PLANE") && k == rpiv_piv_npass(pv) - 1) {
+        if (e && pred && !g_nostudy && getenv("SHEAR_AREA") && k == rpiv_piv_npass(pv) - 1) {
+            rpiv_deform_pred_free(g_dpred);
+            g_dpred = NULL;
+            CHECK_OK(piv_pred_new(pv, pred, piv_shift(pv, k), 0, &g_dpred));
+        }
+        if (e && !g_nostudy && getenv("SHEAR_PLANE") && k == rpiv_piv_npass(pv) - 1) {
             size_t nd = 0;
             const float *d = rpiv_ensemble_data(e, &nd);
             free(g_planes);
@@ -352,7 +365,7 @@ static void plane_report(void)
  * (rpiv_ccm_predict_area): the model at 4 x 4 sub-positions of the final window (8 px
  * squares; the duct at each y*, the sheet at each x*), the engine's window modelled. */
 static void area_peak(const rpiv_experiment *ew, double xs, double ys, double spp,
-                      rpiv_ccm_peak *pk)
+                      const rpiv_ccm_area_opts *o, rpiv_ccm_peak *pk)
 {
     enum { NS = 4 };
     const double dd[NS] = {-12, -4, 4, 12};
@@ -378,9 +391,56 @@ static void area_peak(const rpiv_experiment *ew, double xs, double ys, double sp
         }
     memset(pk, 0, sizeof *pk);
     if (sheet && w)
-        CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS * NS, w, pk));
+        CHECK_OK(rpiv_ccm_predict_area(mk, ox, oy, NS * NS, o, w, pk));
     rpiv_ccm_work_free(w);
     rpiv_sheet_free(sheet);
+}
+
+/* Study (SHEAR_BORDER=P): the ensemble of the larger pairs rb, of which the w x h pairs of f
+ * are the centre; every vector of f against the same window of the larger pairs (same
+ * particles, away from the border): the border's effect on what the engine measures, by
+ * side of the outer ring (left, right, top, bottom column/row, corners in both) and inside. */
+static void border_study(const rpiv_experiment *exb, const run *rb, rpiv_subpixel m,
+                         const rpiv_field *f, int pad)
+{
+    g_nostudy = 1;
+    rpiv_field *fb = ensemble(exb, rb, m);
+    g_nostudy = 0;
+    double s[5] = {0}, n[5] = {0};
+    for (int j = 0; fb && j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+            double x = f->x0 + i * f->dx + pad, y = f->y0 + j * f->dy + pad;
+            int ib = (int)lround((x - fb->x0) / fb->dx), jb = (int)lround((y - fb->y0) / fb->dy);
+            if (ib < 0 || jb < 0 || ib >= fb->nx || jb >= fb->ny ||
+                fabs(fb->x0 + ib * fb->dx - x) > 1e-3 || fabs(fb->y0 + jb * fb->dy - y) > 1e-3)
+                continue;
+            size_t kb = (size_t)jb * (size_t)fb->nx + (size_t)ib;
+            if (f->flag[k] != RPIV_FLAG_VALID || fb->flag[kb] != RPIV_FLAG_VALID)
+                continue;
+            double d = (double)f->u[k] - (double)fb->u[kb];
+            int side[4] = {i == 0, i == f->nx - 1, j == 0, j == f->ny - 1};
+            int ring = 0;
+            for (int t = 0; t < 4; t++)
+                if (side[t]) {
+                    s[t] += d;
+                    n[t]++;
+                    ring = 1;
+                }
+            if (!ring) {
+                s[4] += d;
+                n[4]++;
+            }
+            if (getenv("SHEAR_VERBOSE"))
+                printf("    border %s (%3d, %3d): cropped %.4f, whole %.4f, diff %+.4f\n",
+                       rpiv_subpixel_names[m], i, j, (double)f->u[k], (double)fb->u[kb], d);
+        }
+    printf("  %s: cropped - whole pairs (same windows), mean px: left %+.4f (%g), right %+.4f "
+           "(%g), top %+.4f (%g), bottom %+.4f (%g), interior %+.4f (%g)\n",
+           rpiv_subpixel_names[m], n[0] ? s[0] / n[0] : 0, n[0], n[1] ? s[1] / n[1] : 0, n[1],
+           n[2] ? s[2] / n[2] : 0, n[2], n[3] ? s[3] / n[3] : 0, n[3], n[4] ? s[4] / n[4] : 0,
+           n[4]);
+    rpiv_field_free(fb);
 }
 
 /* Means over the valid vectors, px: [estimator][0] ensemble - ideal (the CCM's continuous
@@ -392,9 +452,11 @@ static void area_peak(const rpiv_experiment *ew, double xs, double ys, double sp
  * predicted over the interior vectors (not the outer ring of windows, whose deformed windows
  * reach beyond the images' border); [9] ensemble - predicted with the engine's window
  * modelled ([bias] window_model = 1: pair loss, mean removal) and [10] the same over the
- * interior vectors; [11], [12] the same with the window's area average too (SHEAR_AREA=1). */
+ * interior vectors; [11], [12] the same with the window's area average too (SHEAR_AREA=1), the
+ * deformation following the plane; [13], [14] the quadratic; [15], [16] the engine's spline of
+ * it on the grid; [17], [18] the engine's own predictor. */
 typedef struct shear_result {
-    double m[2][13];
+    double m[2][19];
     int n;
 } shear_result;
 
@@ -419,6 +481,8 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         fnumber = getenv("SHEAR_FNUMBER");
     if (fnumber)
         CHECK_OK(rpiv_config_set(&ex, "camera", "fnumber", fnumber, "test"));
+    if (getenv("SHEAR_SEED")) /* study: another realisation of the particles and noise */
+        CHECK_OK(rpiv_config_set(&ex, "synth", "seed", getenv("SHEAR_SEED"), "test"));
     if (getenv("SHEAR_SPREAD_UM"))
         CHECK_OK(rpiv_config_set(&ex, "particles", "diameter_spread_um", getenv("SHEAR_SPREAD_UM"),
                                  "test"));
@@ -440,10 +504,41 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         rpiv_synth_free(s);
         return;
     }
+    /* study (SHEAR_BORDER=P): the pairs rendered P px larger on every side (the same field of
+     * view's centre, so the same x*, y* at every pixel) and cropped to w x h; the larger pairs
+     * are kept (rb) to measure the same windows away from the images' border */
+    int pad = getenv("SHEAR_BORDER") ? atoi(getenv("SHEAR_BORDER")) : 0;
+    rpiv_experiment exb = ex;
+    run rb = {r.w + 2 * pad, r.h + 2 * pad, r.npairs, NULL};
+    if (pad > 0) {
+        exb.synth.width_px = rb.w;
+        exb.synth.height_px = rb.h;
+        rpiv_synth_free(s);
+        s = NULL;
+        CHECK_OK(rpiv_config_synth_new(&exb, NULL, &s));
+        rb.img = malloc(2 * (size_t)rb.w * (size_t)rb.h * (size_t)r.npairs * sizeof *rb.img);
+        CHECK(rb.img != NULL && s != NULL);
+        if (!rb.img || !s) {
+            free(r.img);
+            rpiv_synth_free(s);
+            return;
+        }
+    }
     for (int i = 0; i < r.npairs; i++) {
         rpiv_image a = {r.w, r.h, 16, r.img + 2 * (size_t)i * npx};
         rpiv_image b = {r.w, r.h, 16, r.img + (2 * (size_t)i + 1) * npx};
-        CHECK_OK(rpiv_synth_pair(s, (unsigned long)i, &a, &b));
+        if (pad > 0) {
+            size_t nb = (size_t)rb.w * (size_t)rb.h;
+            rpiv_image ab = {rb.w, rb.h, 16, rb.img + 2 * (size_t)i * nb};
+            rpiv_image bb = {rb.w, rb.h, 16, rb.img + (2 * (size_t)i + 1) * nb};
+            CHECK_OK(rpiv_synth_pair(s, (unsigned long)i, &ab, &bb));
+            for (int y = 0; y < r.h; y++) {
+                size_t o = (size_t)(y + pad) * (size_t)rb.w + (size_t)pad;
+                memcpy(a.px + (size_t)y * (size_t)r.w, ab.px + o, (size_t)r.w * sizeof *a.px);
+                memcpy(b.px + (size_t)y * (size_t)r.w, bb.px + o, (size_t)r.w * sizeof *b.px);
+            }
+        } else
+            CHECK_OK(rpiv_synth_pair(s, (unsigned long)i, &a, &b));
     }
     const rpiv_subpixel ms[2] = {RPIV_SUBPIXEL_AUTO, RPIV_SUBPIXEL_GAUSS};
     for (int q = 0; q < 2; q++) {
@@ -460,7 +555,9 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                 run rg = r;
                 rg.npairs = r.npairs / split;
                 rg.img = r.img + 2 * (size_t)g * (size_t)rg.npairs * (size_t)r.w * (size_t)r.h;
+                g_nostudy = 1;
                 rpiv_field *fg = ensemble(&ex, &rg, ms[q]);
+                g_nostudy = 0;
                 size_t nv = (size_t)f->nx * (size_t)f->ny;
                 for (size_t k = 0; fg && k < nv; k++)
                     if (f->flag[k] == RPIV_FLAG_VALID && fg->flag[k] == RPIV_FLAG_VALID) {
@@ -476,6 +573,7 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
         ec.piv.subpixel = e0.piv.subpixel = ew.piv.subpixel = ms[q];
         ec.bias.window_model = 0; /* the infinite window, whatever the default */
         ew.bias.window_model = 1; /* the final [piv] window (docs/ccm.md) */
+        ew.bias.window_area = 1;  /* its centre only; area_peak averages */
         e0.bias.pixel_box = 0;    /* the paper's continuous images; ccm_peak blurs them */
         double *m = res->m[q], ss = 0;
         int n = 0, nin = 0;
@@ -493,16 +591,47 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                 CHECK_OK(rpiv_config_ccm_predict(&e0, ex.synth.dt_s, xs, ys, -1, &p0, &scale));
                 CHECK_OK(rpiv_config_ccm_predict(&ew, ex.synth.dt_s, xs, ys, -1, &pw, &scale));
                 m[9] += u - pw.dx_sub;
-                rpiv_ccm_peak pa = pw;
-                if (getenv("SHEAR_AREA"))
-                    area_peak(&ew, xs, ys, in.star_per_px, &pa);
+                /* the area average: the deformation following the plane (session 7), the
+                 * quadratic, the engine's predictor on the grid (edges) */
+                rpiv_ccm_peak pa = pw, pq = pw, pg = pw, pe = pw;
+                if (getenv("SHEAR_AREA")) {
+                    rpiv_ccm_area_opts o = rpiv_ccm_area_opts_default();
+                    o.quadratic = 0;
+                    area_peak(&ew, xs, ys, in.star_per_px, &o, &pa);
+                    o.quadratic = 1;
+                    area_peak(&ew, xs, ys, in.star_per_px, &o, &pq);
+                    o = (rpiv_ccm_area_opts){1, f->nx, f->ny, i, j, f->dx, f->dy, NULL, NULL};
+                    area_peak(&ew, xs, ys, in.star_per_px, &o, &pg);
+                    /* the engine's own predictor's variation at the 4 x 4 sub-positions */
+                    double du[16], dv[16], u0, v0;
+                    if (g_dpred) {
+                        rpiv_deform_pred_eval(g_dpred, x, y, &u0, &v0);
+                        for (int t = 0; t < 16; t++) {
+                            rpiv_deform_pred_eval(g_dpred, x + 8.0 * (t % 4) - 12,
+                                                  y + 8.0 * (t / 4) - 12, &du[t], &dv[t]);
+                            du[t] -= u0;
+                            dv[t] -= v0;
+                        }
+                        o.def_u = du;
+                        o.def_v = dv;
+                        area_peak(&ew, xs, ys, in.star_per_px, &o, &pe);
+                    }
+                }
                 m[11] += u - pa.dx_sub;
+                m[13] += u - pq.dx_sub;
+                m[15] += u - pg.dx_sub;
+                m[17] += u - pe.dx_sub;
                 ccm_peak(&e0, xs, ys, ms[q], 1, &pb);
                 if (getenv("SHEAR_VERBOSE"))
                     printf("    %s (%6.2f, %6.2f) x* %.3f y* %.3f: ensemble %.4f, ideal %.4f, "
-                           "predicted %.4f, point-sampled %.4f, Gaussian stand-in %.4f (%.4f)\n",
+                           "predicted %.4f, point-sampled %.4f, Gaussian stand-in %.4f (%.4f), "
+                           "window %.4f, area %.4f\n",
                            rpiv_subpixel_names[ms[q]], x, y, xs, ys, u, pk.dx, pk.dx_sub, p0.dx,
-                           pb.dx, pb.dx_sub);
+                           pb.dx, pb.dx_sub, pw.dx_sub, pa.dx_sub);
+                if (getenv("SHEAR_VERBOSE") && getenv("SHEAR_AREA"))
+                    printf("    area (%2d, %2d): plane %.4f, quadratic %.4f, grid %.4f, engine's "
+                           "predictor %.4f\n",
+                           i, j, pa.dx_sub, pq.dx_sub, pg.dx_sub, pe.dx_sub);
                 if (g_planes && g_pred && q == 0)
                     plane_study(&ec, xs, ys, f, k, (double)g_pred->u[k], (double)g_pred->v[k]);
                 m[0] += u - pk.dx;
@@ -516,6 +645,9 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                     m[8] += u - pk.dx_sub;
                     m[10] += u - pw.dx_sub;
                     m[12] += u - pa.dx_sub;
+                    m[14] += u - pq.dx_sub;
+                    m[16] += u - pg.dx_sub;
+                    m[18] += u - pe.dx_sub;
                     nin++;
                 }
                 ss += (u - pk.dx_sub) * (u - pk.dx_sub);
@@ -532,6 +664,12 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
             m[10] /= nin > 0 ? nin : 1;
             m[11] /= n;
             m[12] /= nin > 0 ? nin : 1;
+            m[13] /= n;
+            m[14] /= nin > 0 ? nin : 1;
+            m[15] /= n;
+            m[16] /= nin > 0 ? nin : 1;
+            m[17] /= n;
+            m[18] /= nin > 0 ? nin : 1;
             printf(
                 "  %-5s %d vectors: ensemble - ideal %+.4f (max |.| %.4f), ensemble - "
                 "predicted %+.4f (std %.4f), predicted - ideal %+.4f; ensemble - "
@@ -544,15 +682,21 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                    "%+.4f)\n",
                    m[9], m[10]);
             if (getenv("SHEAR_AREA"))
-                printf("        and its area average: ensemble - predicted %+.4f px (interior "
-                       "%+.4f)\n",
-                       m[11], m[12]);
+                printf(
+                    "        and its area average: ensemble - predicted %+.4f px (interior "
+                    "%+.4f) following the plane, %+.4f (%+.4f) the quadratic, %+.4f "
+                    "(%+.4f) the engine's spline of the quadratic on the grid, %+.4f (%+.4f) the "
+                    "engine's own predictor\n",
+                    m[11], m[12], m[13], m[14], m[15], m[16], m[17], m[18]);
         }
         plane_report();
         res->n = n;
+        if (pad > 0) /* after the comparison: it replaces the last pass's study state */
+            border_study(&exb, &rb, ms[q], f, pad);
         rpiv_field_free(f);
     }
     free(r.img);
+    free(rb.img);
     rpiv_synth_free(s);
 }
 
@@ -596,7 +740,13 @@ static void large_particle_images(void)
 
 int main(void)
 {
-    RUN_TEST(small_particle_images);
-    RUN_TEST(large_particle_images);
+    const char *only = getenv("SHEAR_CASE"); /* study: small or large only */
+    if (!only || !strcmp(only, "small"))
+        RUN_TEST(small_particle_images);
+    if (!only || !strcmp(only, "large"))
+        RUN_TEST(large_particle_images);
+    rpiv_deform_pred_free(g_dpred);
+    rpiv_field_free(g_pred);
+    free(g_planes);
     return check_summary();
 }

@@ -266,18 +266,39 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_stat_corr_fixed(const rpiv_ccm_model *m, rpi
 RPIV_NODISCARD rpiv_status rpiv_ccm_predict(const rpiv_ccm_model *m, rpiv_ccm_work *w,
                                             rpiv_ccm_peak *out);
 
+/* How the engine's deformation follows the flow across a window (rpiv_ccm_predict_area). */
+typedef struct rpiv_ccm_area_opts {
+    int quadratic; /* 1: the deformation follows the field's quadratic variation across the
+                      window (the engine's predictor, the cubic B-spline through its vectors,
+                      reproduces quadratics); 0: only its linear part (the least-squares plane,
+                      the model before issue 15's session 8)                                  */
+    int nx, ny;    /* the engine's grid of vectors (0: an unbounded grid, the window interior)  */
+    int i, j;      /* the window's place in it (0 <= i < nx, 0 <= j < ny)                       */
+    double step_x, step_y; /* its spacing, px (> 0 with a grid)                                 */
+    const double *def_u, *def_v; /* NULL, or the deformation's variation at each sub-position
+                                    (px, less its value at the window's centre) when it is known
+                                    (the engine's own predictor): used instead of the fit     */
+} rpiv_ccm_area_opts;
+rpiv_ccm_area_opts rpiv_ccm_area_opts_default(void); /* quadratic 1, no grid, no def_u/v */
+
 /* What the engine measures over a window across which the flow varies (the window's area
  * average, docs/ccm.md, "The engine's window"): models[k] is the model at the k-th of n
  * sub-positions of equal area (offsets ox, oy from the window's centre, px; >= 3, not
- * collinear), every one with the same window. The deformation follows the linear part of the
- * field: the least-squares plane through what the engine measures at each sub-position
- * (rpiv_ccm_predict's dx_sub, dy_sub); every sub-position's correlation, amplitude / n, is
- * moved by minus that plane at it, and the sum's peak is taken as rpiv_ccm_corr_peak_window.
- * out->dx_sub, dy_sub: the prediction; out->dx, dy: the continuous maximum of the averaged
- * correlation (the centre's ideal is rpiv_ccm_predict of the centre's model). Uses w's rule
- * (w->corr is left with the last sub-position's). */
+ * collinear; >= 6 and not on one conic for o->quadratic), every one with the same window. The
+ * deformation follows the field as the engine's predictor does (o; NULL: the defaults): the
+ * least-squares plane (o->quadratic = 0) or quadratic through what the engine measures at each
+ * sub-position (rpiv_ccm_predict's dx_sub, dy_sub). With a grid (o->nx > 0) the deformation
+ * there is the engine's own predictor (rpiv_deform_pred: the cubic B-spline through that fit's
+ * values at the grid's vectors within 8 steps, continued beyond the grid's edges by the
+ * engine's ghost vectors, 2 g_0 - g_k), which departs from the fit near the images' border;
+ * without one, the fit itself. Every sub-position's correlation, amplitude / n, is moved by
+ * minus that deformation at it less its value at the window's centre, and the sum's peak is taken
+ * as rpiv_ccm_corr_peak_window. out->dx_sub, dy_sub: the prediction; out->dx, dy: the continuous
+ * maximum of the averaged correlation (the centre's ideal is rpiv_ccm_predict of the centre's
+ * model). Uses w's rule (w->corr is left with the last sub-position's). */
 RPIV_NODISCARD rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox,
-                                                 const double *oy, size_t n, rpiv_ccm_work *w,
+                                                 const double *oy, size_t n,
+                                                 const rpiv_ccm_area_opts *o, rpiv_ccm_work *w,
                                                  rpiv_ccm_peak *out);
 
 /* ---- Monte-Carlo sum of correlation ------------------------------------------------------ */
@@ -483,6 +504,14 @@ typedef struct rpiv_ccm_bias_params {
                                     loss, mean removal: rpiv_ccm_model.window_w/h, copied
                                     by rpiv_config_ccm_model); 0 = an infinite window. Not
                                     read by rpiv_ccm_bias_field (the continuous peak)      */
+    int window_area;             /* [bias] window_area: with window_model, N >= 2 makes
+                                    rpiv_config_ccm_predict average the model over N x N
+                                    sub-positions of the final window (rpiv_ccm_predict_area,
+                                    the flow across it: the duct along y*, the sheet along
+                                    x*; the deformation follows its quadratic variation, an
+                                    interior window); 0 or 1 (default 0) = the window's centre:
+                                    the same to 3e-5 px on the duct (docs/ccm.md) at 1/25 to
+                                    1/180 of the cost. Not read by rpiv_ccm_bias_field      */
     int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
 } rpiv_ccm_bias_params;
 

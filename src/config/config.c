@@ -281,6 +281,12 @@ static const key_spec keys[] = {
      "the CCM's prediction of what the engine measures models the [piv] final window (pairs "
      "lost at its edges, the mean removal's baseline; 0 = an infinite window)",
      0},
+    {"bias", "window_area", KEY_INT, OFF(bias.window_area), 0, 64, 1, "-",
+     "with window_model, rpiv_config_ccm_predict (python rpiv.ccm.predict) averages the "
+     "model over N x N sub-positions of the final window (the flow across it, followed by the "
+     "deformation); 0 or 1 = the window's centre (the same to 3e-5 px on the duct, 25-180 "
+     "times cheaper; docs/ccm.md)",
+     0},
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
 };
