@@ -345,12 +345,14 @@ static void any_thread_count_gives_the_same_bits(void)
         CHECK_OK(rpiv_image_copy(a, &c));
         rpiv_preprocess_params p = rpiv_preprocess_params_default();
         strcpy(p.ops, "clahe,highpass,cap,normalize,invert");
-        for (int how = 0; how < 3; how++) {
+        for (int how = 0; how < 4; how++) {
             p.highpass_method = how == 1 ? RPIV_PREP_BG_BLUR : RPIV_PREP_BG_MIN;
             if (how == 2) { /* CLAHE's bins between percentiles */
                 p.clahe_low_pct = 1;
                 p.clahe_high_pct = 99.5;
             }
+            if (how == 3) /* many tile rows: threads' shares of several, of unequal sizes */
+                strcpy(p.ops, "clahe:7,highpass:5,clahe:9,normalize");
             CHECK_OK(rpiv_preprocess_run(&p, a, 1));
             CHECK_OK(rpiv_preprocess_run(&p, b, 2));
             CHECK_OK(rpiv_preprocess_run(&p, c, 3));
