@@ -325,6 +325,7 @@ typedef struct clahe_job {
     const int *tx, *span; /* the tile columns t0, t1 of each pixel column, the spans' starts */
     const float *fxs;     /* each pixel column's weight of t1 */
     int nspan;
+    const prep_sink *sink; /* or NULL */
 } clahe_job;
 
 /* The output rows of tile row ty from the bins b of its input rows and the maps of tile rows
@@ -400,11 +401,14 @@ static void clahe_share(const clahe_job *j, int ta, int tb, const clahe_scratch 
             band_maps(g, ty + 1, j->clip, j->hi, bn, s, j->maps + (size_t)(ty + 1) * row_maps);
         }
         blend_band(j, ty, b, q, &q0, &q1);
+        if (j->sink)
+            j->sink->rows(j->sink->ctx, tile_lo(ta, g->tile), tile_hi(tb - 1, g->tile, g->h),
+                          tile_lo(ty, g->tile), tile_hi(ty, g->tile, g->h));
     }
 }
 
 rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, double low_pct,
-                       double high_pct, int nt)
+                       double high_pct, int nt, const prep_sink *sink)
 {
     float lo, hi;
     float *rng = malloc(2 * (size_t)im->h * sizeof *rng);
@@ -451,7 +455,7 @@ rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, double l
         st = rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for CLAHE (%zu tiles)", ntiles);
         goto cleanup;
     }
-    const clahe_job job = {&g, clip, hi, im->px, maps, band, tx, span, fxs, nspan};
+    const clahe_job job = {&g, clip, hi, im->px, maps, band, tx, span, fxs, nspan, sink};
     /* each thread a run of whole tile rows; every output row is computed from the same maps
      * and bins whatever the share: the same bits for any thread count */
 #pragma omp parallel num_threads(nt)

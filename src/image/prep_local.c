@@ -299,116 +299,171 @@ static void lerp_at(int p, int c, int n, int *i0, int *i1, float *f)
  * (c = half the window), each cell then taking the least of its 3 x 3 neighbourhood (a window
  * of about 1.5 times the size, so a cell with no background pixel borrows its neighbours'),
  * interpolated bilinearly between cell centres and subtracted (clipped at 0). Two passes over
- * the frame instead of four separable sliding-window passes. */
-static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
+ * the frame instead of four separable sliding-window passes: the cells' minima by bands of c
+ * rows (or taken from CLAHE's output rows as it writes them, hp_rows); then in one parallel
+ * region the 3 x 3 minima and their interpolation along x by grid rows, the subtraction by
+ * image rows. */
+typedef struct hp_grid {
+    int w, h, c, gx, gy, nspan;
+    float *px, *cell, *g, *rowmin, *fxs, *along;
+    int *ix, *span;
+    unsigned char *done; /* the bands whose cells' minima are in */
+} hp_grid;
+
+static void hp_free(hp_grid *q)
+{
+    free(q->cell);
+    free(q->rowmin);
+    free(q->ix);
+    free(q->span);
+    free(q->fxs);
+    free(q->along);
+    free(q->done);
+}
+
+static rpiv_status hp_new(hp_grid *q, rpiv_image *im, int size, int nt)
 {
     const int w = im->w, h = im->h, c = size / 2 > 1 ? size / 2 : 1;
     const int gx = (w + c - 1) / c, gy = (h + c - 1) / c;
-    float *cell = malloc(2 * (size_t)gx * (size_t)gy * sizeof *cell);
-    if (!cell)
-        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
-    float *g = cell + (size_t)gx * (size_t)gy;
-    float *rowmin = malloc((size_t)nt * (size_t)w * sizeof *rowmin);
-    if (!rowmin) {
-        free(cell);
-        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
-    }
-    const float *px = im->px;
-    /* each band of c rows: the least of its rows, column by column (along memory, in vector
-     * registers), then of each cell's c columns */
-#pragma omp parallel for schedule(static) num_threads(nt)
-    for (int j = 0; j < gy; j++) {
-        int y0 = j * c, y1 = y0 + c < h ? y0 + c : h;
-        float *restrict o = rowmin + (size_t)omp_get_thread_num() * (size_t)w;
-        memcpy(o, px + (size_t)y0 * (size_t)w, (size_t)w * sizeof *o);
-        for (int y = y0 + 1; y < y1; y++) {
-            const float *restrict r = px + (size_t)y * (size_t)w;
-            for (int x = 0; x < w; x++)
-                o[x] = r[x] < o[x] ? r[x] : o[x];
-        }
-        float *row = cell + (size_t)j * (size_t)gx;
-        for (int i = 0; i < gx; i++) {
-            int x0 = i * c, x1 = x0 + c < w ? x0 + c : w;
-            float m = o[x0];
-            for (int x = x0 + 1; x < x1; x++)
-                m = o[x] < m ? o[x] : m;
-            row[i] = m;
-        }
-    }
-    free(rowmin);
-    for (int j = 0; j < gy; j++)
-        for (int i = 0; i < gx; i++) {
-            float m = cell[(size_t)j * (size_t)gx + (size_t)i];
-            for (int dj = -1; dj <= 1; dj++)
-                for (int di = -1; di <= 1; di++) {
-                    int jj = j + dj, ii = i + di;
-                    if (jj >= 0 && jj < gy && ii >= 0 && ii < gx) {
-                        float v = cell[(size_t)jj * (size_t)gx + (size_t)ii];
-                        m = v < m ? v : m;
-                    }
-                }
-            g[(size_t)j * (size_t)gx + (size_t)i] = m;
-        }
-    /* cell centres at (i + 0.5) c - 0.5; clamped outside the first and last centres. The
-     * column weights are the same for every row: once */
-    int *ix = malloc(2 * (size_t)w * sizeof *ix), *span = malloc(((size_t)w + 1) * sizeof *span);
-    float *fxs = malloc((size_t)w * sizeof *fxs);
-    if (!ix || !fxs || !span) {
-        free(ix);
-        free(span);
-        free(fxs);
-        free(cell);
-        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
-    }
-    /* the spans of columns between the same two cell centres */
-    int nspan = 0;
-    for (int x = 0; x < w; x++) {
-        lerp_at(x, c, gx, &ix[2 * x], &ix[2 * x + 1], &fxs[x]);
-        if (x == 0 || ix[2 * x] != ix[2 * x - 2] || ix[2 * x + 1] != ix[2 * x - 1])
-            span[nspan++] = x;
-    }
-    span[nspan] = w;
+    *q = (hp_grid){.w = w, .h = h, .c = c, .gx = gx, .gy = gy, .px = im->px};
+    q->cell = malloc(2 * (size_t)gx * (size_t)gy * sizeof *q->cell);
+    q->rowmin = malloc((size_t)nt * (size_t)w * sizeof *q->rowmin);
+    q->ix = malloc(2 * (size_t)w * sizeof *q->ix);
+    q->span = malloc(((size_t)w + 1) * sizeof *q->span);
+    q->fxs = malloc((size_t)w * sizeof *q->fxs);
     /* each grid row interpolated along x once (it does not depend on the image row): then
      * every image row is a blend of two of these, vectorised */
-    float *along = malloc((size_t)gy * (size_t)w * sizeof *along);
-    if (!along) {
-        free(ix);
-        free(span);
-        free(fxs);
-        free(cell);
+    q->along = malloc((size_t)gy * (size_t)w * sizeof *q->along);
+    q->done = calloc((size_t)gy, 1);
+    if (!q->cell || !q->rowmin || !q->ix || !q->span || !q->fxs || !q->along || !q->done) {
+        hp_free(q);
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the background grid");
     }
-#pragma omp parallel for schedule(static) num_threads(nt)
-    for (int j = 0; j < gy; j++) {
-        const float *gj = g + (size_t)j * (size_t)gx;
-        float *t = along + (size_t)j * (size_t)w;
-        for (int k = 0; k < nspan; k++) {
-            const int x0 = span[k], x1 = span[k + 1], i0 = ix[2 * x0], i1 = ix[2 * x0 + 1];
-            const float a0 = gj[i0], da = gj[i1] - gj[i0];
-            for (int x = x0; x < x1; x++)
-                t[x] = a0 + fxs[x] * da;
-        }
+    q->g = q->cell + (size_t)gx * (size_t)gy;
+    /* cell centres at (i + 0.5) c - 0.5; clamped outside the first and last centres. The
+     * column weights are the same for every row: once; the spans of columns between the same
+     * two cell centres */
+    int nspan = 0;
+    for (int x = 0; x < w; x++) {
+        lerp_at(x, c, gx, &q->ix[2 * x], &q->ix[2 * x + 1], &q->fxs[x]);
+        if (x == 0 || q->ix[2 * x] != q->ix[2 * x - 2] || q->ix[2 * x + 1] != q->ix[2 * x - 1])
+            q->span[nspan++] = x;
     }
-    float *out = im->px;
-#pragma omp parallel for schedule(static) num_threads(nt)
-    for (int y = 0; y < h; y++) {
-        int j0, j1;
-        float fy;
-        lerp_at(y, c, gy, &j0, &j1, &fy);
-        const float *restrict top = along + (size_t)j0 * (size_t)w;
-        const float *restrict bot = along + (size_t)j1 * (size_t)w;
-        float *restrict r = out + (size_t)y * (size_t)w;
-        for (int x = 0; x < w; x++) {
-            float d = r[x] - (top[x] + fy * (bot[x] - top[x]));
-            r[x] = d > 0 ? d : 0;
-        }
-    }
-    free(along);
-    free(ix);
-    free(span);
-    free(fxs);
-    free(cell);
+    q->span[nspan] = w;
+    q->nspan = nspan;
     return RPIV_OK;
+}
+
+/* The cells' minima of band j (rows j c .. j c + c - 1): the least of each column of its rows,
+ * in row order (along memory, in vector registers), then of each cell's c columns. */
+static void hp_band(hp_grid *q, int j)
+{
+    const int w = q->w, c = q->c, y0 = j * c, y1 = y0 + c < q->h ? y0 + c : q->h;
+    float *restrict o = q->rowmin + (size_t)omp_get_thread_num() * (size_t)w;
+    memcpy(o, q->px + (size_t)y0 * (size_t)w, (size_t)w * sizeof *o);
+    for (int y = y0 + 1; y < y1; y++) {
+        const float *restrict r = q->px + (size_t)y * (size_t)w;
+        for (int x = 0; x < w; x++)
+            o[x] = r[x] < o[x] ? r[x] : o[x];
+    }
+    float *row = q->cell + (size_t)j * (size_t)q->gx;
+    for (int i = 0; i < q->gx; i++) {
+        int x0 = i * c, x1 = x0 + c < w ? x0 + c : w;
+        float m = o[x0];
+        for (int x = x0 + 1; x < x1; x++)
+            m = o[x] < m ? o[x] : m;
+        row[i] = m;
+    }
+    q->done[j] = 1;
+}
+
+/* A prep_sink's rows: the bands that end among the rows y0..y1-1 just written, if the thread's
+ * share ya..yb-1 holds the whole band (a band across two shares is left to hp_finish). */
+static void hp_rows(void *ctx, int ya, int yb, int y0, int y1)
+{
+    hp_grid *q = ctx;
+    for (int j = y0 / q->c; j * q->c < y1; j++) {
+        int end = j * q->c + q->c < q->h ? j * q->c + q->c : q->h;
+        if (j * q->c >= ya && end <= yb && end > y0 && end <= y1)
+            hp_band(q, j);
+    }
+}
+
+/* The bands not done yet, the 3 x 3 minima, the background subtracted. */
+static void hp_finish(hp_grid *q, int nt)
+{
+    const int w = q->w, h = q->h, c = q->c, gx = q->gx, gy = q->gy;
+    const float *cell = q->cell;
+#pragma omp parallel num_threads(nt)
+    {
+#pragma omp for schedule(static)
+        for (int j = 0; j < gy; j++)
+            if (!q->done[j])
+                hp_band(q, j);
+#pragma omp for schedule(static)
+        for (int j = 0; j < gy; j++) {
+            float *gj = q->g + (size_t)j * (size_t)gx;
+            for (int i = 0; i < gx; i++) {
+                float m = cell[(size_t)j * (size_t)gx + (size_t)i];
+                for (int dj = -1; dj <= 1; dj++)
+                    for (int di = -1; di <= 1; di++) {
+                        int jj = j + dj, ii = i + di;
+                        if (jj >= 0 && jj < gy && ii >= 0 && ii < gx) {
+                            float v = cell[(size_t)jj * (size_t)gx + (size_t)ii];
+                            m = v < m ? v : m;
+                        }
+                    }
+                gj[i] = m;
+            }
+            float *t = q->along + (size_t)j * (size_t)w;
+            for (int k = 0; k < q->nspan; k++) {
+                const int x0 = q->span[k], x1 = q->span[k + 1], i0 = q->ix[2 * x0],
+                          i1 = q->ix[2 * x0 + 1];
+                const float a0 = gj[i0], da = gj[i1] - gj[i0];
+                for (int x = x0; x < x1; x++)
+                    t[x] = a0 + q->fxs[x] * da;
+            }
+        }
+#pragma omp for schedule(static)
+        for (int y = 0; y < h; y++) {
+            int j0, j1;
+            float fy;
+            lerp_at(y, c, gy, &j0, &j1, &fy);
+            const float *restrict top = q->along + (size_t)j0 * (size_t)w;
+            const float *restrict bot = q->along + (size_t)j1 * (size_t)w;
+            float *restrict r = q->px + (size_t)y * (size_t)w;
+            for (int x = 0; x < w; x++) {
+                float d = r[x] - (top[x] + fy * (bot[x] - top[x]));
+                r[x] = d > 0 ? d : 0;
+            }
+        }
+    }
+}
+
+static rpiv_status highpass_coarse_min(rpiv_image *im, int size, int nt)
+{
+    hp_grid q;
+    rpiv_status st = hp_new(&q, im, size, nt);
+    if (st)
+        return st;
+    hp_finish(&q, nt);
+    hp_free(&q);
+    return RPIV_OK;
+}
+
+rpiv_status prep_clahe_highpass(rpiv_image *im, int tile, double clip, int bins, double low_pct,
+                                double high_pct, int size, int nt)
+{
+    hp_grid q;
+    rpiv_status st = hp_new(&q, im, size, nt);
+    if (st)
+        return st;
+    const prep_sink sink = {hp_rows, &q};
+    st = prep_clahe(im, tile, clip, bins, low_pct, high_pct, nt, &sink);
+    if (!st)
+        hp_finish(&q, nt);
+    hp_free(&q);
+    return st;
 }
 
 rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_background how, int nt)
