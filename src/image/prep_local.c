@@ -156,14 +156,14 @@ static void row_means(float *x, size_t stride, size_t n, size_t K, float *scratc
             x[k * stride + j] = o[j * LANES + k];
 }
 
-/* One row in place: op over the window of K (odd) samples centred on each sample, ends
- * padded with the end values; scratch: 3 (n + K) floats. The mean of a single row (the
- * rows left over by row_means), in double as row_means. */
-static void row_pass(float *x, size_t n, size_t K, line_op op, float *scratch)
+/* One row: x = op over the window of K (odd) samples of src centred on each sample (src may
+ * be x), ends padded with the end values; scratch: 3 (n + K) floats. The mean of a single row
+ * (the rows left over by row_means), in double as row_means. */
+static void row_pass(const float *src, float *x, size_t n, size_t K, line_op op, float *scratch)
 {
     const size_t N = n + K - 1;
     float *p = scratch, *tmp = scratch + N + 1;
-    pad_row(x, p, n, K);
+    pad_row(src, p, n, K);
     if (op == OP_MEAN) {
         double s = 0;
         for (size_t i = 0; i < K; i++)
@@ -242,8 +242,11 @@ static size_t window(int size, size_t n)
     return K < kmax ? K : kmax;
 }
 
-/* The separable 2-D operation on the w x h array a, in place: rows, then columns. */
-static rpiv_status separable(float *a, int w, int h, int size, line_op op, int nt)
+/* The separable 2-D operations opa on the w x h array a and opb on b (or NULL), rows then
+ * columns, in one parallel region: in place, or, if src is not NULL (min and max only), the
+ * rows' pass reading src. Each of a and b gets the bits of its operation alone. */
+static rpiv_status separable2(const float *src, float *a, line_op opa, float *b, line_op opb, int w,
+                              int h, int size, int nt)
 {
     const size_t W = (size_t)w, H = (size_t)h;
     const size_t Kx = window(size, W), Ky = window(size, H);
@@ -255,24 +258,37 @@ static rpiv_status separable(float *a, int w, int h, int size, line_op op, int n
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the %dx%d filter", size, size);
     const size_t nstrips = (W + STRIP - 1) / STRIP;
     /* the means by groups of LANES rows, the rows left over one by one */
-    const size_t ngroups = op == OP_MEAN ? H / LANES : 0, rest0 = ngroups * LANES;
+    const size_t ngroups = opa == OP_MEAN ? H / LANES : 0, rest0 = ngroups * LANES;
 #pragma omp parallel num_threads(nt)
     {
         float *mine = scr + (size_t)omp_get_thread_num() * per;
 #pragma omp for schedule(static)
-        for (size_t g = 0; g < ngroups; g++)
+        for (size_t g = 0; g < ngroups; g++) {
             row_means(a + g * LANES * W, W, W, Kx, mine);
+            if (b)
+                row_means(b + g * LANES * W, W, W, Kx, mine);
+        }
 #pragma omp for schedule(static)
-        for (size_t j = rest0; j < H; j++)
-            row_pass(a + j * W, W, Kx, op, mine);
+        for (size_t j = rest0; j < H; j++) {
+            row_pass(src ? src + j * W : a + j * W, a + j * W, W, Kx, opa, mine);
+            if (b)
+                row_pass(src ? src + j * W : b + j * W, b + j * W, W, Kx, opb, mine);
+        }
 #pragma omp for schedule(static)
         for (size_t s = 0; s < nstrips; s++) {
             size_t c0 = s * STRIP, c1 = c0 + STRIP < W ? c0 + STRIP : W;
-            col_pass(a, W, H, c0, c1, Ky, op, mine);
+            col_pass(a, W, H, c0, c1, Ky, opa, mine);
+            if (b)
+                col_pass(b, W, H, c0, c1, Ky, opb, mine);
         }
     }
     free(scr);
     return RPIV_OK;
+}
+
+static rpiv_status separable(float *a, int w, int h, int size, line_op op, int nt)
+{
+    return separable2(NULL, a, op, NULL, op, w, h, size, nt);
 }
 
 static float *copy_of(const rpiv_image *im)
@@ -501,14 +517,13 @@ rpiv_status prep_normalize(rpiv_image *im, int size, int nt)
     if (!(hi > lo))
         return RPIV_OK; /* one grey level: nothing to normalise */
     size_t n = (size_t)im->w * (size_t)im->h;
-    float *mn = copy_of(im), *mx = copy_of(im);
+    float *mn = malloc(n * sizeof *mn), *mx = malloc(n * sizeof *mx);
     rpiv_status st = RPIV_OK;
     if (!mn || !mx)
         st = rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the normalisation");
-    if (!st && !(st = separable(mn, im->w, im->h, size, OP_MIN, nt)) &&
-        !(st = separable(mx, im->w, im->h, size, OP_MAX, nt)) &&
-        !(st = separable(mn, im->w, im->h, size, OP_MEAN, nt)))
-        st = separable(mx, im->w, im->h, size, OP_MEAN, nt);
+    /* the local min and max together (their rows' pass reads the image), then their means */
+    if (!st && !(st = separable2(im->px, mn, OP_MIN, mx, OP_MAX, im->w, im->h, size, nt)))
+        st = separable2(NULL, mn, OP_MEAN, mx, OP_MEAN, im->w, im->h, size, nt);
     if (!st) {
         /* a floor on the local range: flat regions (no particle in the window) stay dark
          * instead of amplifying their noise to full scale */
