@@ -21,7 +21,10 @@
 
 typedef enum { OP_MIN, OP_MAX, OP_MEAN } line_op;
 
-enum { STRIP = 64 }; /* columns per strip in the column passes: their buffers fit in L2 */
+/* columns per strip in the column passes: the buffers of the minimum and maximum (the strip's
+ * whole height) fit in L2; the means keep only K + 1 rows, their strips are wider so that each
+ * row's part is a longer run along memory */
+enum { STRIP = 64, MEAN_STRIP = 256 };
 
 static inline float pick(line_op op, float a, float b)
 {
@@ -180,32 +183,37 @@ static void row_pass(const float *src, float *x, size_t n, size_t K, line_op op,
 }
 
 /* The columns c0..c1-1 of the w x h array a, in place: op over K rows centred on each row.
- * scratch: 3 (h + K) * STRIP floats (or doubles' worth for the mean). */
+ * scratch: 3 (h + K) * STRIP floats, or for the mean (K + 1) * MEAN_STRIP floats and MEAN_STRIP
+ * doubles. */
 static void col_pass(float *a, size_t w, size_t h, size_t c0, size_t c1, size_t K, line_op op,
                      float *scratch)
 {
     const size_t r = K / 2, N = h + 2 * r, m = c1 - c0;
     if (op == OP_MEAN) {
+        /* row by row down the strip, each output row written in place at once: the input rows
+         * that leave the window later (row j - r - 1 at step j) are kept in a ring of K + 1
+         * rows, slot = padded index i (row clamp(i - r)) mod K + 1 */
         double *s = (double *)scratch;
-        float *out = (float *)(s + STRIP); /* h x m results, written back at the end */
+        float *ring = (float *)(s + MEAN_STRIP);
         memset(s, 0, m * sizeof *s);
         for (size_t i = 0; i < K; i++) {
             const float *row = a + clampi((long)i - (long)r, h) * w + c0;
+            memcpy(ring + (i % (K + 1)) * m, row, m * sizeof *row);
             for (size_t c = 0; c < m; c++)
                 s[c] += (double)row[c];
         }
-        for (size_t c = 0; c < m; c++)
-            out[c] = (float)(s[c] / (double)K);
-        for (size_t j = 1; j < h; j++) {
-            const float *in = a + clampi((long)(j + r), h) * w + c0;
-            const float *outr = a + clampi((long)j - (long)r - 1, h) * w + c0;
-            for (size_t c = 0; c < m; c++) {
-                s[c] += (double)in[c] - (double)outr[c];
-                out[j * m + c] = (float)(s[c] / (double)K);
+        for (size_t j = 0; j < h; j++) {
+            if (j > 0) {
+                const float *in = a + clampi((long)(j + r), h) * w + c0; /* not written yet */
+                const float *outr = ring + ((j - 1) % (K + 1)) * m;
+                memcpy(ring + ((j + K - 1) % (K + 1)) * m, in, m * sizeof *in);
+                for (size_t c = 0; c < m; c++)
+                    s[c] += (double)in[c] - (double)outr[c];
             }
+            float *o = a + j * w + c0;
+            for (size_t c = 0; c < m; c++)
+                o[c] = (float)(s[c] / (double)K);
         }
-        for (size_t j = 0; j < h; j++)
-            memcpy(a + j * w + c0, out + j * m, m * sizeof *out);
         return;
     }
     float *g = scratch, *hh = scratch + N * m;
@@ -251,12 +259,13 @@ static rpiv_status separable2(const float *src, float *a, line_op opa, float *b,
     const size_t W = (size_t)w, H = (size_t)h;
     const size_t Kx = window(size, W), Ky = window(size, H);
     const size_t per_row = 3 * LANES * (W + Kx) + 2 * (W + Kx),
-                 per_col = 3 * (H + Ky) * STRIP + 2 * STRIP;
+                 per_col = opa == OP_MEAN ? (Ky + 1) * MEAN_STRIP + 2 * MEAN_STRIP
+                                          : 3 * (H + Ky) * STRIP + 2 * STRIP;
     const size_t per = per_row > per_col ? per_row : per_col;
     float *scr = malloc((size_t)nt * per * sizeof *scr);
     if (!scr)
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the %dx%d filter", size, size);
-    const size_t nstrips = (W + STRIP - 1) / STRIP;
+    const size_t strip = opa == OP_MEAN ? MEAN_STRIP : STRIP, nstrips = (W + strip - 1) / strip;
     /* the means by groups of LANES rows, the rows left over one by one */
     const size_t ngroups = opa == OP_MEAN ? H / LANES : 0, rest0 = ngroups * LANES;
 #pragma omp parallel num_threads(nt)
@@ -276,7 +285,7 @@ static rpiv_status separable2(const float *src, float *a, line_op opa, float *b,
         }
 #pragma omp for schedule(static)
         for (size_t s = 0; s < nstrips; s++) {
-            size_t c0 = s * STRIP, c1 = c0 + STRIP < W ? c0 + STRIP : W;
+            size_t c0 = s * strip, c1 = c0 + strip < W ? c0 + strip : W;
             col_pass(a, W, H, c0, c1, Ky, opa, mine);
             if (b)
                 col_pass(b, W, H, c0, c1, Ky, opb, mine);
