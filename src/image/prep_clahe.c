@@ -6,10 +6,14 @@
  * tile's grey-level map; each pixel takes the bilinear blend of the maps of the four tiles
  * whose centres surround it. The output spans the input's grey range. docs/preprocess.md.
  *
- * Speed: the bins of a row are computed in one vectorisable loop; the histogram counts into
- * four sub-histograms in turn (a dark image puts most pixels in a few bins: one histogram
- * would make each increment wait for the previous store to the same bin); the blend walks a
- * row span by span between tile centres, so the four maps of a span are fixed. */
+ * Speed: the frame is read twice: for its range (SSE min/max), then once by tile rows, each
+ * thread on a run of whole tile rows: a tile row's bins and maps, then the output rows of the
+ * tile row before it from the same bins, still in cache (clahe_share). The bins of a row are
+ * computed in one vectorisable loop; the histogram counts into four sub-histograms in turn (a
+ * dark image puts most pixels in a few bins: one histogram would make each increment wait for
+ * the previous store to the same bin); the blend walks a row span by span between tile
+ * centres, so the four maps of a span are fixed. A prep_sink takes the output rows while they
+ * are in cache (highpass after clahe: prep_clahe_highpass). */
 #include "prep_impl.h"
 
 #include <math.h>

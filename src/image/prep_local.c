@@ -9,9 +9,9 @@
  * accumulators behind function pointers, one double vector per line, columns gathered one
  * by one), where the target is 15 %. The filters here are the classic O(1)-per-sample forms:
  * van Herk / Gil-Werman for the sliding min and max (two running extrema per block of K),
- * running sums in double for the box mean; the column passes work on strips of whole rows so
- * that they run along memory. Each output sample is computed by one thread from the same
- * inputs in the same order: the result does not depend on the thread count. */
+ * running sums in double for the box mean; the column passes work on strips of columns, row
+ * after row, so that they run along memory. Each output sample is computed by one thread from the
+ * same inputs in the same order: the result does not depend on the thread count. */
 #include "prep_impl.h"
 
 #include <math.h>
@@ -21,10 +21,9 @@
 
 typedef enum { OP_MIN, OP_MAX, OP_MEAN } line_op;
 
-/* columns per strip in the column passes: the buffers of the minimum and maximum (the strip's
- * whole height) fit in L2; the means keep only K + 1 rows, their strips are wider so that each
- * row's part is a longer run along memory */
-enum { STRIP = 64, MEAN_STRIP = 256 };
+/* columns per strip in the column passes, which keep a few windows of rows of the strip (K + 1
+ * rows for the means, 4 K for min and max): each row's part is a run of 1 KiB along memory */
+enum { STRIP = 256 };
 
 static inline float pick(line_op op, float a, float b)
 {
@@ -183,8 +182,8 @@ static void row_pass(const float *src, float *x, size_t n, size_t K, line_op op,
 }
 
 /* The columns c0..c1-1 of the w x h array a, in place: op over K rows centred on each row.
- * scratch: 3 (h + K) * STRIP floats, or for the mean (K + 1) * MEAN_STRIP floats and MEAN_STRIP
- * doubles. */
+ * scratch: 4 K STRIP floats for min and max, (K + 1) STRIP floats and STRIP doubles for the
+ * mean. */
 static void col_pass(float *a, size_t w, size_t h, size_t c0, size_t c1, size_t K, line_op op,
                      float *scratch)
 {
@@ -194,7 +193,7 @@ static void col_pass(float *a, size_t w, size_t h, size_t c0, size_t c1, size_t 
          * that leave the window later (row j - r - 1 at step j) are kept in a ring of K + 1
          * rows, slot = padded index i (row clamp(i - r)) mod K + 1 */
         double *s = (double *)scratch;
-        float *ring = (float *)(s + MEAN_STRIP);
+        float *ring = (float *)(s + STRIP);
         memset(s, 0, m * sizeof *s);
         for (size_t i = 0; i < K; i++) {
             const float *row = a + clampi((long)i - (long)r, h) * w + c0;
@@ -216,30 +215,44 @@ static void col_pass(float *a, size_t w, size_t h, size_t c0, size_t c1, size_t 
         }
         return;
     }
-    float *g = scratch, *hh = scratch + N * m;
-    for (size_t i = 0; i < N; i++) {
-        const float *p = a + clampi((long)i - (long)r, h) * w + c0;
-        float *gi = g + i * m;
-        if (i % K == 0)
-            memcpy(gi, p, m * sizeof *gi);
-        else
-            for (size_t c = 0; c < m; c++)
-                gi[c] = pick(op, gi[c - m], p[c]);
-    }
-    for (size_t i = N; i-- > 0;) {
-        const float *p = a + clampi((long)i - (long)r, h) * w + c0;
-        float *hi = hh + i * m;
-        if (i % K == K - 1 || i == N - 1)
-            memcpy(hi, p, m * sizeof *hi);
-        else
-            for (size_t c = 0; c < m; c++)
-                hi[c] = pick(op, hi[c + m], p[c]);
-    }
-    for (size_t j = 0; j < h; j++) {
-        const float *hj = hh + j * m, *gj = g + (j + K - 1) * m;
-        float *o = a + j * w + c0;
-        for (size_t c = 0; c < m; c++)
-            o[c] = pick(op, hj[c], gj[c]);
+    /* van Herk / Gil-Werman by blocks of K padded rows (padded row i: row clamp(i - r)), row
+     * after row down the strip: block b's prefix (g) and suffix (h) extrema, then the output
+     * rows j of block b - 1, pick(h[j], g[j + K - 1]) with j + K - 1 in block b - 1 or b,
+     * written in place: every padded row that reads row j (j + r, and the clamped ends) is in
+     * a block up to b, already read. The operations of the whole-height form, in its order. */
+    float *gb[2] = {scratch, scratch + K * m}, *hb[2] = {scratch + 2 * K * m, scratch + 3 * K * m};
+    const size_t nb = (N + K - 1) / K;
+    for (size_t blk = 0; blk <= nb; blk++) {
+        if (blk < nb) {
+            float *g = gb[blk & 1], *hh = hb[blk & 1];
+            const size_t i0 = blk * K, n = N - i0 < K ? N - i0 : K;
+            for (size_t k = 0; k < n; k++) {
+                const float *p = a + clampi((long)(i0 + k) - (long)r, h) * w + c0;
+                float *gk = g + k * m;
+                memcpy(hh + k * m, p, m * sizeof *p);
+                if (k == 0)
+                    memcpy(gk, p, m * sizeof *gk);
+                else
+                    for (size_t c = 0; c < m; c++)
+                        gk[c] = pick(op, gk[c - m], p[c]);
+            }
+            for (size_t k = n - 1; k-- > 0;) { /* the block's last row is its own suffix */
+                float *hk = hh + k * m;
+                for (size_t c = 0; c < m; c++)
+                    hk[c] = pick(op, hk[c + m], hk[c]);
+            }
+        }
+        if (blk > 0) {
+            const size_t pb = blk - 1;
+            for (size_t j = pb * K; j < pb * K + K && j < h; j++) {
+                const size_t q = j + K - 1;
+                const float *hj = hb[pb & 1] + (j - pb * K) * m,
+                            *gq = gb[(q / K) & 1] + (q % K) * m;
+                float *o = a + j * w + c0;
+                for (size_t c = 0; c < m; c++)
+                    o[c] = pick(op, hj[c], gq[c]);
+            }
+        }
     }
 }
 
@@ -259,13 +272,12 @@ static rpiv_status separable2(const float *src, float *a, line_op opa, float *b,
     const size_t W = (size_t)w, H = (size_t)h;
     const size_t Kx = window(size, W), Ky = window(size, H);
     const size_t per_row = 3 * LANES * (W + Kx) + 2 * (W + Kx),
-                 per_col = opa == OP_MEAN ? (Ky + 1) * MEAN_STRIP + 2 * MEAN_STRIP
-                                          : 3 * (H + Ky) * STRIP + 2 * STRIP;
+                 per_col = opa == OP_MEAN ? (Ky + 1) * STRIP + 2 * STRIP : 4 * Ky * STRIP;
     const size_t per = per_row > per_col ? per_row : per_col;
     float *scr = malloc((size_t)nt * per * sizeof *scr);
     if (!scr)
         return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for the %dx%d filter", size, size);
-    const size_t strip = opa == OP_MEAN ? MEAN_STRIP : STRIP, nstrips = (W + strip - 1) / strip;
+    const size_t strip = STRIP, nstrips = (W + strip - 1) / strip;
     /* the means by groups of LANES rows, the rows left over one by one */
     const size_t ngroups = opa == OP_MEAN ? H / LANES : 0, rest0 = ngroups * LANES;
 #pragma omp parallel num_threads(nt)
