@@ -2,7 +2,8 @@
 /* bench/bench_preprocess.c - the cost of each preprocessing operation on a 2560 x 2160 pair
  * (both frames), against the default PIV run of the same pair measured in the same process
  * (rpiv_piv_run, 64 -> 32 -> 32), at 1 and 2 threads, the runs interleaved (PIV, each list,
- * PIV, each list, ...). Target (issue 16): clahe + highpass <= 15 % of the default run. Each
+ * PIV, each list, ...). Target (issue 16): clahe + highpass <= 15 % of the default run (the
+ * list clahe,highpass runs the two fused, prep_clahe_highpass: the same bits). Each
  * case's checksum is of its output frames. Arguments, if
  * any: the lists to time instead of the six (e.g. `bench_preprocess clahe,highpass`). */
 #include "bench.h"

@@ -345,12 +345,14 @@ static void any_thread_count_gives_the_same_bits(void)
         CHECK_OK(rpiv_image_copy(a, &c));
         rpiv_preprocess_params p = rpiv_preprocess_params_default();
         strcpy(p.ops, "clahe,highpass,cap,normalize,invert");
-        for (int how = 0; how < 3; how++) {
+        for (int how = 0; how < 4; how++) {
             p.highpass_method = how == 1 ? RPIV_PREP_BG_BLUR : RPIV_PREP_BG_MIN;
             if (how == 2) { /* CLAHE's bins between percentiles */
                 p.clahe_low_pct = 1;
                 p.clahe_high_pct = 99.5;
             }
+            if (how == 3) /* many tile rows: threads' shares of several, of unequal sizes */
+                strcpy(p.ops, "clahe:7,highpass:5,clahe:9,normalize");
             CHECK_OK(rpiv_preprocess_run(&p, a, 1));
             CHECK_OK(rpiv_preprocess_run(&p, b, 2));
             CHECK_OK(rpiv_preprocess_run(&p, c, 3));
@@ -362,6 +364,39 @@ static void any_thread_count_gives_the_same_bits(void)
         rpiv_image_free(b);
         rpiv_image_free(c);
     }
+}
+
+/* "clahe,highpass" runs as one operation (the background's cell minima taken from CLAHE's
+ * rows as they are written): the same bits as clahe, then highpass, for any thread count, for
+ * bands of the background across the threads' shares, and for an image CLAHE leaves as it
+ * is. */
+static void clahe_highpass_in_one_gives_the_same_bits(void)
+{
+    const int sizes[3][2] = {{203, 151}, {64, 200}, {9, 5}};
+    const char *const lists[3][3] = {{"clahe,highpass", "clahe", "highpass"},
+                                     {"clahe:7,highpass:5", "clahe:7", "highpass:5"},
+                                     {"clahe:20,highpass:41", "clahe:20", "highpass:41"}};
+    for (int s = 0; s < 3; s++)
+        for (int l = 0; l < 3; l++)
+            for (int nt = 1; nt <= 3; nt++) {
+                int w = sizes[s][0], h = sizes[s][1];
+                rpiv_image *a = image(w, h), *b = NULL;
+                particles(a, 300, s == 2 ? dark : ramp, 5, w * h / 50 + 1);
+                if (s == 2 && l == 2) /* one grey level: CLAHE leaves it */
+                    for (int i = 0; i < w * h; i++)
+                        a->px[i] = 7.25f;
+                CHECK_OK(rpiv_image_copy(a, &b));
+                rpiv_preprocess_params p = rpiv_preprocess_params_default();
+                strcpy(p.ops, lists[l][0]);
+                CHECK_OK(rpiv_preprocess_run(&p, a, nt));
+                strcpy(p.ops, lists[l][1]);
+                CHECK_OK(rpiv_preprocess_run(&p, b, nt));
+                strcpy(p.ops, lists[l][2]);
+                CHECK_OK(rpiv_preprocess_run(&p, b, nt));
+                CHECK(!memcmp(a->px, b->px, (size_t)w * (size_t)h * sizeof(float)));
+                rpiv_image_free(a);
+                rpiv_image_free(b);
+            }
 }
 
 /* The plan applies its preprocessing to both frames of the pair it loads: the field equals the
@@ -425,6 +460,7 @@ int main(void)
     RUN_TEST(clahe_clip_keeps_bins_at_the_limit);
     RUN_TEST(clahe_percentiles_saturate_the_tails);
     RUN_TEST(any_thread_count_gives_the_same_bits);
+    RUN_TEST(clahe_highpass_in_one_gives_the_same_bits);
     RUN_TEST(the_plan_preprocesses_both_frames);
     return check_summary();
 }

@@ -6,10 +6,14 @@
  * tile's grey-level map; each pixel takes the bilinear blend of the maps of the four tiles
  * whose centres surround it. The output spans the input's grey range. docs/preprocess.md.
  *
- * Speed: the bins of a row are computed in one vectorisable loop; the histogram counts into
- * four sub-histograms in turn (a dark image puts most pixels in a few bins: one histogram
- * would make each increment wait for the previous store to the same bin); the blend walks a
- * row span by span between tile centres, so the four maps of a span are fixed. */
+ * Speed: the frame is read twice: for its range (SSE min/max), then once by tile rows, each
+ * thread on a run of whole tile rows: a tile row's bins and maps, then the output rows of the
+ * tile row before it from the same bins, still in cache (clahe_share). The bins of a row are
+ * computed in one vectorisable loop; the histogram counts into four sub-histograms in turn (a
+ * dark image puts most pixels in a few bins: one histogram would make each increment wait for
+ * the previous store to the same bin); the blend walks a row span by span between tile
+ * centres, so the four maps of a span are fixed. A prep_sink takes the output rows while they
+ * are in cache (highpass after clahe: prep_clahe_highpass). */
 #include "prep_impl.h"
 
 #include <math.h>
@@ -92,27 +96,32 @@ void prep_clahe_clip(size_t *hist, size_t nbins, size_t limit)
 
 /* Per-thread scratch of the histograms. */
 typedef struct clahe_scratch {
-    uint32_t *h4;  /* 4 sub-histograms of bins counts */
-    uint16_t *bin; /* the bins of one band of tile rows (tile x w) */
-    size_t *hist;  /* bins counts */
+    uint32_t *h4; /* 4 sub-histograms of bins counts */
+    size_t *hist; /* bins counts */
 } clahe_scratch;
 
-/* The grey-level maps of the tiles of tile row ty into maps[tx * bins ...]: the band's bins
- * first, row by row along memory, then each tile's histogram from them. */
-static void band_maps(const rpiv_image *im, const tiling *g, int ty, double clip, float hi,
+/* The bins of the input rows of tile row ty (of px) into bin (tile x w), row by row. */
+static void band_bins(const tiling *g, const float *px, int ty, uint16_t *bin)
+{
+    const int y0 = tile_lo(ty, g->tile), y1 = tile_hi(ty, g->tile, g->h);
+    for (int y = y0; y < y1; y++)
+        bins_of(g, px + (size_t)y * (size_t)g->w, g->w, bin + (size_t)(y - y0) * (size_t)g->w);
+}
+
+/* The grey-level maps of the tiles of tile row ty into maps[tx * bins ...] from the bins of
+ * its rows (band_bins), each tile's histogram in turn. */
+static void band_maps(const tiling *g, int ty, double clip, float hi, const uint16_t *bin,
                       const clahe_scratch *s, float *maps)
 {
     const int y0 = tile_lo(ty, g->tile), y1 = tile_hi(ty, g->tile, g->h);
     const size_t B = (size_t)g->bins, W = (size_t)g->w;
-    for (int y = y0; y < y1; y++)
-        bins_of(g, im->px + (size_t)y * W, g->w, s->bin + (size_t)(y - y0) * W);
     for (int tx = 0; tx < g->ntx; tx++) {
         const int x0 = tile_lo(tx, g->tile), x1 = tile_hi(tx, g->tile, g->w), n = x1 - x0;
         const size_t npix = (size_t)n * (size_t)(y1 - y0);
         uint32_t *h4 = s->h4;
         memset(h4, 0, 4 * B * sizeof *h4);
         for (int y = y0; y < y1; y++) {
-            const uint16_t *b = s->bin + (size_t)(y - y0) * W + (size_t)x0;
+            const uint16_t *b = bin + (size_t)(y - y0) * W + (size_t)x0;
             int x = 0;
             for (; x + 4 <= n; x += 4) {
                 h4[b[x]]++;
@@ -252,11 +261,165 @@ static rpiv_status pct_range(const rpiv_image *im, float lo, float hi, double lo
     return RPIV_OK;
 }
 
+/* The least and greatest values of row r (w >= 1), as prep_range finds them (a NaN counts
+ * only as r[0]): with SSE, min/max instructions on four accumulators of four lanes that do not
+ * wait on each other. */
+static void row_range(const float *r, size_t w, float *lo, float *hi)
+{
+    float a = r[0], b = r[0];
+    size_t x = 0;
+#if defined(__SSE2__)
+    /* _mm_min_ps(v, m) is v < m ? v : m, the scalar form: a NaN v never replaces m */
+    __m128 m0 = _mm_set1_ps(r[0]), m1 = m0, m2 = m0, m3 = m0, M0 = m0, M1 = m0, M2 = m0, M3 = m0;
+    for (; x + 16 <= w; x += 16) {
+        __m128 v0 = _mm_loadu_ps(r + x), v1 = _mm_loadu_ps(r + x + 4), v2 = _mm_loadu_ps(r + x + 8),
+               v3 = _mm_loadu_ps(r + x + 12);
+        m0 = _mm_min_ps(v0, m0);
+        m1 = _mm_min_ps(v1, m1);
+        m2 = _mm_min_ps(v2, m2);
+        m3 = _mm_min_ps(v3, m3);
+        M0 = _mm_max_ps(v0, M0);
+        M1 = _mm_max_ps(v1, M1);
+        M2 = _mm_max_ps(v2, M2);
+        M3 = _mm_max_ps(v3, M3);
+    }
+    m0 = _mm_min_ps(_mm_min_ps(m0, m1), _mm_min_ps(m2, m3));
+    M0 = _mm_max_ps(_mm_max_ps(M0, M1), _mm_max_ps(M2, M3));
+    float lm[4], lM[4];
+    _mm_storeu_ps(lm, m0);
+    _mm_storeu_ps(lM, M0);
+    for (int k = 0; k < 4; k++) {
+        a = lm[k] < a ? lm[k] : a;
+        b = lM[k] > b ? lM[k] : b;
+    }
+#endif
+    for (; x < w; x++) {
+        a = r[x] < a ? r[x] : a;
+        b = r[x] > b ? r[x] : b;
+    }
+    *lo = a;
+    *hi = b;
+}
+
+/* The least and greatest values of im: the rows' ranges, then combined in row order (the same
+ * bits for any thread count). rng: 2 h floats. */
+static void image_range(const rpiv_image *im, float *rng, int nt, float *lo, float *hi)
+{
+    const size_t w = (size_t)im->w, h = (size_t)im->h;
+    const float *px = im->px;
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (size_t y = 0; y < h; y++)
+        row_range(px + y * w, w, &rng[2 * y], &rng[2 * y + 1]);
+    float mn = px[0], mx = px[0];
+    for (size_t y = 0; y < h; y++) {
+        mn = rng[2 * y] < mn ? rng[2 * y] : mn;
+        mx = rng[2 * y + 1] > mx ? rng[2 * y + 1] : mx;
+    }
+    *lo = mn;
+    *hi = mx;
+}
+
+/* What the threads of prep_clahe share. */
+typedef struct clahe_job {
+    const tiling *g;
+    double clip;
+    float hi;
+    float *px, *maps;     /* the image (input, then output), the maps of every tile */
+    size_t band;          /* the bins of a tile row's rows: min(tile, h) x w */
+    const int *tx, *span; /* the tile columns t0, t1 of each pixel column, the spans' starts */
+    const float *fxs;     /* each pixel column's weight of t1 */
+    int nspan;
+    const prep_sink *sink; /* or NULL */
+} clahe_job;
+
+/* The output rows of tile row ty from the bins b of its input rows and the maps of tile rows
+ * ty - 1 .. ty + 1 (those that exist). q: the thread's quads, of the tile rows *q0, *q1. */
+static void blend_band(const clahe_job *j, int ty, const uint16_t *b, float *q, int *q0, int *q1)
+{
+    const tiling *g = j->g;
+    const size_t B = (size_t)g->bins, W = (size_t)g->w;
+    const int y0 = tile_lo(ty, g->tile), y1 = tile_hi(ty, g->tile, g->h);
+    for (int y = y0; y < y1; y++) {
+        int ty0, ty1;
+        float fy;
+        between(y, g->tile, g->h, g->nty, &ty0, &ty1, &fy);
+        if (ty0 != *q0 || ty1 != *q1) {
+            /* per span, its four maps interleaved bin by bin: {upper t0, lower t0, upper t1,
+             * lower t1} */
+            const float *r0 = j->maps + (size_t)ty0 * (size_t)g->ntx * B;
+            const float *r1 = j->maps + (size_t)ty1 * (size_t)g->ntx * B;
+            for (int k = 0; k < j->nspan; k++) {
+                size_t a0 = (size_t)j->tx[2 * j->span[k]] * B,
+                       a1 = (size_t)j->tx[2 * j->span[k] + 1] * B;
+                float *qk = q + (size_t)k * B * 4;
+                for (size_t v = 0; v < B; v++) {
+                    qk[4 * v] = r0[a0 + v];
+                    qk[4 * v + 1] = r1[a0 + v];
+                    qk[4 * v + 2] = r0[a1 + v];
+                    qk[4 * v + 3] = r1[a1 + v];
+                }
+            }
+            *q0 = ty0;
+            *q1 = ty1;
+        }
+        float *row = j->px + (size_t)y * W;
+        const uint16_t *by = b + (size_t)(y - y0) * W;
+        for (int k = 0; k < j->nspan; k++) {
+            int x0 = j->span[k];
+            blend_span(row + x0, by + x0, j->fxs + x0, j->span[k + 1] - x0, q + (size_t)k * B * 4,
+                       fy);
+        }
+    }
+}
+
+/* One thread's share, the tile rows ta..tb-1, in place: their maps, then their output rows.
+ * First the maps of the share's first and last tile rows, then a barrier: the output rows
+ * next to a share's ends are blended from maps that the neighbouring thread computes from its
+ * input rows, which must all be read before any is overwritten. Then tile row by tile row,
+ * the maps of the next one (from its bins, which stay in cache for its own output rows at the
+ * next turn) and the output rows of this one, whose three maps are now there. bin2: two bands'
+ * bins (tile x w each). */
+static void clahe_share(const clahe_job *j, int ta, int tb, const clahe_scratch *s, uint16_t *bin2,
+                        float *q)
+{
+    const tiling *g = j->g;
+    const size_t B = (size_t)g->bins, band = j->band, row_maps = (size_t)g->ntx * B;
+    if (ta < tb) {
+        band_bins(g, j->px, ta, bin2 + (size_t)(ta & 1) * band);
+        band_maps(g, ta, j->clip, j->hi, bin2 + (size_t)(ta & 1) * band, s,
+                  j->maps + (size_t)ta * row_maps);
+    }
+    if (tb - 1 > ta) { /* its bins are computed again at its turn: the other buffer is in use */
+        uint16_t *b = bin2 + (size_t)((ta + 1) & 1) * band;
+        band_bins(g, j->px, tb - 1, b);
+        band_maps(g, tb - 1, j->clip, j->hi, b, s, j->maps + (size_t)(tb - 1) * row_maps);
+    }
+#pragma omp barrier
+    int q0 = -1, q1 = -1;
+    for (int ty = ta; ty < tb; ty++) {
+        uint16_t *b = bin2 + (size_t)(ty & 1) * band, *bn = bin2 + (size_t)((ty + 1) & 1) * band;
+        if (ty == tb - 1 && ty > ta)
+            band_bins(g, j->px, ty, b);
+        if (ty + 1 < tb - 1) { /* an inner tile row */
+            band_bins(g, j->px, ty + 1, bn);
+            band_maps(g, ty + 1, j->clip, j->hi, bn, s, j->maps + (size_t)(ty + 1) * row_maps);
+        }
+        blend_band(j, ty, b, q, &q0, &q1);
+        if (j->sink)
+            j->sink->rows(j->sink->ctx, tile_lo(ta, g->tile), tile_hi(tb - 1, g->tile, g->h),
+                          tile_lo(ty, g->tile), tile_hi(ty, g->tile, g->h));
+    }
+}
+
 rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, double low_pct,
-                       double high_pct, int nt)
+                       double high_pct, int nt, const prep_sink *sink)
 {
     float lo, hi;
-    prep_range(im, &lo, &hi, nt);
+    float *rng = malloc(2 * (size_t)im->h * sizeof *rng);
+    if (!rng)
+        return rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for CLAHE's range");
+    image_range(im, rng, nt, &lo, &hi);
+    free(rng);
     if (!(hi > lo))
         return RPIV_OK; /* one grey level: no contrast to equalise */
     rpiv_status st = pct_range(im, lo, hi, low_pct, high_pct, nt, &lo, &hi);
@@ -271,23 +434,17 @@ rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, double l
                 lo,
                 (float)bins / (hi - lo)};
     const size_t ntiles = (size_t)g.ntx * (size_t)g.nty, B = (size_t)bins, W = (size_t)g.w;
+    const size_t band = (size_t)(tile < g.h ? tile : g.h) * W;
     float *maps = malloc(ntiles * B * sizeof *maps);
     uint32_t *h4 = malloc((size_t)nt * 4 * B * sizeof *h4);
-    const size_t band = (size_t)(tile < g.h ? tile : g.h) * W;
-    uint16_t *bin = malloc((size_t)nt * band * sizeof *bin);
+    uint16_t *bin = malloc((size_t)nt * 2 * band * sizeof *bin);
     size_t *hist = malloc((size_t)nt * B * sizeof *hist);
     /* the tile columns t0, t1 of each pixel column, its weight of t1, the spans' starts */
     int *tx = malloc(2 * W * sizeof *tx), *span = malloc((W + 1) * sizeof *span);
-    float *fxs = malloc(W * sizeof *fxs);
+    float *fxs = malloc(W * sizeof *fxs), *quads = NULL;
     if (!maps || !h4 || !bin || !hist || !tx || !span || !fxs) {
         st = rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for CLAHE (%zu tiles)", ntiles);
-        goto cleanup_buffers;
-    }
-#pragma omp parallel for schedule(static) num_threads(nt)
-    for (int ty = 0; ty < g.nty; ty++) {
-        size_t me = (size_t)omp_get_thread_num();
-        clahe_scratch s = {h4 + me * 4 * B, bin + me * band, hist + me * B};
-        band_maps(im, &g, ty, clip, hi, &s, maps + (size_t)ty * (size_t)g.ntx * B);
+        goto cleanup;
     }
     /* the column weights are the same for every row: once */
     int nspan = 0;
@@ -297,51 +454,23 @@ rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins, double l
             span[nspan++] = x;
     }
     span[nspan] = g.w;
-    float *px = im->px;
-    /* per thread, the four maps of each span interleaved bin by bin for the band of rows
-     * between the same two tile-row centres: {upper t0, lower t0, upper t1, lower t1} */
-    float *quads = malloc((size_t)nt * (size_t)nspan * B * 4 * sizeof *quads);
+    quads = malloc((size_t)nt * (size_t)nspan * B * 4 * sizeof *quads);
     if (!quads) {
         st = rpiv_fail(RPIV_ENOMEM, "preprocess: out of memory for CLAHE (%zu tiles)", ntiles);
-        goto cleanup_buffers;
+        goto cleanup;
     }
+    const clahe_job job = {&g, clip, hi, im->px, maps, band, tx, span, fxs, nspan, sink};
+    /* each thread a run of whole tile rows; every output row is computed from the same maps
+     * and bins whatever the share: the same bits for any thread count */
 #pragma omp parallel num_threads(nt)
     {
-        const size_t me = (size_t)omp_get_thread_num();
-        float *q = quads + me * (size_t)nspan * B * 4;
-        uint16_t *b = bin + me * band;
-        int band0 = -1, band1 = -1;
-#pragma omp for schedule(static)
-        for (int y = 0; y < g.h; y++) {
-            int ty0, ty1;
-            float fy;
-            between(y, tile, g.h, g.nty, &ty0, &ty1, &fy);
-            const float *r0 = maps + (size_t)ty0 * (size_t)g.ntx * B;
-            const float *r1 = maps + (size_t)ty1 * (size_t)g.ntx * B;
-            if (ty0 != band0 || ty1 != band1) {
-                for (int k = 0; k < nspan; k++) {
-                    size_t a0 = (size_t)tx[2 * span[k]] * B, a1 = (size_t)tx[2 * span[k] + 1] * B;
-                    float *qk = q + (size_t)k * B * 4;
-                    for (size_t v = 0; v < B; v++) {
-                        qk[4 * v] = r0[a0 + v];
-                        qk[4 * v + 1] = r1[a0 + v];
-                        qk[4 * v + 2] = r0[a1 + v];
-                        qk[4 * v + 3] = r1[a1 + v];
-                    }
-                }
-                band0 = ty0;
-                band1 = ty1;
-            }
-            float *row = px + (size_t)y * W;
-            bins_of(&g, row, g.w, b);
-            for (int k = 0; k < nspan; k++) {
-                int x0 = span[k];
-                blend_span(row + x0, b + x0, fxs + x0, span[k + 1] - x0, q + (size_t)k * B * 4, fy);
-            }
-        }
+        const int me = omp_get_thread_num(), team = omp_get_num_threads();
+        const clahe_scratch s = {h4 + (size_t)me * 4 * B, hist + (size_t)me * B};
+        clahe_share(&job, (int)((long)g.nty * me / team), (int)((long)g.nty * (me + 1) / team), &s,
+                    bin + (size_t)me * 2 * band, quads + (size_t)me * (size_t)nspan * B * 4);
     }
+cleanup:
     free(quads);
-cleanup_buffers:
     free(fxs);
     free(span);
     free(tx);

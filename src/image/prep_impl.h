@@ -8,13 +8,27 @@
 
 #include <string.h>
 
+/* What takes CLAHE's output rows while they are in cache: each thread, having written the rows
+ * y0..y1-1 of its share ya..yb-1 (in order, whole tile rows), calls rows(ctx, ya, yb, y0, y1). */
+typedef struct prep_sink {
+    void (*rows)(void *ctx, int ya, int yb, int y0, int y1);
+    void *ctx;
+} prep_sink;
+
 /* The operations, each on im in place with nt threads (nt >= 1). */
 /* clahe: the bins span the low_pct-th to the high_pct-th percentile of im (values outside
- * saturate to the end bins); 0 and 100: im's min and max. */
+ * saturate to the end bins); 0 and 100: im's min and max. sink: NULL, or what takes the
+ * output rows (not called if the image is left as it is). */
 RPIV_NODISCARD rpiv_status prep_clahe(rpiv_image *im, int tile, double clip, int bins,
-                                      double low_pct, double high_pct, int nt);
+                                      double low_pct, double high_pct, int nt,
+                                      const prep_sink *sink);
 RPIV_NODISCARD rpiv_status prep_highpass(rpiv_image *im, int size, rpiv_prep_background how,
                                          int nt);
+/* clahe, then highpass of the sliding minimum (RPIV_PREP_BG_MIN) of window size: the same bits
+ * as the two in turn, the cells' minima of the background taken from CLAHE's output rows as
+ * they are written (one read of the frame less). */
+RPIV_NODISCARD rpiv_status prep_clahe_highpass(rpiv_image *im, int tile, double clip, int bins,
+                                               double low_pct, double high_pct, int size, int nt);
 RPIV_NODISCARD rpiv_status prep_normalize(rpiv_image *im, int size, int nt);
 
 /* The smallest and largest value of im (the same as rpiv_image_stats_of's, without its serial

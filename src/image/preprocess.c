@@ -201,8 +201,17 @@ rpiv_status rpiv_preprocess_run(const rpiv_preprocess_params *p, rpiv_image *im,
         const rpiv_prep_op *o = &op[k];
         switch (o->kind) {
         case RPIV_PREP_CLAHE:
-            st = prep_clahe(im, o->size_px ? o->size_px : p->clahe_tile_px, p->clahe_clip,
-                            p->clahe_bins, p->clahe_low_pct, p->clahe_high_pct, nt);
+            if (k + 1 < n && op[k + 1].kind == RPIV_PREP_HIGHPASS &&
+                p->highpass_method == RPIV_PREP_BG_MIN) { /* the two in one (the same bits) */
+                st = prep_clahe_highpass(
+                    im, o->size_px ? o->size_px : p->clahe_tile_px, p->clahe_clip, p->clahe_bins,
+                    p->clahe_low_pct, p->clahe_high_pct,
+                    op[k + 1].size_px ? op[k + 1].size_px : p->highpass_px, nt);
+                k++;
+            } else {
+                st = prep_clahe(im, o->size_px ? o->size_px : p->clahe_tile_px, p->clahe_clip,
+                                p->clahe_bins, p->clahe_low_pct, p->clahe_high_pct, nt, NULL);
+            }
             break;
         case RPIV_PREP_HIGHPASS:
             st =
