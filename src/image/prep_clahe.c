@@ -261,46 +261,6 @@ static rpiv_status pct_range(const rpiv_image *im, float lo, float hi, double lo
     return RPIV_OK;
 }
 
-/* The least and greatest values of row r (w >= 1), as prep_range finds them (a NaN counts
- * only as r[0]): with SSE, min/max instructions on four accumulators of four lanes that do not
- * wait on each other. */
-static void row_range(const float *r, size_t w, float *lo, float *hi)
-{
-    float a = r[0], b = r[0];
-    size_t x = 0;
-#if defined(__SSE2__)
-    /* _mm_min_ps(v, m) is v < m ? v : m, the scalar form: a NaN v never replaces m */
-    __m128 m0 = _mm_set1_ps(r[0]), m1 = m0, m2 = m0, m3 = m0, M0 = m0, M1 = m0, M2 = m0, M3 = m0;
-    for (; x + 16 <= w; x += 16) {
-        __m128 v0 = _mm_loadu_ps(r + x), v1 = _mm_loadu_ps(r + x + 4), v2 = _mm_loadu_ps(r + x + 8),
-               v3 = _mm_loadu_ps(r + x + 12);
-        m0 = _mm_min_ps(v0, m0);
-        m1 = _mm_min_ps(v1, m1);
-        m2 = _mm_min_ps(v2, m2);
-        m3 = _mm_min_ps(v3, m3);
-        M0 = _mm_max_ps(v0, M0);
-        M1 = _mm_max_ps(v1, M1);
-        M2 = _mm_max_ps(v2, M2);
-        M3 = _mm_max_ps(v3, M3);
-    }
-    m0 = _mm_min_ps(_mm_min_ps(m0, m1), _mm_min_ps(m2, m3));
-    M0 = _mm_max_ps(_mm_max_ps(M0, M1), _mm_max_ps(M2, M3));
-    float lm[4], lM[4];
-    _mm_storeu_ps(lm, m0);
-    _mm_storeu_ps(lM, M0);
-    for (int k = 0; k < 4; k++) {
-        a = lm[k] < a ? lm[k] : a;
-        b = lM[k] > b ? lM[k] : b;
-    }
-#endif
-    for (; x < w; x++) {
-        a = r[x] < a ? r[x] : a;
-        b = r[x] > b ? r[x] : b;
-    }
-    *lo = a;
-    *hi = b;
-}
-
 /* The least and greatest values of im: the rows' ranges, then combined in row order (the same
  * bits for any thread count). rng: 2 h floats. */
 static void image_range(const rpiv_image *im, float *rng, int nt, float *lo, float *hi)
@@ -309,7 +269,7 @@ static void image_range(const rpiv_image *im, float *rng, int nt, float *lo, flo
     const float *px = im->px;
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (size_t y = 0; y < h; y++)
-        row_range(px + y * w, w, &rng[2 * y], &rng[2 * y + 1]);
+        prep_row_range(px + y * w, w, &rng[2 * y], &rng[2 * y + 1]);
     float mn = px[0], mx = px[0];
     for (size_t y = 0; y < h; y++) {
         mn = rng[2 * y] < mn ? rng[2 * y] : mn;
