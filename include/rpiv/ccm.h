@@ -386,7 +386,7 @@ typedef struct rpiv_ccm_invert_params {
     double xtol;     /* gsl_multifit_nlinear_driver tolerances (1e-10, 1e-10, 1e-12)         */
     double gtol;
     double ftol;
-    size_t nout; /* samples of the reconstructed profile on [0, 1] (129)                 */
+    size_t nout;  /* samples of the reconstructed profile on [0, 1] (129)                 */
     int measured; /* 1: U_pred is what the engine measures, the estimator p->subpixel on the
                      plane of base's window (rpiv_ccm_corr_peak_window with base->window_w,
                      window_h, window_deform: dx_sub); 0: the continuous peak (0). With 1 the
@@ -408,9 +408,9 @@ typedef struct rpiv_ccm_invert_result {
     double *umeas; /* measured U*                                                    */
     double *ufit;  /* the model's prediction of them with the reconstructed profile  */
     size_t ncoef;
-    double *coef; /* B-spline coefficients                                          */
-    double sigma; /* measurement sigma used for the band                            */
-    double chi2;  /* sum of squared data residuals                                  */
+    double *coef;      /* B-spline coefficients                                          */
+    double sigma;      /* measurement sigma used for the band                            */
+    double chi2;       /* sum of squared data residuals                                  */
     size_t iterations; /* Levenberg-Marquardt iterations, summed over the rounds      */
     size_t rounds;     /* fits with updated offsets (measured = 1; 1 otherwise)        */
     double offset_max; /* largest |dx_sub - dx| of the fitted profile, U* (0 with
@@ -482,7 +482,12 @@ typedef struct rpiv_ccm_bias_params {
                                     engine measures models the [piv] final window (pair
                                     loss, mean removal: rpiv_ccm_model.window_w/h, copied
                                     by rpiv_config_ccm_model); 0 = an infinite window. Not
-                                    read by rpiv_ccm_bias_field (the continuous peak)      */
+                                    read by rpiv_ccm_bias_field (it uses base's window)    */
+    int measured;                /* [bias] measured: 1 = D_pred is what the engine measures,
+                                    the estimator p->subpixel on the plane of base's window
+                                    (rpiv_ccm_peak.dx_sub, dy_sub of rpiv_ccm_predict: the
+                                    forward model of rpiv_ccm_invert_params.measured = 1);
+                                    0 = the continuous peak of <R_D> (dx, dy)              */
     int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
 } rpiv_ccm_bias_params;
 

@@ -281,6 +281,10 @@ static const key_spec keys[] = {
      "the CCM's prediction of what the engine measures models the [piv] final window (pairs "
      "lost at its edges, the mean removal's baseline; 0 = an infinite window)",
      0},
+    {"bias", "measured", KEY_BOOL, OFF(bias.measured), 0, 1, 1, "-",
+     "the per-vector bias is that of what the engine measures (its sub-pixel estimator on the "
+     "plane of its final window, as window_model sets it); 0 = the CCM's continuous peak",
+     0},
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
 };
