@@ -496,16 +496,16 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params
 
 /* For every unmasked vector of f (image coordinates, not y-up), placed in the channel by g:
  * the displacement Eq. "statform" predicts through the sheet at the vector's x* (its
- * continuous peak), D_pred, for the velocity's variation across the depth of bp->vary, against
- * the displacement D_ref at the depth of bp->depth: bias = D_pred - D_ref (px), and the
- * corrected field u - bias_u. The uncertainty of the bias is the half-difference of the bias
- * with the sheet's thickness scaled by 1 +- rel_thickness and, in quadrature, with the sheet
- * shifted by +- dz. Adds (or overwrites) the quantities bias_u, bias_v, u_corrected,
- * v_corrected, bias_u_std, bias_v_std (px/dt) and z_ref (the depth, z*). Masked vectors get 0.
- * base gives the camera (object plane), h, d_p, scale_px and P; its illum, u, v are ignored.
- * Deterministic for any thread count. Errors: RPIV_EINVAL (parameters, a y-up field, FIELD
- * with a sheet whose peak does not move along x*), those of the profile reader and
- * rpiv_ccm_predict, RPIV_EINTR if progress asks to stop (rows done / rows). */
+ * continuous peak; with bp->measured the estimate on the plane of base's window, dx_sub), D_pred,
+ * for the velocity's variation across the depth of bp->vary, against the displacement D_ref at the
+ * depth of bp->depth: bias = D_pred - D_ref (px), and the corrected field u - bias_u. The
+ * uncertainty of the bias is the half-difference of the bias with the sheet's thickness scaled by 1
+ * +- rel_thickness and, in quadrature, with the sheet shifted by +- dz. Adds (or overwrites) the
+ * quantities bias_u, bias_v, u_corrected, v_corrected, bias_u_std, bias_v_std (px/dt) and z_ref
+ * (the depth, z*). Masked vectors get 0. base gives the camera (object plane), h, d_p, scale_px and
+ * P; its illum, u, v are ignored. Deterministic for any thread count. Errors: RPIV_EINVAL
+ * (parameters, a y-up field, FIELD with a sheet whose peak does not move along x*), those of the
+ * profile reader and rpiv_ccm_predict, RPIV_EINTR if progress asks to stop (rows done / rows). */
 RPIV_NODISCARD rpiv_status rpiv_ccm_bias_field(rpiv_field *f, const rpiv_ccm_model *base,
                                                const rpiv_sheet *sheet, const rpiv_ccm_geometry *g,
                                                const rpiv_ccm_bias_params *bp,
