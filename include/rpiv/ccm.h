@@ -407,7 +407,7 @@ typedef struct rpiv_ccm_invert_params {
     double xtol;     /* gsl_multifit_nlinear_driver tolerances (1e-10, 1e-10, 1e-12)         */
     double gtol;
     double ftol;
-    size_t nout; /* samples of the reconstructed profile on [0, 1] (129)                 */
+    size_t nout;  /* samples of the reconstructed profile on [0, 1] (129)                 */
     int measured; /* 1: U_pred is what the engine measures, the estimator p->subpixel on the
                      plane of base's window (rpiv_ccm_corr_peak_window with base->window_w,
                      window_h, window_deform: dx_sub); 0: the continuous peak (0). With 1 the
@@ -429,9 +429,9 @@ typedef struct rpiv_ccm_invert_result {
     double *umeas; /* measured U*                                                    */
     double *ufit;  /* the model's prediction of them with the reconstructed profile  */
     size_t ncoef;
-    double *coef; /* B-spline coefficients                                          */
-    double sigma; /* measurement sigma used for the band                            */
-    double chi2;  /* sum of squared data residuals                                  */
+    double *coef;      /* B-spline coefficients                                          */
+    double sigma;      /* measurement sigma used for the band                            */
+    double chi2;       /* sum of squared data residuals                                  */
     size_t iterations; /* Levenberg-Marquardt iterations, summed over the rounds      */
     size_t rounds;     /* fits with updated offsets (measured = 1; 1 otherwise)        */
     double offset_max; /* largest |dx_sub - dx| of the fitted profile, U* (0 with
@@ -503,7 +503,7 @@ typedef struct rpiv_ccm_bias_params {
                                     engine measures models the [piv] final window (pair
                                     loss, mean removal: rpiv_ccm_model.window_w/h, copied
                                     by rpiv_config_ccm_model); 0 = an infinite window. Not
-                                    read by rpiv_ccm_bias_field (the continuous peak)      */
+                                    read by rpiv_ccm_bias_field (it uses base's window)    */
     int window_area;             /* [bias] window_area: with window_model, N >= 2 makes
                                     rpiv_config_ccm_predict average the model over N x N
                                     sub-positions of the final window (rpiv_ccm_predict_area,
@@ -512,6 +512,11 @@ typedef struct rpiv_ccm_bias_params {
                                     interior window); 0 or 1 (default 0) = the window's centre:
                                     the same to 3e-5 px on the duct (docs/ccm.md) at 1/25 to
                                     1/180 of the cost. Not read by rpiv_ccm_bias_field      */
+    int measured;                /* [bias] measured: 1 = D_pred is what the engine measures,
+                                    the estimator p->subpixel on the plane of base's window
+                                    (rpiv_ccm_peak.dx_sub, dy_sub of rpiv_ccm_predict: the
+                                    forward model of rpiv_ccm_invert_params.measured = 1);
+                                    0 = the continuous peak of <R_D> (dx, dy)              */
     int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
 } rpiv_ccm_bias_params;
 
@@ -520,16 +525,16 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params
 
 /* For every unmasked vector of f (image coordinates, not y-up), placed in the channel by g:
  * the displacement Eq. "statform" predicts through the sheet at the vector's x* (its
- * continuous peak), D_pred, for the velocity's variation across the depth of bp->vary, against
- * the displacement D_ref at the depth of bp->depth: bias = D_pred - D_ref (px), and the
- * corrected field u - bias_u. The uncertainty of the bias is the half-difference of the bias
- * with the sheet's thickness scaled by 1 +- rel_thickness and, in quadrature, with the sheet
- * shifted by +- dz. Adds (or overwrites) the quantities bias_u, bias_v, u_corrected,
- * v_corrected, bias_u_std, bias_v_std (px/dt) and z_ref (the depth, z*). Masked vectors get 0.
- * base gives the camera (object plane), h, d_p, scale_px and P; its illum, u, v are ignored.
- * Deterministic for any thread count. Errors: RPIV_EINVAL (parameters, a y-up field, FIELD
- * with a sheet whose peak does not move along x*), those of the profile reader and
- * rpiv_ccm_predict, RPIV_EINTR if progress asks to stop (rows done / rows). */
+ * continuous peak; with bp->measured the estimate on the plane of base's window, dx_sub), D_pred,
+ * for the velocity's variation across the depth of bp->vary, against the displacement D_ref at the
+ * depth of bp->depth: bias = D_pred - D_ref (px), and the corrected field u - bias_u. The
+ * uncertainty of the bias is the half-difference of the bias with the sheet's thickness scaled by 1
+ * +- rel_thickness and, in quadrature, with the sheet shifted by +- dz. Adds (or overwrites) the
+ * quantities bias_u, bias_v, u_corrected, v_corrected, bias_u_std, bias_v_std (px/dt) and z_ref
+ * (the depth, z*). Masked vectors get 0. base gives the camera (object plane), h, d_p, scale_px and
+ * P; its illum, u, v are ignored. Deterministic for any thread count. Errors: RPIV_EINVAL
+ * (parameters, a y-up field, FIELD with a sheet whose peak does not move along x*), those of the
+ * profile reader and rpiv_ccm_predict, RPIV_EINTR if progress asks to stop (rows done / rows). */
 RPIV_NODISCARD rpiv_status rpiv_ccm_bias_field(rpiv_field *f, const rpiv_ccm_model *base,
                                                const rpiv_sheet *sheet, const rpiv_ccm_geometry *g,
                                                const rpiv_ccm_bias_params *bp,

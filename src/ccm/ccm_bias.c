@@ -27,6 +27,7 @@ rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void)
     bp.dz = 0.01;
     bp.pixel_box = 1;
     bp.window_model = 1;
+    bp.measured = 0;
     bp.threads = 0;
     return bp;
 }
@@ -49,6 +50,8 @@ rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params *bp)
         return rpiv_fail(RPIV_EINVAL, "bias: pixel_box %g px outside 0..4", bp->pixel_box);
     if (bp->window_model != 0 && bp->window_model != 1)
         return rpiv_fail(RPIV_EINVAL, "bias: window_model %d is neither 0 nor 1", bp->window_model);
+    if (bp->measured != 0 && bp->measured != 1)
+        return rpiv_fail(RPIV_EINVAL, "bias: measured %d is neither 0 nor 1", bp->measured);
     if (bp->threads < 0 || bp->threads > 1024)
         return rpiv_fail(RPIV_EINVAL, "bias: %d threads outside 0..1024", bp->threads);
     return RPIV_OK;
@@ -66,35 +69,38 @@ static double pert_fn(const void *user, double z)
     return rpiv_sheet_eval(p->s, p->xstar, p->zc + (z - p->shift - p->zc) / p->stretch);
 }
 
-/* A linear profile a (z - z0). */
+/* A linear profile c + a (z - z0). */
 typedef struct lin_profile {
-    double a, z0;
+    double c, a, z0;
 } lin_profile;
 
 static double lin_fn(const void *user, double z)
 {
     const lin_profile *l = user;
-    return l->a * (z - l->z0);
+    return l->c + l->a * (z - l->z0);
 }
 
-/* The bias of one vector through one variant of the sheet: the predicted peak minus the
+/* The bias of one vector through one variant of the sheet: the predicted measurement (the
+ * continuous peak, or with `measured` the engine's estimate on its window's plane) minus the
  * displacement at the reference depth (dref_u, dref_v), px. */
 static rpiv_status bias_one(const rpiv_ccm_model *m0, rpiv_ccm_work *w, pert_sheet *ps,
-                            double stretch, double shift, double dref_u, double dref_v, double *bu,
-                            double *bv)
+                            int measured, double stretch, double shift, double dref_u,
+                            double dref_v, double *bu, double *bv)
 {
     rpiv_ccm_model m = *m0;
     ps->stretch = stretch;
     ps->shift = shift;
     m.illum = (rpiv_ccm_func){pert_fn, ps};
+    if (!measured) /* the continuous peak does not depend on the window: skip its estimate */
+        m.window_w = m.window_h = 0;
     if (m.nbreaks < RPIV_CCM_MAX_BREAKS && ps->zc + shift > m.zlo && ps->zc + shift < m.zhi)
         m.breaks[m.nbreaks++] = ps->zc + shift; /* the sheet's peak */
     rpiv_ccm_peak pk;
     rpiv_status st = rpiv_ccm_predict(&m, w, &pk);
     if (st)
         return st;
-    *bu = pk.dx - dref_u;
-    *bv = pk.dy - dref_v;
+    *bu = (measured ? pk.dx_sub : pk.dx) - dref_u;
+    *bv = (measured ? pk.dy_sub : pk.dy) - dref_v;
     return RPIV_OK;
 }
 
@@ -149,7 +155,7 @@ static rpiv_status vector(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_m
     double zref = bp->depth == RPIV_CCM_DEPTH_ZMAX ? zmax : mrow->camera.zop_star;
     rpiv_ccm_model m = *mrow;
     double dref_u = 0, dref_v = 0;
-    lin_profile lu = {0, zref}, lv = {0, zref};
+    lin_profile lu = {0, 0, zref}, lv = {0, 0, zref};
     if (bp->vary == RPIV_CCM_VARY_FIELD) {
         /* the sheet's peak moves along x*: the field's gradient along x* is one across z* */
         double hx = f->dx * jb->g->star_per_px, z1, z0;
@@ -165,28 +171,39 @@ static rpiv_status vector(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_m
         double per_xstar = 1.0 / (jb->g->star_per_px * m.scale_px); /* px/px -> U* per x* */
         lu.a = ddx(f, f->u, i, j) * per_xstar / dzdx;
         lv.a = ddx(f, f->v, i, j) * per_xstar / dzdx;
+        if (bp->measured) {
+            /* the engine's estimate moves with a uniform displacement only on a deformed
+             * plane; on whole-pixel offsets it depends on the displacement's fraction of a
+             * pixel: anchor the profile at the measured displacement */
+            dref_u = f->u[k];
+            dref_v = f->v[k];
+            lu.c = dref_u / m.scale_px;
+            lv.c = dref_v / m.scale_px;
+        }
         m.u = (rpiv_ccm_func){lin_fn, &lu};
-        m.v = lv.a != 0 ? (rpiv_ccm_func){lin_fn, &lv} : (rpiv_ccm_func){NULL, NULL};
+        m.v = lv.a != 0 || lv.c != 0 ? (rpiv_ccm_func){lin_fn, &lv} : (rpiv_ccm_func){NULL, NULL};
     } else {
         dref_u = m.scale_px * uref->fn(uref->user, zref);
     }
     pert_sheet ps = {jb->sheet, xstar, zmax, 1, 0};
     double bu, bv;
-    if ((st = bias_one(&m, w, &ps, 1, 0, dref_u, dref_v, &bu, &bv)))
+    if ((st = bias_one(&m, w, &ps, bp->measured, 1, 0, dref_u, dref_v, &bu, &bv)))
         return st;
     double su = 0, sv = 0;
     if (bp->rel_thickness > 0) {
         double pu, pv, nu, nv;
-        if ((st = bias_one(&m, w, &ps, 1 + bp->rel_thickness, 0, dref_u, dref_v, &pu, &pv)) ||
-            (st = bias_one(&m, w, &ps, 1 - bp->rel_thickness, 0, dref_u, dref_v, &nu, &nv)))
+        if ((st = bias_one(&m, w, &ps, bp->measured, 1 + bp->rel_thickness, 0, dref_u, dref_v, &pu,
+                           &pv)) ||
+            (st = bias_one(&m, w, &ps, bp->measured, 1 - bp->rel_thickness, 0, dref_u, dref_v, &nu,
+                           &nv)))
             return st;
         su += 0.25 * (pu - nu) * (pu - nu);
         sv += 0.25 * (pv - nv) * (pv - nv);
     }
     if (bp->dz > 0) {
         double pu, pv, nu, nv;
-        if ((st = bias_one(&m, w, &ps, 1, bp->dz, dref_u, dref_v, &pu, &pv)) ||
-            (st = bias_one(&m, w, &ps, 1, -bp->dz, dref_u, dref_v, &nu, &nv)))
+        if ((st = bias_one(&m, w, &ps, bp->measured, 1, bp->dz, dref_u, dref_v, &pu, &pv)) ||
+            (st = bias_one(&m, w, &ps, bp->measured, 1, -bp->dz, dref_u, dref_v, &nu, &nv)))
             return st;
         su += 0.25 * (pu - nu) * (pu - nu);
         sv += 0.25 * (pv - nv) * (pv - nv);

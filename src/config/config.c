@@ -287,6 +287,10 @@ static const key_spec keys[] = {
      "deformation); 0 or 1 = the window's centre (the same to 3e-5 px on the duct, 25-180 "
      "times cheaper; docs/ccm.md)",
      0},
+    {"bias", "measured", KEY_BOOL, OFF(bias.measured), 0, 1, 1, "-",
+     "the per-vector bias is that of what the engine measures (its sub-pixel estimator on the "
+     "plane of its final window, as window_model sets it); 0 = the CCM's continuous peak",
+     0},
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
 };

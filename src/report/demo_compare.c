@@ -423,6 +423,7 @@ static rpiv_status sheet_bias(demo_ctx *c)
     rpiv_ccm_geometry g = {c->x0s, c->y0s, c->spp};
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
     bp.rel_thickness = bp.dz = 0; /* the report does not use the bias's uncertainty */
+    bp.measured = c->e.bias.measured;
     rpiv_ccm_params cp = rpiv_ccm_params_default();
     cp.subpixel = c->e.piv.subpixel;
     st = rpiv_ccm_bias_field(c->bfield, &base, c->sheet, &g, &bp, &cp, NULL);
