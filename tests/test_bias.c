@@ -200,6 +200,25 @@ static void field_gradient_is_a_linear_profile(void)
     remove(path);
 }
 
+/* The CCM's prediction for vector k of f as rpiv_ccm_bias_field makes it: the section at the
+ * vector's x* (the sheet there), the duct's velocity at its y* across the depth, z*_max among the
+ * breaks; its x*, y*, z*_max out. */
+static void vector_predict(const rpiv_sheet *s, const rpiv_ccm_model *m, const rpiv_ccm_geometry *g,
+                           const rpiv_field *f, int k, rpiv_ccm_work *w, rpiv_ccm_peak *pk,
+                           double *xs, double *ys, double *zmax)
+{
+    int i = k % f->nx, j = k / f->nx;
+    *xs = g->x0_star + (f->x0 + i * f->dx + 0.5) * g->star_per_px;
+    *ys = g->y0_star + (f->y0 + j * f->dy + 0.5) * g->star_per_px;
+    CHECK_OK(rpiv_ccm_sheet_zmax(s, *xs, &P, zmax));
+    rpiv_ccm_sheet_at at = {s, *xs};
+    rpiv_ccm_model mm = *m;
+    mm.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
+    mm.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, ys};
+    mm.breaks[mm.nbreaks++] = *zmax;
+    CHECK_OK(rpiv_ccm_predict(&mm, w, pk));
+}
+
 /* One vector of the duct through the R-PIV sheet, against rpiv_ccm_predict directly. */
 static void duct_vector_matches_predict(void)
 {
@@ -216,17 +235,10 @@ static void duct_vector_matches_predict(void)
     CHECK_OK(rpiv_ccm_work_new(&P, &w));
     int ks[2] = {2, 11};
     for (int n = 0; n < 2; n++) {
-        int k = ks[n], i = k % f->nx, j = k / f->nx;
-        double xs = g.x0_star + (f->x0 + i * f->dx + 0.5) * g.star_per_px;
-        double ys = g.y0_star + (f->y0 + j * f->dy + 0.5) * g.star_per_px, zmax;
-        CHECK_OK(rpiv_ccm_sheet_zmax(s, xs, &P, &zmax));
-        rpiv_ccm_sheet_at at = {s, xs};
-        rpiv_ccm_model mm = m;
-        mm.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
-        mm.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &ys};
-        mm.breaks[mm.nbreaks++] = zmax;
+        int k = ks[n];
+        double xs, ys, zmax;
         rpiv_ccm_peak pk;
-        CHECK_OK(rpiv_ccm_predict(&mm, w, &pk));
+        vector_predict(s, &m, &g, f, k, w, &pk, &xs, &ys, &zmax);
         double want = pk.dx - m.scale_px * rpiv_duct_u(ys, zmax);
         printf("  x* %.3f y* %.3f z*_max %.4f: bias_u %.6f px, predict %.6f px, std %.6f px\n", xs,
                ys, zmax, (double)qv(f, "bias_u", k), want, (double)qv(f, "bias_u_std", k));
@@ -276,17 +288,9 @@ static void measured_vector_matches_window_estimate(void)
     CHECK_OK(rpiv_ccm_work_new(&P, &w));
     double maxoff = 0;
     for (int k = 0; k < 16 && f && f0; k++) {
-        int i = k % f->nx, j = k / f->nx;
-        double xs = g.x0_star + (f->x0 + i * f->dx + 0.5) * g.star_per_px;
-        double ys = g.y0_star + (f->y0 + j * f->dy + 0.5) * g.star_per_px, zmax;
-        CHECK_OK(rpiv_ccm_sheet_zmax(s, xs, &P, &zmax));
-        rpiv_ccm_sheet_at at = {s, xs};
-        rpiv_ccm_model mm = m;
-        mm.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
-        mm.u = (rpiv_ccm_func){rpiv_ccm_duct_fn, &ys};
-        mm.breaks[mm.nbreaks++] = zmax;
+        double xs, ys, zmax;
         rpiv_ccm_peak pk;
-        CHECK_OK(rpiv_ccm_predict(&mm, w, &pk));
+        vector_predict(s, &m, &g, f, k, w, &pk, &xs, &ys, &zmax);
         double uref = m.scale_px * rpiv_duct_u(ys, zmax);
         if (k % 5 == 0)
             printf("  x* %.3f y* %.3f: bias_u %.6f px (measured), %.6f px (continuous); "
