@@ -200,6 +200,17 @@ static void field_gradient_is_a_linear_profile(void)
     remove(path);
 }
 
+/* The default model with the demo's object plane (z*_OP 0.45) and the engine's final window:
+ * 32 px, deformed. */
+static rpiv_ccm_model windowed_model(void)
+{
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.camera.zop_star = 0.45;
+    m.window_w = m.window_h = 32;
+    m.window_deform = 1;
+    return m;
+}
+
 /* The CCM's prediction for vector k of f as rpiv_ccm_bias_field makes it: the section at the
  * vector's x* (the sheet there), the duct's velocity at its y* across the depth, z*_max among the
  * breaks; its x*, y*, z*_max out. */
@@ -271,12 +282,8 @@ static void duct_vector_matches_predict(void)
  * the continuous peak (docs/bias.md), so that the two cannot be confused. */
 static void measured_vector_matches_window_estimate(void)
 {
-    rpiv_sheet_params sp = rpiv_sheet_params_default();
-    rpiv_sheet *s = make_sheet(sp);
-    rpiv_ccm_model m = rpiv_ccm_model_default();
-    m.camera.zop_star = 0.45;
-    m.window_w = m.window_h = 32;
-    m.window_deform = 1;
+    rpiv_sheet *s = make_sheet(rpiv_sheet_params_default());
+    rpiv_ccm_model m = windowed_model();
     rpiv_ccm_geometry g = {4.6, 0.4, 0.004};
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
     bp.measured = 1;
@@ -438,12 +445,8 @@ out_free:
  * the continuous-peak model (measured = 0) leaves the window's offsets in the profile. */
 static void invert_fits_what_the_engine_measures(void)
 {
-    rpiv_sheet_params sp = rpiv_sheet_params_default();
-    rpiv_sheet *s = make_sheet(sp);
-    rpiv_ccm_model m = rpiv_ccm_model_default();
-    m.camera.zop_star = 0.45;
-    m.window_w = m.window_h = 32;
-    m.window_deform = 1;
+    rpiv_sheet *s = make_sheet(rpiv_sheet_params_default());
+    rpiv_ccm_model m = windowed_model();
     rpiv_ccm_work *w = NULL;
     CHECK_OK(rpiv_ccm_work_new(&P, &w));
     enum { NM = 24 };
