@@ -591,7 +591,7 @@ static void shear_case(const char *fnumber, int npairs, shear_result *res)
                 CHECK_OK(rpiv_config_ccm_predict(&e0, ex.synth.dt_s, xs, ys, -1, &p0, &scale));
                 CHECK_OK(rpiv_config_ccm_predict(&ew, ex.synth.dt_s, xs, ys, -1, &pw, &scale));
                 m[9] += u - pw.dx_sub;
-                /* the area average: the deformation following the plane (session 7), the
+                /* the area average: the deformation following the plane (session 6), the
                  * quadratic, the engine's predictor on the grid (edges) */
                 rpiv_ccm_peak pa = pw, pq = pw, pg = pw, pe = pw;
                 if (getenv("SHEAR_AREA")) {

@@ -271,7 +271,7 @@ typedef struct rpiv_ccm_area_opts {
     int quadratic; /* 1: the deformation follows the field's quadratic variation across the
                       window (the engine's predictor, the cubic B-spline through its vectors,
                       reproduces quadratics); 0: only its linear part (the least-squares plane,
-                      the model before issue 15's session 8)                                  */
+                      the model before issue 15's session 7)                                  */
     int nx, ny;    /* the engine's grid of vectors (0: an unbounded grid, the window interior)  */
     int i, j;      /* the window's place in it (0 <= i < nx, 0 <= j < ny)                       */
     double step_x, step_y; /* its spacing, px (> 0 with a grid)                                 */
