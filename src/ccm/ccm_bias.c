@@ -175,8 +175,8 @@ static rpiv_status vector(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_m
             /* the engine's estimate moves with a uniform displacement only on a deformed
              * plane; on whole-pixel offsets it depends on the displacement's fraction of a
              * pixel: anchor the profile at the measured displacement */
-            dref_u = f->u[k];
-            dref_v = f->v[k];
+            dref_u = (double)f->u[k];
+            dref_v = (double)f->v[k];
             lu.c = dref_u / m.scale_px;
             lv.c = dref_v / m.scale_px;
         }
