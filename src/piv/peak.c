@@ -382,7 +382,7 @@ static float second_full(const float *plane, int w, int h, int bi, int bj, float
 }
 
 /* The highest local maximum of the plane among shifts within -r..r on both axes (of equal
- * values the first in raster order); 0 and *bi = -1 if there is none. */
+ * values the first in raster order); -inf and *bi = *bj = -1 if there is none. */
 static float near_max(const float *plane, int w, int h, int r, int *bi, int *bj)
 {
     int rows[RPIV_PEAK_MAX_SIZE], cols[RPIV_PEAK_MAX_SIZE];

@@ -20,12 +20,8 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, cons
 {
     rpiv_peak pk;
     rpiv_subpixel method = rpiv_subpixel_resolve(pv->p.subpixel, ensemble);
-    if (near > 0)
-        rpiv_peak_find_near(plane, ps->ww, ps->wh, near, colmax, method, &pk);
-    else if (colmax)
-        rpiv_peak_find_cm(plane, ps->ww, ps->wh, colmax, method, &pk);
-    else
-        rpiv_peak_find(plane, ps->ww, ps->wh, 0, method, &pk);
+    /* near 0: the whole plane, with or without the column maxima */
+    rpiv_peak_find_near(plane, ps->ww, ps->wh, near, colmax, method, &pk);
     if (!(ea > 0) || !(eb > 0) || !pk.fit_ok || !(pk.value > 0)) {
         /* nothing to measure: rejected, replaced by validation */
         f->u[win] = (float)pu;
