@@ -19,6 +19,7 @@
 #include "rpiv/deform.h"
 #include "rpiv/field.h"
 
+#include <gsl/gsl_multifit.h>
 #include <math.h>
 #include <stdlib.h>
 
@@ -44,45 +45,43 @@ static void basis(double x, double y, double *b)
     b[5] = y * y;
 }
 
-/* Solve the nb x nb normal equations a c = r (a destroyed) by Gaussian elimination with partial
- * pivoting; 0 if a pivot falls below 1e-10 of the matrix's largest entry (a singular fit). */
-static int solve(double a[NB][NB], double r[2][NB], int nb)
+/* The least-squares coefficients r[0] (of du) and r[1] (of dv) over the basis's first nb
+ * functions at the scaled offsets (ox, oy) / sc, by GSL's SVD; *ok = 0 when the sub-positions
+ * do not fix them (reciprocal condition number below 1e-10). */
+static rpiv_status fit(const double *ox, const double *oy, const double *du, const double *dv,
+                       size_t n, int nb, double sc, double r[2][NB], int *ok)
 {
-    double amax = 0;
-    for (int i = 0; i < nb; i++)
-        for (int j = 0; j < nb; j++)
-            amax = fmax(amax, fabs(a[i][j]));
-    for (int c = 0; c < nb; c++) {
-        int p = c;
-        for (int i = c + 1; i < nb; i++)
-            if (fabs(a[i][c]) > fabs(a[p][c]))
-                p = i;
-        if (!(fabs(a[p][c]) > 1e-10 * amax))
-            return 0;
-        for (int j = 0; j < nb; j++) {
-            double t = a[c][j];
-            a[c][j] = a[p][j];
-            a[p][j] = t;
-        }
-        for (int k = 0; k < 2; k++) {
-            double t = r[k][c];
-            r[k][c] = r[k][p];
-            r[k][p] = t;
-        }
-        for (int i = 0; i < nb; i++) {
-            if (i == c)
-                continue;
-            double f = a[i][c] / a[c][c];
-            for (int j = c; j < nb; j++)
-                a[i][j] -= f * a[c][j];
-            for (int k = 0; k < 2; k++)
-                r[k][i] -= f * r[k][c];
-        }
+    gsl_matrix *x = gsl_matrix_alloc(n, (size_t)nb),
+               *cov = gsl_matrix_alloc((size_t)nb, (size_t)nb);
+    gsl_vector *y = gsl_vector_alloc(n), *c = gsl_vector_alloc((size_t)nb);
+    gsl_multifit_linear_workspace *ws = gsl_multifit_linear_alloc(n, (size_t)nb);
+    rpiv_status st = RPIV_OK;
+    *ok = 0;
+    if (!x || !cov || !y || !c || !ws)
+        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for the area average's fit");
+    for (size_t k = 0; k < n && !st; k++) {
+        double b[NB];
+        basis(ox[k] / sc, oy[k] / sc, b);
+        for (int t = 0; t < nb; t++)
+            gsl_matrix_set(x, k, (size_t)t, b[t]);
     }
-    for (int c = 0; c < nb; c++)
-        for (int k = 0; k < 2; k++)
-            r[k][c] /= a[c][c];
-    return 1;
+    for (int comp = 0; comp < 2 && !st; comp++) {
+        double chisq;
+        for (size_t k = 0; k < n; k++)
+            gsl_vector_set(y, k, comp ? dv[k] : du[k]);
+        if (gsl_multifit_linear(x, y, c, cov, &chisq, ws) ||
+            !(gsl_multifit_linear_rcond(ws) >= 1e-10))
+            break;
+        for (int t = 0; t < nb; t++)
+            r[comp][t] = gsl_vector_get(c, (size_t)t);
+        *ok = comp == 1;
+    }
+    gsl_multifit_linear_free(ws);
+    gsl_vector_free(c);
+    gsl_vector_free(y);
+    gsl_matrix_free(cov);
+    gsl_matrix_free(x);
+    return st;
 }
 
 rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox, const double *oy,
@@ -126,18 +125,11 @@ rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox
     }
     /* the least-squares plane or quadratic through them, in offsets scaled by their RMS */
     sc = sc > 0 ? sqrt(sc) : 1;
-    double a[NB][NB] = {{0}}, r[2][NB] = {{0}};
-    for (size_t k = 0; k < n && !st; k++) {
-        double b[NB];
-        basis(ox[k] / sc, oy[k] / sc, b);
-        for (int i = 0; i < nb; i++) {
-            for (int j = 0; j < nb; j++)
-                a[i][j] += b[i] * b[j];
-            r[0][i] += b[i] * du[k];
-            r[1][i] += b[i] * dv[k];
-        }
-    }
-    if (!st && !solve(a, r, nb))
+    double r[2][NB] = {{0}};
+    int fixed = 1;
+    if (!st)
+        st = fit(ox, oy, du, dv, n, nb, sc, r, &fixed);
+    if (!st && !fixed)
         st =
             rpiv_fail(RPIV_EINVAL, "ccm: the sub-positions of the area average do not fix a %s",
                       opt.quadratic ? "quadratic (too few, or on one conic)" : "plane (collinear)");
