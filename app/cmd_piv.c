@@ -248,6 +248,7 @@ static rpiv_status add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_p
         (st = rpiv_meta_add(m, "median_threshold", "%g", p->median_thr)) ||
         (st = rpiv_meta_add(m, "median_eps_px", "%g", p->median_eps)) ||
         (st = rpiv_meta_add(m, "search_radius_px", "%d", p->search_radius)) ||
+        (p->cbc && (st = rpiv_meta_add(m, "cbc", "%d", p->cbc))) ||
         (st = rpiv_meta_add(m, "background", "%s", bg[p->background])) ||
         (st = rpiv_meta_add(m, "mask", "%s", p->mask[0] ? p->mask : "none")) ||
         (st = rpiv_meta_add(m, "roi", "%d,%d,%d,%d", p->roi[0], p->roi[1], p->roi[2], p->roi[3])) ||
@@ -342,9 +343,11 @@ static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const rp
             "%.2f): ",
             100.0 * (double)r->nreplaced / (double)r->nvec, med);
     if (med < 1.5)
-        fprintf(stderr, "the correlation peaks are weak (peak ratio below 1.5): dark, sparse or "
-                        "uneven images; try --preprocess clahe, and larger final windows if the "
-                        "particles are sparse (--window 64,64,64; docs/preprocess.md)\n");
+        fprintf(stderr,
+                "the correlation peaks are weak (peak ratio below 1.5): dark, sparse or "
+                "uneven images; try --preprocess clahe%s, and larger final windows if the "
+                "particles are sparse (--window 64,64,64; docs/preprocess.md)\n",
+                p->cbc ? "" : " --cbc 2");
     else
         fprintf(stderr, "the peaks are clear, so the flow likely varies too much within a "
                         "window (strong gradients): try smaller windows (--window 64,32,16) or "
@@ -443,6 +446,10 @@ static const cli_opt options[] = {
             "passes with a predictor: take the highest correlation peak within R px\n"
             "of the predicted shift; 0 = whole plane, -1 = an eighth of the previous\n"
             "pass's window, at least 2 px (-1; docs/piv.md) [search_radius_px]"),
+    PIV_KEY("cbc", "M", "cbc",
+            "correlation-based correction: choose each window's peak on its\n"
+            "correlation multiplied (1) or summed (2) with its 4 neighbours';\n"
+            "0 off (0; docs/piv.md) [cbc]"),
     PIV_KEY("peak-ratio", "R", "peak_ratio_min",
             "also reject vectors whose correlation peak ratio is below R\n"
             "(off; 1.2 to 1.5 usual) [peak_ratio_min]"),

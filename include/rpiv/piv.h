@@ -44,6 +44,10 @@ typedef struct rpiv_piv_params {
                                        the predicted shift; 0 = whole plane, -1 = an
                                        eighth of the previous pass's window (the
                                        predictor's), >= 2 px (-1)                  */
+    int cbc;                        /* correlation-based correction of instantaneous
+                                       passes: each window's peak chosen on its plane
+                                       combined with its 4 neighbours'; 0 off, 1 their
+                                       product, 2 their sum (0)                     */
     rpiv_background background;     /* (none)                                      */
     int roi[4];                     /* x0, y0, x1, y1 px; all 0 = whole image      */
     char mask[512];                 /* mask image, 0 = masked ("" = none)          */

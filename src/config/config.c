@@ -153,6 +153,10 @@ static const key_spec keys[] = {
      "passes with a predictor: peak searched within this radius of it (0 = whole plane, -1 = "
      "the previous pass's window / 8, at least 2)",
      0},
+    {"piv", "cbc", KEY_INT, OFF(piv.cbc), 0, 2, 1, "-",
+     "correlation-based correction: each window's peak chosen on its correlation combined with "
+     "its 4 neighbours' (0 off, 1 product, 2 sum)",
+     0},
     {"piv", "peak_ratio_min", KEY_DOUBLE, OFF(piv.peak_ratio_min), 0, 100, 1, "-",
      "reject vectors whose correlation peak ratio is below this (0 = off)", 0},
     {"piv", "u_min_px", KEY_DOUBLE, OFF(piv.u_min_px), -1e6, 1e6, 1, "px",

@@ -186,7 +186,7 @@ rpiv_status rpiv_ensemble_finish(const rpiv_ensemble *e, rpiv_field **out)
         double pu, pv_;
         piv_window_shift(ps, &src, win, &pu, &pv_);
         piv_vector(pv, ps, e->data + win * e->plane, NULL, (double)energy[2 * win],
-                   (double)energy[2 * win + 1], pu, pv_, f, win, 1, 0);
+                   (double)energy[2 * win + 1], pu, pv_, f, win, 1, 0, NULL);
     }
     if ((st = piv_validate(pv, f)) || (e->scratch && (st = ens_unc_finish(e, f)))) {
         rpiv_field_free(f);

@@ -401,6 +401,34 @@ static float near_max(const float *plane, int w, int h, int r, int *bi, int *bj)
     return best;
 }
 
+int peak_fit_at(const float *plane, int w, int h, int bi, int bj, rpiv_subpixel method, double *fx,
+                double *fy)
+{
+    const float best = plane[(size_t)bj * (size_t)w + (size_t)bi];
+    int okx = 0, oky = 0;
+    *fx = *fy = 0;
+    if (method == RPIV_SUBPIXEL_AUTO)
+        method = RPIV_SUBPIXEL_GAUSS;
+    if (method == RPIV_SUBPIXEL_CENTROID) {
+        centroid3x3(plane, w, h, bi, bj, fx, fy, &okx);
+        oky = okx;
+    } else if (method == RPIV_SUBPIXEL_SPLINE) {
+        /* the 3-point Gaussian, the start of the spline's search and its fallback */
+        fit_xy(plane, w, h, bi, bj, best, RPIV_SUBPIXEL_GAUSS, fx, fy, &okx, &oky);
+        double sx, sy;
+        if (peak_fit_spline(plane, w, h, bi, bj, okx ? *fx : 0, oky ? *fy : 0, &sx, &sy)) {
+            *fx = sx;
+            *fy = sy;
+            okx = oky = 1;
+        }
+    } else {
+        fit_xy(plane, w, h, bi, bj, best, method, fx, fy, &okx, &oky);
+    }
+    if (!(okx && oky))
+        *fx = *fy = 0;
+    return okx && oky;
+}
+
 /* rpiv_peak_find, with the column maxima colmax of the plane given (full plane) or not;
  * near > 0: rpiv_peak_find_near's choice of the peak. */
 static void peak_find(const float *plane, int w, int h, int max_shift, int near_r,
@@ -466,26 +494,10 @@ static void peak_find(const float *plane, int w, int h, int max_shift, int near_
     out->iy = shift_of(bj, h);
     out->value = best;
 
-    double fx = 0, fy = 0;
-    int okx = 0, oky = 0;
-    if (method == RPIV_SUBPIXEL_CENTROID) {
-        centroid3x3(plane, w, h, bi, bj, &fx, &fy, &okx);
-        oky = okx;
-    } else if (method == RPIV_SUBPIXEL_SPLINE) {
-        /* the 3-point Gaussian, the start of the spline's search and its fallback */
-        fit_xy(plane, w, h, bi, bj, best, RPIV_SUBPIXEL_GAUSS, &fx, &fy, &okx, &oky);
-        double sx, sy;
-        if (peak_fit_spline(plane, w, h, bi, bj, okx ? fx : 0, oky ? fy : 0, &sx, &sy)) {
-            fx = sx;
-            fy = sy;
-            okx = oky = 1;
-        }
-    } else {
-        fit_xy(plane, w, h, bi, bj, best, method, &fx, &fy, &okx, &oky);
-    }
-    out->fit_ok = okx && oky;
-    out->dx = out->ix + (out->fit_ok ? fx : 0);
-    out->dy = out->iy + (out->fit_ok ? fy : 0);
+    double fx, fy;
+    out->fit_ok = peak_fit_at(plane, w, h, bi, bj, method, &fx, &fy);
+    out->dx = out->ix + fx;
+    out->dy = out->iy + fy;
 
     /* second peak: the highest local maximum outside the first peak's neighbourhood */
     float second;

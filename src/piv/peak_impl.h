@@ -4,6 +4,8 @@
 #ifndef RPIV_SRC_PEAK_IMPL_H
 #define RPIV_SRC_PEAK_IMPL_H
 
+#include "rpiv/peak.h"
+
 /* Half-width of the widest neighbourhood the spline estimator reads: (2 R + 1)^2 samples. */
 #define PEAK_SPLINE_R 3
 
@@ -35,5 +37,11 @@ typedef struct peak_sens {
  * same plane: 1 and *out; 0 when the spline has no maximum there (its fallback was used). */
 int peak_spline_sens(const float *plane, int w, int h, int bi, int bj, double fx, double fy,
                      peak_sens *out);
+
+/* The sub-pixel offsets *fx, *fy (px, from the integer maximum) of the peak at (bi, bj) of the
+ * w x h circular plane by `method` (auto: the 3-point Gaussian; spline: its estimator with the
+ * Gaussian as start and fallback): 1 on success; 0 and offsets 0 when the fit is impossible. */
+int peak_fit_at(const float *plane, int w, int h, int bi, int bj, rpiv_subpixel method, double *fx,
+                double *fy);
 
 #endif /* RPIV_SRC_PEAK_IMPL_H */

@@ -122,10 +122,11 @@ void piv_window_shift(const piv_pass *ps, const piv_source *src, size_t win, dou
 /* The vector of window `win` from its (raw or summed) plane, its column maxima (NULL: not
  * known) and energies: into f at win. ensemble: 1 for a sum of correlation (the estimator
  * of rpiv_subpixel_resolve). near > 0: the peak is the highest local maximum within near px
- * of the window pair's shift (rpiv_peak_find_near); 0: the plane's highest. */
+ * of the window pair's shift (rpiv_peak_find_near); 0: the plane's highest. peak: NULL or
+ * where the peak found is copied. */
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
                 double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win,
-                int ensemble, int near);
+                int ensemble, int near, rpiv_peak *peak);
 
 /* The peak search radius of pass `pass` run with a predictor (piv.search_radius; -1: an
  * eighth of the smaller side of the window of the pass before, which made the predictor, or
@@ -152,5 +153,41 @@ RPIV_NODISCARD rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *pr
 RPIV_NODISCARD rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift,
                                                 const rpiv_field *predictor, int refines,
                                                 rpiv_field *f, const float *cs);
+
+/* Correlation-based correction (piv_cbc.c; piv.cbc): the planes of a pass's windows kept
+ * around the predicted shift, then each window's peak chosen on its plane combined with its
+ * four neighbours' (mode 1: their product, 2: their sum, each normalised by its maximum). */
+typedef struct piv_cbc {
+    int mode;
+    int reach;  /* the combination's search: |shift| <= reach px                 */
+    int r, s;   /* the planes kept: shifts |d| <= r, s = 2 r + 1 (circular)      */
+    int nx, ny; /* the pass's grid                                               */
+    size_t nwin;
+    float *crop;          /* nwin s x s planes                                             */
+    float *top, *val;     /* the whole plane's highest value; the peak the window chose    */
+    float *cmax;          /* the kept plane's highest value                                */
+    float *scale;         /* sqrt(ea eb): corr = value / scale                             */
+    double *pu;           /* the window pair's shift, u then v per window                  */
+    int *ixy;             /* the window's own integer peak, x then y                       */
+    unsigned char *has;   /* 1: a measured window (its plane kept)                         */
+    unsigned char *moved; /* 1: its peak moved by the correction                           */
+} piv_cbc;
+
+/* A correction for pass ps whose search radius is near (0: no predictor, a quarter of the
+ * window). *out NULL (and RPIV_OK) when the windows are too small for a choice. */
+RPIV_NODISCARD rpiv_status piv_cbc_new(const piv_pass *ps, int near, int mode, piv_cbc **out);
+void piv_cbc_free(piv_cbc *cb);
+/* The bytes piv_cbc_new holds per window of ww x wh with search radius near (0: none). */
+double piv_cbc_bytes(int ww, int wh, int near);
+/* Keep window win's plane (w x h, circular), its peak pk, energies and shift. Thread-safe
+ * for distinct windows. */
+void piv_cbc_store(piv_cbc *cb, const float *plane, int w, int h, size_t win, const rpiv_peak *pk,
+                   double ea, double eb, double pu, double pv_);
+/* Choose every valid window's peak on the combined planes; where it is another local maximum
+ * of the window's own plane, its vector (fitted by method on the own plane), peak ratio
+ * (against the higher of the plane's top and the peak replaced) and corr change in f. The
+ * count of moved vectors (cb->moved marks them). offsets: 1 when the pass's windows are
+ * shifted by integer offsets (planes aligned by them), 0 when deformed or unshifted. */
+size_t piv_cbc_apply(piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv_field *f, int nthreads);
 
 #endif /* RPIV_SRC_PIV_IMPL_H */

@@ -20,6 +20,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .median_eps = 0.1,
                              .median_lines = 1,
                              .search_radius = -1,
+                             .cbc = 0,
                              .background = RPIV_BACKGROUND_NONE,
                              .roi = {0, 0, 0, 0},
                              .mask = "",
@@ -66,6 +67,11 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.median_lines: %d is not 0 or 1", p->median_lines);
     if (p->threads < 0)
         return rpiv_fail(RPIV_EINVAL, "piv.threads: %d < 0", p->threads);
+    if (p->cbc < 0 || p->cbc > 2)
+        return rpiv_fail(RPIV_EINVAL, "piv.cbc: %d is not 0, 1 or 2", p->cbc);
+    if (p->cbc && p->ensemble)
+        return rpiv_fail(RPIV_EINVAL, "piv.cbc: the correlation-based correction is for "
+                                      "instantaneous fields (an ensemble sums the planes already)");
     if (p->search_radius < -1 || p->search_radius > RPIV_PEAK_MAX_SIZE / 2)
         return rpiv_fail(RPIV_EINVAL, "piv.search_radius_px: %d outside -1..%d", p->search_radius,
                          RPIV_PEAK_MAX_SIZE / 2);

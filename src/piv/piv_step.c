@@ -16,12 +16,14 @@
 
 void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, const float *colmax,
                 double ea, double eb, double pu, double pv_, rpiv_field *f, size_t win,
-                int ensemble, int near)
+                int ensemble, int near, rpiv_peak *peak)
 {
     rpiv_peak pk;
     rpiv_subpixel method = rpiv_subpixel_resolve(pv->p.subpixel, ensemble);
     /* near 0: the whole plane, with or without the column maxima */
     rpiv_peak_find_near(plane, ps->ww, ps->wh, near, colmax, method, &pk);
+    if (peak)
+        *peak = pk;
     if (!(ea > 0) || !(eb > 0) || !pk.fit_ok || !(pk.value > 0)) {
         /* nothing to measure: rejected, replaced by validation */
         f->u[win] = (float)pu;
@@ -71,27 +73,48 @@ typedef struct step_ctx {
     float *su, *sv; /* sigma_u, sigma_v of f; NULL: no uncertainty   */
     float *scratch; /* 2 ww wh floats per thread for the uncertainty */
     int near;       /* the peak search radius (piv_search_radius)    */
+    piv_cbc *cbc;   /* the correlation-based correction, or NULL     */
 } step_ctx;
+
+/* The window's own sigmas and curvatures at its vector's integer shift (unc_cs). */
+static void step_unc(step_ctx *c, size_t win, double pu, double pv_, const rpiv_xcorr_src *xs)
+{
+    const piv_pass *ps = c->ps;
+    double su, sv;
+    float *scr = c->scratch + 2 * (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
+    double curv[2];
+    unc_cs(xs->a, xs->stride_a, xs->b, xs->stride_b, ps->ww, ps->wh,
+           (int)lround((double)c->f->u[win] - pu), (int)lround((double)c->f->v[win] - pv_), scr,
+           &su, &sv, curv);
+    c->su[win] = (float)su;
+    c->sv[win] = (float)sv;
+    c->su[2 * ps->nwin + win] = (float)curv[0]; /* after the sigmas: the curvatures */
+    c->su[3 * ps->nwin + win] = (float)curv[1];
+}
 
 static void step_vector(void *ctx, const float *plane, const float *colmax, size_t win, double ea,
                         double eb, double pu, double pv_, const rpiv_xcorr_src *xs)
 {
     step_ctx *c = ctx;
-    piv_vector(c->pv, c->ps, plane, colmax, ea, eb, pu, pv_, c->f, win, 0, c->near);
-    if (c->su && c->f->flag[win] == RPIV_FLAG_VALID) {
-        const piv_pass *ps = c->ps;
-        double su, sv;
-        float *scr =
-            c->scratch + 2 * (size_t)omp_get_thread_num() * (size_t)ps->ww * (size_t)ps->wh;
-        double curv[2];
-        unc_cs(xs->a, xs->stride_a, xs->b, xs->stride_b, ps->ww, ps->wh,
-               (int)lround((double)c->f->u[win] - pu), (int)lround((double)c->f->v[win] - pv_), scr,
-               &su, &sv, curv);
-        c->su[win] = (float)su;
-        c->sv[win] = (float)sv;
-        c->su[2 * ps->nwin + win] = (float)curv[0]; /* after the sigmas: the curvatures */
-        c->su[3 * ps->nwin + win] = (float)curv[1];
-    }
+    rpiv_peak pk;
+    piv_vector(c->pv, c->ps, plane, colmax, ea, eb, pu, pv_, c->f, win, 0, c->near, &pk);
+    if (c->f->flag[win] != RPIV_FLAG_VALID)
+        return;
+    if (c->cbc)
+        piv_cbc_store(c->cbc, plane, c->ps->ww, c->ps->wh, win, &pk, ea, eb, pu, pv_);
+    if (c->su)
+        step_unc(c, win, pu, pv_, xs);
+}
+
+/* The uncertainty again for the windows the correlation-based correction moved (their
+ * vector's integer shift changed): a second sweep over the pass's windows. */
+static void step_unc_moved(void *ctx, const float *plane, const float *colmax, size_t win,
+                           double ea, double eb, double pu, double pv_, const rpiv_xcorr_src *xs)
+{
+    (void)plane, (void)colmax, (void)ea, (void)eb;
+    step_ctx *c = ctx;
+    if (c->cbc->moved[win])
+        step_unc(c, win, pu, pv_, xs);
 }
 
 int piv_repeats(const rpiv_piv *pv, int pass)
@@ -119,6 +142,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     rpiv_deform_pred *pred = NULL;
     rpiv_field *f = NULL;
     float *scratch = NULL, *cs = NULL; /* cs: the windows' own sigmas, u then v */
+    piv_cbc *cbc = NULL;
     rpiv_status st;
     /* a repeat of the window size before it (a refinement): its predictor low-passed */
     const int refines = piv_repeats(pv, pass);
@@ -130,7 +154,11 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     for (size_t win = 0; ps->masked && win < ps->nwin; win++)
         if (ps->masked[win])
             f->flag[win] = RPIV_FLAG_MASKED;
-    step_ctx c = {pv, ps, f, NULL, NULL, NULL, piv_search_radius(pv, pass, predictor != NULL)};
+    step_ctx c = {pv,  ps, f, NULL, NULL, NULL, piv_search_radius(pv, pass, predictor != NULL),
+                  NULL};
+    if (pv->p.cbc && (st = piv_cbc_new(ps, c.near, pv->p.cbc, &cbc)))
+        goto out_free;
+    c.cbc = cbc;
     if (pv->p.uncertainty) {
         /* every pass: the final vectors carry the predictors' noise (docs/uncertainty.md) */
         const size_t nscr = 2 * (size_t)pv->nthreads * (size_t)ps->ww * (size_t)ps->wh;
@@ -145,6 +173,14 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     }
     if ((st = piv_pass_run_cut(pv, pass, pred, step_vector, &c)))
         goto out_free;
+    if (cbc) {
+        piv_source src;
+        piv_source_of(pv, pass, pred, &src);
+        const size_t moved = piv_cbc_apply(
+            cbc, src.offsets, rpiv_subpixel_resolve(pv->p.subpixel, 0), f, pv->nthreads);
+        if (moved && c.su && (st = piv_pass_run_cut(pv, pass, pred, step_unc_moved, &c)))
+            goto out_free;
+    }
     if (defer && refines && predictor && predictor->nx == f->nx && predictor->ny == f->ny) {
         /* validation deferred to the converged field: a window without a peak keeps the
          * predictor's vector (flagged replaced) */
@@ -160,6 +196,7 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     *out = f;
     f = NULL;
 out_free:
+    piv_cbc_free(cbc);
     free(cs);
     free(scratch);
     rpiv_field_free(f);
