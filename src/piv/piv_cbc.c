@@ -46,14 +46,15 @@ rpiv_status piv_cbc_new(const piv_pass *ps, int near, int mode, piv_cbc **out)
     cb->crop = malloc(n * (size_t)cb->s * (size_t)cb->s * sizeof *cb->crop);
     cb->top = malloc(n * sizeof *cb->top);
     cb->val = malloc(n * sizeof *cb->val);
+    cb->ratio = malloc(n * sizeof *cb->ratio);
     cb->cmax = malloc(n * sizeof *cb->cmax);
     cb->scale = malloc(n * sizeof *cb->scale);
     cb->pu = malloc(2 * n * sizeof *cb->pu);
     cb->ixy = malloc(2 * n * sizeof *cb->ixy);
     cb->has = calloc(n, 1);
     cb->moved = calloc(n, 1);
-    if (!cb->crop || !cb->top || !cb->val || !cb->cmax || !cb->scale || !cb->pu || !cb->ixy ||
-        !cb->has || !cb->moved) {
+    if (!cb->crop || !cb->top || !cb->val || !cb->ratio || !cb->cmax || !cb->scale || !cb->pu ||
+        !cb->ixy || !cb->has || !cb->moved) {
         piv_cbc_free(cb);
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the correlation-based correction");
     }
@@ -68,6 +69,7 @@ void piv_cbc_free(piv_cbc *cb)
     free(cb->crop);
     free(cb->top);
     free(cb->val);
+    free(cb->ratio);
     free(cb->cmax);
     free(cb->scale);
     free(cb->pu);
@@ -83,27 +85,29 @@ double piv_cbc_bytes(int ww, int wh, int near)
     if (reach < 1)
         return 0;
     const double s = 2.0 * reach + 5;
-    return s * s * sizeof(float) + 4 * sizeof(float) + 2 * sizeof(double) + 2 * sizeof(int) + 2;
+    return s * s * sizeof(float) + 5 * sizeof(float) + 2 * sizeof(double) + 2 * sizeof(int) + 2;
 }
 
-void piv_cbc_store(piv_cbc *cb, const float *plane, int w, int h, size_t win, const rpiv_peak *pk,
-                   double ea, double eb, double pu, double pv_)
+void piv_cbc_store(piv_cbc *cb, const float *plane, const float *colmax, int w, int h, size_t win,
+                   const rpiv_peak *pk, double ea, double eb, double pu, double pv_)
 {
     const int r = cb->r, s = cb->s;
     float *c = cb->crop + win * (size_t)s * (size_t)s, top = -INFINITY, cmax = -INFINITY;
-    for (size_t k = 0; k < (size_t)w * (size_t)h; k++)
-        top = plane[k] > top ? plane[k] : top;
+    const float *scan = colmax ? colmax : plane; /* the plane's top: its column maxima's */
+    for (size_t k = 0; k < (size_t)w * (colmax ? 1 : (size_t)h); k++)
+        top = scan[k] > top ? scan[k] : top;
     for (int dy = -r; dy <= r; dy++) {
         const float *row = plane + (size_t)wrap(dy, h) * (size_t)w;
-        float *crow = c + (size_t)wrap(dy, s) * (size_t)s;
-        for (int dx = -r; dx <= r; dx++) {
-            const float v = row[wrap(dx, w)];
-            crow[wrap(dx, s)] = v;
-            cmax = v > cmax ? v : cmax;
-        }
+        float *crow = c + (size_t)(dy + r) * (size_t)s;
+        /* shifts -r..-1 at the row's end, 0..r at its start (r < w / 2) */
+        memcpy(crow, row + (w - r), (size_t)r * sizeof *crow);
+        memcpy(crow + r, row, (size_t)(r + 1) * sizeof *crow);
+        for (int q = 0; q < s; q++)
+            cmax = crow[q] > cmax ? crow[q] : cmax;
     }
     cb->top[win] = top;
     cb->val[win] = pk->value;
+    cb->ratio[win] = pk->ratio;
     cb->cmax[win] = cmax;
     cb->scale[win] = (float)sqrt(ea * eb);
     cb->pu[2 * win] = pu;
@@ -113,15 +117,16 @@ void piv_cbc_store(piv_cbc *cb, const float *plane, int w, int h, size_t win, co
     cb->has[win] = 1;
 }
 
-/* The value of crop c (side s) at shift (dx, dy). */
-static float at(const float *c, int s, int dx, int dy)
+/* The value of crop c (side s = 2 r + 1) at shift (dx, dy), |dx|, |dy| <= r. */
+static float at(const float *c, int r, int dx, int dy)
 {
-    return c[(size_t)wrap(dy, s) * (size_t)s + (size_t)wrap(dx, s)];
+    return c[(size_t)(dy + r) * (size_t)(2 * r + 1) + (size_t)(dx + r)];
 }
 
-/* The correction of window win: 1 and its new vector in f when its peak moved. */
+/* The correction of window win: 1 and its new vector in f when its peak moved. comb: room for
+ * (2 reach + 1)^2 doubles. */
 static int cbc_window(const piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv_field *f,
-                      size_t win)
+                      size_t win, double *comb)
 {
     enum { MAXN = 5 };
     const int s = cb->s, reach = cb->reach;
@@ -132,8 +137,8 @@ static int cbc_window(const piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv
     double inv[MAXN];
     int dn[MAXN][2], n = 0;
     if (!cb->has[win] || !(cb->cmax[win] > 0) || abs(cb->ixy[2 * win]) > reach ||
-        abs(cb->ixy[2 * win + 1]) > reach)
-        return 0; /* not measured, or its peak beyond the reach: not compared, kept */
+        abs(cb->ixy[2 * win + 1]) > reach || !(cb->ratio[win] < PIV_CBC_RATIO))
+        return 0; /* not measured, its peak beyond the reach, or clear: kept */
     for (int k = 0; k < MAXN; k++) {
         const int ii = i + nb[k][0], jj = j + nb[k][1];
         if (ii < 0 || jj < 0 || ii >= cb->nx || jj >= cb->ny)
@@ -159,16 +164,27 @@ static int cbc_window(const piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv
     }
     if (n < 2)
         return 0; /* no neighbour */
+    /* the combination over |shift| <= reach, neighbour after neighbour (each position sums or
+     * multiplies its terms in the same order as one at a time would) */
+    const int m = 2 * reach + 1, r = cb->r;
+    for (int q = 0; q < m * m; q++)
+        comb[q] = cb->mode == 2 ? 0 : 1;
+    for (int k = 0; k < n; k++)
+        for (int dy = -reach; dy <= reach; dy++) {
+            const float *row = cn[k] + (size_t)(dy - dn[k][1] + r) * (size_t)s + (r - dn[k][0]);
+            double *out = comb + (size_t)(dy + reach) * (size_t)m + reach;
+            if (cb->mode == 2)
+                for (int dx = -reach; dx <= reach; dx++)
+                    out[dx] += row[dx] > 0 ? (double)row[dx] * inv[k] : 0;
+            else
+                for (int dx = -reach; dx <= reach; dx++)
+                    out[dx] *= row[dx] > 0 ? (double)row[dx] * inv[k] : 0;
+        }
     double best = 0;
     int lx = 0, ly = 0, found = 0;
     for (int dy = -reach; dy <= reach; dy++)
         for (int dx = -reach; dx <= reach; dx++) {
-            double p = cb->mode == 2 ? 0 : 1;
-            for (int k = 0; k < n; k++) {
-                double v = (double)at(cn[k], s, dx - dn[k][0], dy - dn[k][1]) * inv[k];
-                v = v > 0 ? v : 0;
-                p = cb->mode == 2 ? p + v : p * v;
-            }
+            const double p = comb[(size_t)(dy + reach) * (size_t)m + (size_t)(dx + reach)];
             if (p > best) {
                 best = p;
                 lx = dx;
@@ -181,15 +197,15 @@ static int cbc_window(const piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv
 
     /* the window's own local maximum that the combination points at: steepest ascent */
     const float *c0 = cn[0];
-    const int lim = cb->r - (method == RPIV_SUBPIXEL_SPLINE ? PEAK_SPLINE_R : 1);
+    const int lim = r - (method == RPIV_SUBPIXEL_SPLINE ? PEAK_SPLINE_R : 1);
     for (int step = 0; step < s * s; step++) {
-        float v = at(c0, s, lx, ly);
+        float v = at(c0, r, lx, ly);
         int bx = lx, by = ly;
         for (int ddy = -1; ddy <= 1; ddy++)
             for (int ddx = -1; ddx <= 1; ddx++) {
                 const int x = lx + ddx, y = ly + ddy;
-                if (abs(x) <= cb->r - 1 && abs(y) <= cb->r - 1 && at(c0, s, x, y) > v) {
-                    v = at(c0, s, x, y);
+                if (abs(x) <= r - 1 && abs(y) <= r - 1 && at(c0, r, x, y) > v) {
+                    v = at(c0, r, x, y);
                     bx = x;
                     by = y;
                 }
@@ -201,9 +217,9 @@ static int cbc_window(const piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv
     }
     if ((lx == cb->ixy[2 * win] && ly == cb->ixy[2 * win + 1]) || abs(lx) > lim || abs(ly) > lim)
         return 0;
-    const float vm = at(c0, s, lx, ly);
+    const float vm = at(c0, r, lx, ly);
     double fx, fy;
-    if (!(vm > 0) || !peak_fit_at(c0, s, s, wrap(lx, s), wrap(ly, s), method, &fx, &fy))
+    if (!(vm > 0) || !peak_fit_at(c0, s, s, lx + r, ly + r, method, &fx, &fy))
         return 0;
     f->u[win] = (float)(cb->pu[2 * win] + lx + fx);
     f->v[win] = (float)(cb->pu[2 * win + 1] + ly + fy);
@@ -217,15 +233,22 @@ static int cbc_window(const piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv
 size_t piv_cbc_apply(piv_cbc *cb, int offsets, rpiv_subpixel method, rpiv_field *f, int nthreads)
 {
     size_t moved = 0;
+    const size_t m = 2 * (size_t)cb->reach + 1;
     /* every window reads the stored planes only and writes its own vector: any thread count
      * gives the same field */
-#pragma omp parallel for schedule(static) num_threads(nthreads) reduction(+ : moved)
-    for (size_t win = 0; win < cb->nwin; win++) {
-        cb->moved[win] = 0;
-        if (f->flag[win] == RPIV_FLAG_VALID && cbc_window(cb, offsets, method, f, win)) {
-            cb->moved[win] = 1;
-            moved++;
+#pragma omp parallel num_threads(nthreads) reduction(+ : moved)
+    {
+        double *comb = malloc(m * m * sizeof *comb);
+#pragma omp for schedule(static)
+        for (size_t win = 0; win < cb->nwin; win++) {
+            cb->moved[win] = 0;
+            if (comb && f->flag[win] == RPIV_FLAG_VALID &&
+                cbc_window(cb, offsets, method, f, win, comb)) {
+                cb->moved[win] = 1;
+                moved++;
+            }
         }
+        free(comb);
     }
     return moved;
 }

@@ -157,13 +157,18 @@ RPIV_NODISCARD rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double s
 /* Correlation-based correction (piv_cbc.c; piv.cbc): the planes of a pass's windows kept
  * around the predicted shift, then each window's peak chosen on its plane combined with its
  * four neighbours' (mode 1: their product, 2: their sum, each normalised by its maximum). */
+/* Only windows whose own peak ratio is below this are reconsidered: a clear peak keeps its
+ * choice (on docs/piv.md's 54 weak-peak pairs no window at or above 2 ever moved). */
+#define PIV_CBC_RATIO 2.0f
+
 typedef struct piv_cbc {
     int mode;
     int reach;  /* the combination's search: |shift| <= reach px                 */
-    int r, s;   /* the planes kept: shifts |d| <= r, s = 2 r + 1 (circular)      */
+    int r, s;   /* the planes kept: shifts |d| <= r, s = 2 r + 1                 */
     int nx, ny; /* the pass's grid                                               */
     size_t nwin;
-    float *crop;          /* nwin s x s planes                                             */
+    float *crop;          /* nwin s x s planes, shift (dx, dy) at (dy + r) s + dx + r      */
+    float *ratio;         /* the window's own peak ratio                                   */
     float *top, *val;     /* the whole plane's highest value; the peak the window chose    */
     float *cmax;          /* the kept plane's highest value                                */
     float *scale;         /* sqrt(ea eb): corr = value / scale                             */
@@ -179,10 +184,10 @@ RPIV_NODISCARD rpiv_status piv_cbc_new(const piv_pass *ps, int near, int mode, p
 void piv_cbc_free(piv_cbc *cb);
 /* The bytes piv_cbc_new holds per window of ww x wh with search radius near (0: none). */
 double piv_cbc_bytes(int ww, int wh, int near);
-/* Keep window win's plane (w x h, circular), its peak pk, energies and shift. Thread-safe
- * for distinct windows. */
-void piv_cbc_store(piv_cbc *cb, const float *plane, int w, int h, size_t win, const rpiv_peak *pk,
-                   double ea, double eb, double pu, double pv_);
+/* Keep window win's plane (w x h, circular; colmax its column maxima or NULL), its peak pk,
+ * energies and shift. Thread-safe for distinct windows. */
+void piv_cbc_store(piv_cbc *cb, const float *plane, const float *colmax, int w, int h, size_t win,
+                   const rpiv_peak *pk, double ea, double eb, double pu, double pv_);
 /* Choose every valid window's peak on the combined planes; where it is another local maximum
  * of the window's own plane, its vector (fitted by method on the own plane), peak ratio
  * (against the higher of the plane's top and the peak replaced) and corr change in f. The

@@ -101,7 +101,7 @@ static void step_vector(void *ctx, const float *plane, const float *colmax, size
     if (c->f->flag[win] != RPIV_FLAG_VALID)
         return;
     if (c->cbc)
-        piv_cbc_store(c->cbc, plane, c->ps->ww, c->ps->wh, win, &pk, ea, eb, pu, pv_);
+        piv_cbc_store(c->cbc, plane, colmax, c->ps->ww, c->ps->wh, win, &pk, ea, eb, pu, pv_);
     if (c->su)
         step_unc(c, win, pu, pv_, xs);
 }
