@@ -231,7 +231,7 @@ def _piv_params_attrs(exp, pv):
     """rpiv's parameters as global attributes (the keys of [piv])."""
     attrs = {}
     keys = ["windows", "overlap", "step_px", "subpixel", "median_threshold", "median_eps_px",
-            "search_radius_px",
+            "search_radius_px", "cbc",
             "background", "roi", "mask", "deform", "scale_mm_per_px", "dt_s"]
     text = _config_text(exp)
     for k in keys:
