@@ -128,6 +128,16 @@ def test_options_take_config_keys(series):
     assert float(ds.x[1] - ds.x[0]) == 24.0  # 32 px windows at 25 % overlap
 
 
+def test_cbc_option_and_its_errors(series):
+    a, b = pair(series)
+    ds = rpiv.piv(a, b, cbc=2, threads=1)
+    assert ds.attrs["cbc"] == "2"
+    with pytest.raises(rpiv.InputError, match="cbc"):
+        rpiv.piv(a, b, cbc=3)
+    with pytest.raises(rpiv.InputError, match="cbc"):
+        rpiv.ensemble([pair(series)], cbc=1)
+
+
 def test_threads_give_identical_fields_and_run_concurrently(series):
     a, b = (rpiv.read_image(p) for p in pair(series))
     ref = rpiv.piv(a, b, threads=1)

@@ -47,6 +47,9 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
     *out = NULL;
     if (pass < 0 || pass >= pv->npass)
         return rpiv_fail(RPIV_EINVAL, "ensemble: pass %d outside 0..%d", pass, pv->npass - 1);
+    if (pv->p.cbc)
+        return rpiv_fail(RPIV_EINVAL, "ensemble: piv.cbc (the correlation-based correction) is "
+                                      "for instantaneous fields; an ensemble sums the planes");
     const piv_pass *ps = &pv->pass[pass];
     size_t plane = (size_t)ps->ww * (size_t)ps->wh;
     const size_t n = ps->nwin * (plane + 2) + ens_unc_floats(pv, pass);
