@@ -41,9 +41,8 @@ rpiv_status img_check_size(const char *path, uint64_t w, uint64_t h)
     return RPIV_OK;
 }
 
-rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_image **out)
+rpiv_status img_check_limit(const char *path, uint64_t w, uint64_t h)
 {
-    *out = NULL;
     rpiv_status st = img_check_size(path, w, h);
     if (st)
         return st;
@@ -56,13 +55,24 @@ rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_i
                          "(set RPIV_MAX_IMAGE_PIXELS to allow more)",
                          path, (unsigned long long)w, (unsigned long long)h,
                          (unsigned long long)lim);
+    return RPIV_OK;
+}
+
+rpiv_status img_alloc_ex(const char *path, uint64_t w, uint64_t h, int bits, int zeroed,
+                         rpiv_image **out)
+{
+    *out = NULL;
+    rpiv_status st = img_check_limit(path, w, h);
+    if (st)
+        return st;
     rpiv_image *im = malloc(sizeof *im);
     if (!im)
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory for the image header", path);
     im->w = (int)w;
     im->h = (int)h;
     im->bits = bits;
-    im->px = calloc((size_t)(w * h), sizeof *im->px);
+    im->px =
+        zeroed ? calloc((size_t)(w * h), sizeof *im->px) : malloc((size_t)(w * h) * sizeof *im->px);
     if (!im->px) {
         free(im);
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory for a %llux%llu image", path,
@@ -70,6 +80,11 @@ rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_i
     }
     *out = im;
     return RPIV_OK;
+}
+
+rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_image **out)
+{
+    return img_alloc_ex(path, w, h, bits, 1, out);
 }
 
 rpiv_status rpiv_image_new(int w, int h, rpiv_image **out)
