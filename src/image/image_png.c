@@ -20,10 +20,14 @@
  * this limit): text, a colour profile, a palette are far smaller. */
 #define IMG_PNG_CHUNK_MAX (4u << 20)
 
+/* The stdio buffer the file is read through. */
+#define IMG_PNG_IOBUF ((size_t)1 << 18)
+
 typedef struct pctx {
     const char *path;
     char msg[512];
     FILE *f;
+    char *iobuf; /* f's stdio buffer */
     uint64_t fsize;
     png_structp png;
     png_infop info;
@@ -219,6 +223,11 @@ rpiv_status img_png_load(const char *path, rpiv_image **out, rpiv_image **b, int
     c.f = fopen(path, "rb");
     if (!c.f)
         return rpiv_fail(RPIV_EIO, "%s: cannot open: %s", path, strerror(errno));
+    /* libpng reads through stdio: with its 4 kB buffer a 17 MB file took 4262 read() calls
+     * (if this buffer cannot be had, stdio keeps its own) */
+    c.iobuf = malloc(IMG_PNG_IOBUF);
+    if (c.iobuf)
+        (void)setvbuf(c.f, c.iobuf, _IOFBF, IMG_PNG_IOBUF);
     struct stat sb;
     c.fsize = fstat(fileno(c.f), &sb) == 0 ? (uint64_t)sb.st_size : 0;
     rpiv_status st = RPIV_OK;
@@ -237,6 +246,7 @@ rpiv_status img_png_load(const char *path, rpiv_image **out, rpiv_image **b, int
 out_free:
     png_destroy_read_struct(&c.png, &c.info, NULL);
     fclose(c.f);
+    free(c.iobuf);
     free(c.data);
     free(c.rows);
     if (st) {
