@@ -778,6 +778,15 @@ static void png_rows_interlaced_and_halves(void)
               "g16cut.png");
     CHECK(a == NULL && b == NULL);
     free(buf);
+    /* a palette index past the PLTE entries (3 colours, index 5 in the second row) */
+    const png_color pal[3] = {{10, 20, 30}, {40, 50, 60}, {70, 80, 90}};
+    const unsigned char idx[4] = {0x01, 0x20, 0x12, 0x50}; /* 0 1 2 0 | 1 2 5 0 */
+    CHECK(png_write_raw(tu_path("pidx.png"), 4, 2, 4, PNG_COLOR_TYPE_PALETTE, idx, 2, pal, 3));
+    im = (rpiv_image *)&im;
+    CHECK_ERR(rpiv_image_load(tu_path("pidx.png"), 0, &im, NULL), RPIV_EFORMAT, "pidx.png");
+    CHECK(im == NULL && strstr(rpiv_errmsg(), "palette index"));
+    CHECK_ERR(rpiv_image_load_halves(tu_path("pidx.png"), &a, &b, NULL), RPIV_EFORMAT, "pidx.png");
+    CHECK(a == NULL && b == NULL && strstr(rpiv_errmsg(), "palette index"));
 }
 
 static void png_low_depth_palette_alpha_rgb(void)

@@ -37,6 +37,8 @@ typedef struct pctx {
     rpiv_image *im2;     /* the bottom half (split), or NULL */
     int split;           /* asked for the two halves */
     int warned;
+    int bad_index; /* a palette index without a PLTE entry was seen */
+    int no_plte;   /* a palette image without PLTE chunk */
     /* the layout of the rows libpng hands back, and the palette's luminance */
     int ctype, nchan, bps, colour;
     float lut[256];
@@ -88,8 +90,10 @@ static void row_grey16(const unsigned char *s, float *d, size_t w, int nchan)
         d[x] = (float)((unsigned)s[x * step] << 8 | s[x * step + 1]);
 }
 
-/* Raw row r (as libpng returns it after its transforms) to the floats d[0..w-1]. May call
- * png_error (a palette index without a PLTE entry), so only from inside png_decode. */
+/* Raw row r (as libpng returns it after its transforms) to the floats d[0..w-1]. A palette
+ * index without a PLTE entry sets c->bad_index: png_decode reports it after the whole file
+ * is read, so a later CRC error or truncation still comes first, as when the rows were
+ * converted after the read. */
 static void png_row(pctx *c, const unsigned char *r, float *d, png_uint_32 w)
 {
     const size_t bps = (size_t)c->bps, nchan = (size_t)c->nchan;
@@ -112,7 +116,7 @@ static void png_row(pctx *c, const unsigned char *r, float *d, png_uint_32 w)
         } else {
             d[x] = c->lut[(int)v[0]];
             if (isnan(d[x]))
-                png_error(c->png, "palette index beyond the PLTE entries");
+                c->bad_index = 1;
         }
     }
 }
@@ -179,10 +183,9 @@ static int png_decode(pctx *c)
     if (rowbytes < (size_t)w * (size_t)c->nchan * (size_t)c->bps)
         png_error(c->png, "unexpected row size");
     if (c->ctype == PNG_COLOR_TYPE_PALETTE) {
-        png_colorp pal;
+        png_colorp pal = NULL;
         int npal = 0;
-        if (!png_get_PLTE(c->png, c->info, &pal, &npal))
-            png_error(c->png, "palette image without PLTE chunk");
+        c->no_plte = !png_get_PLTE(c->png, c->info, &pal, &npal); /* reported after the read */
         for (int i = 0; i < 256; i++)
             c->lut[i] = i < npal ? img_luma(pal[i].red, pal[i].green, pal[i].blue) : NAN;
     }
@@ -207,6 +210,10 @@ static int png_decode(pctx *c)
         png_row(c, r, d, w);
     }
     png_read_end(c->png, NULL); /* checks the CRC of the last IDAT and of later chunks */
+    if (c->no_plte)
+        png_error(c->png, "palette image without PLTE chunk");
+    if (c->bad_index)
+        png_error(c->png, "palette index beyond the PLTE entries");
     c->warned = c->colour;
     return 0;
 }
