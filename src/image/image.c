@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <time.h>
 #ifdef __SSE2__
@@ -80,6 +81,26 @@ rpiv_status img_alloc_ex(const char *path, uint64_t w, uint64_t h, int bits, int
     }
     *out = im;
     return RPIV_OK;
+}
+
+void img_populate(const rpiv_image *im, uint64_t fsize)
+{
+#ifdef MADV_POPULATE_WRITE
+    if (!im)
+        return;
+    const size_t n = (size_t)im->w * (size_t)im->h * sizeof *im->px;
+    const long pg = sysconf(_SC_PAGESIZE);
+    if (pg <= 0 || n < ((size_t)4 << 20) || n / 32 > fsize)
+        return;
+    uintptr_t a = (uintptr_t)im->px, e = a + n, m = (uintptr_t)pg - 1;
+    a = (a + m) & ~m;
+    e &= ~m;
+    if (e > a)
+        (void)madvise((void *)a, e - a, MADV_POPULATE_WRITE); /* an old kernel: EINVAL */
+#else
+    (void)im;
+    (void)fsize;
+#endif
 }
 
 rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_image **out)

@@ -172,6 +172,8 @@ static int png_decode(pctx *c)
         (st = img_alloc_ex(c->path, w, h0, bits, 0, &c->im)) ||
         (halves && (st = img_alloc_ex(c->path, w, h0, bits, 0, &c->im2))))
         return (int)st;
+    img_populate(c->im, c->fsize);
+    img_populate(c->im2, c->fsize);
     if (depth < 8)
         png_set_packing(c->png); /* one index or grey level per byte, not rescaled */
     int passes = png_set_interlace_handling(c->png);
