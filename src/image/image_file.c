@@ -163,15 +163,14 @@ static rpiv_status split_halves(const char *path, rpiv_image *im, rpiv_image **a
         return st;
     }
     int hh = im->h / 2;
-    rpiv_status st = rpiv_image_new(im->w, hh, b);
+    rpiv_status st = img_alloc_ex(path, (uint64_t)im->w, (uint64_t)hh, im->bits, 0, b);
     if (st) {
         rpiv_image_free(im);
         return st;
     }
     size_t half = (size_t)im->w * (size_t)hh;
-    memcpy((*b)->px, im->px + half, half * sizeof *im->px);
-    (*b)->bits = im->bits;
-    float *px = realloc(im->px, half * sizeof *im->px); /* shrinks: cannot fail in practice */
+    memcpy((*b)->px, im->px + half, half * sizeof *im->px); /* every pixel of *b */
+    float *px = realloc(im->px, half * sizeof *im->px);     /* shrinks: cannot fail in practice */
     if (px)
         im->px = px;
     im->h = hh;
