@@ -4,12 +4,40 @@
  * rpiv_image_load detects them) and loads them through the public API. Invariants: a success
  * gives a sane size and finite levels within the bit depth (fuzz_check_image); a failure
  * leaves *out NULL and a message naming the file; for multi-page TIFF the last page loads or
- * fails the same way, and a page past the end fails with RPIV_EINVAL. */
+ * fails the same way, and a page past the end fails with RPIV_EINVAL; page 0 read as a
+ * double frame gives the whole image's halves (fuzz_check_halves). */
 #ifndef RPIV_FUZZ_IMAGE_H
 #define RPIV_FUZZ_IMAGE_H
 
 #include "fuzz.h"
 #include "rpiv/image.h"
+
+/* The double-frame reader (rpiv_image_load_halves, which decodes a PNG straight into two
+ * halves) against the whole image im (NULL if rpiv_image_load failed with status st): the
+ * same pixels, bit for bit, for an even height; RPIV_ESIZE for an odd one; the same status
+ * for a file that does not load. */
+static inline void fuzz_check_halves(const char *path, const rpiv_image *im, rpiv_status st)
+{
+    rpiv_image *a = (rpiv_image *)&a, *b = (rpiv_image *)&b;
+    rpiv_status sh = rpiv_image_load_halves(path, &a, &b, NULL);
+    if (!im || im->h % 2) {
+        FUZZ_CHECK(sh == (im ? RPIV_ESIZE : st), "%s: halves status %d, whole %d", path, (int)sh,
+                   (int)st);
+        FUZZ_CHECK(a == NULL && b == NULL, "%s: failed halves left an image", path);
+        fuzz_check_failure(sh, path);
+        return;
+    }
+    size_t half = (size_t)im->w * (size_t)(im->h / 2);
+    FUZZ_CHECK(sh == RPIV_OK && a && b, "%s: halves status %d", path, (int)sh);
+    FUZZ_CHECK(a->w == im->w && b->w == im->w && a->h == im->h / 2 && b->h == im->h / 2 &&
+                   a->bits == im->bits && b->bits == im->bits,
+               "%s: halves %dx%d %dx%d of %dx%d", path, a->w, a->h, b->w, b->h, im->w, im->h);
+    FUZZ_CHECK(memcmp(a->px, im->px, half * sizeof *im->px) == 0 &&
+                   memcmp(b->px, im->px + half, half * sizeof *im->px) == 0,
+               "%s: halves differ from the whole image", path);
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+}
 
 static inline void fuzz_load_page(const char *path, int page)
 {
@@ -26,6 +54,8 @@ static inline void fuzz_load_page(const char *path, int page)
         FUZZ_CHECK(im == NULL, "%s: failure left an image", path);
         fuzz_check_failure(st, path);
     }
+    if (page == 0)
+        fuzz_check_halves(path, im, st);
     rpiv_image_free(im);
 }
 

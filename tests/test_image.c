@@ -651,9 +651,11 @@ static void tiff_truncated_and_silent(void)
 
 /* ---- PNG ----------------------------------------------------------------------------- */
 
-/* Write a PNG with libpng: rows of packed samples as PNG stores them. */
-static int png_write_raw(const char *path, int w, int h, int depth, int ctype,
-                         const unsigned char *data, size_t rowbytes, const png_color *pal, int npal)
+/* Write a PNG with libpng: rows of packed samples as PNG stores them; Adam7-interlaced if
+ * interlace. */
+static int png_write_raw_il(const char *path, int w, int h, int depth, int ctype,
+                            const unsigned char *data, size_t rowbytes, const png_color *pal,
+                            int npal, int interlace)
 {
     FILE *f = fopen(path, "wb");
     if (!f)
@@ -666,16 +668,125 @@ static int png_write_raw(const char *path, int w, int h, int depth, int ctype,
         return 0;
     }
     png_init_io(png, f);
-    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, depth, ctype, PNG_INTERLACE_NONE,
-                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, depth, ctype,
+                 interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+                 PNG_FILTER_TYPE_DEFAULT);
     if (pal)
         png_set_PLTE(png, info, pal, npal);
     png_write_info(png, info);
-    for (int y = 0; y < h; y++)
-        png_write_row(png, data + (size_t)y * rowbytes);
+    int passes = png_set_interlace_handling(png);
+    for (int p = 0; p < passes; p++)
+        for (int y = 0; y < h; y++)
+            png_write_row(png, data + (size_t)y * rowbytes);
     png_write_end(png, NULL);
     png_destroy_write_struct(&png, &info);
     return fclose(f) == 0;
+}
+
+static int png_write_raw(const char *path, int w, int h, int depth, int ctype,
+                         const unsigned char *data, size_t rowbytes, const png_color *pal, int npal)
+{
+    return png_write_raw_il(path, w, h, depth, ctype, data, rowbytes, pal, npal, 0);
+}
+
+/* 1 if im (w x h) holds pat16 (or pat8) at rows y0..y0+h-1 of the pattern, exactly. */
+static int holds_pattern(const rpiv_image *im, int w, int h, int y0, int eight)
+{
+    if (!im || im->w != w || im->h != h)
+        return 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++)
+            if (im->px[(size_t)y * w + x] != (float)(eight ? pat8(x, y0 + y) : pat16(x, y0 + y)))
+                return 0;
+    return 1;
+}
+
+/* The row-by-row reader (the vector 16-bit path and its scalar tail: 37 is not a multiple of
+ * 8), the interlaced one (all rows first), grey+alpha and 8-bit grey; and the double-frame
+ * reader, which decodes a PNG straight into its two halves: the same pixels as the whole
+ * image split, as for TIFF; odd height, size limit and a cut file refused with the file named. */
+static void png_rows_interlaced_and_halves(void)
+{
+    enum { W = 37, H = 24 };
+    static unsigned char g16[H][2 * W], ga16[H][4 * W], g8[H][W];
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            unsigned v = pat16(x, y);
+            g16[y][2 * x] = ga16[y][4 * x] = (unsigned char)(v >> 8);
+            g16[y][2 * x + 1] = ga16[y][4 * x + 1] = (unsigned char)(v & 0xff);
+            ga16[y][4 * x + 2] = (unsigned char)x, ga16[y][4 * x + 3] = 0x5a; /* alpha ignored */
+            g8[y][x] = (unsigned char)pat8(x, y);
+        }
+    const struct {
+        const char *name;
+        int depth, ctype, il, eight;
+        const unsigned char *d;
+        size_t rb;
+    } f[5] = {
+        {"g16.png", 16, PNG_COLOR_TYPE_GRAY, 0, 0, g16[0], 2 * W},
+        {"g16i.png", 16, PNG_COLOR_TYPE_GRAY, 1, 0, g16[0], 2 * W},
+        {"ga16.png", 16, PNG_COLOR_TYPE_GRAY_ALPHA, 0, 0, ga16[0], 4 * W},
+        {"ga16i.png", 16, PNG_COLOR_TYPE_GRAY_ALPHA, 1, 0, ga16[0], 4 * W},
+        {"g8i.png", 8, PNG_COLOR_TYPE_GRAY, 1, 1, g8[0], W},
+    };
+    for (int k = 0; k < 5; k++) {
+        rpiv_image *im = NULL, *a = NULL, *b = NULL;
+        int warned = -1;
+        CHECK(png_write_raw_il(tu_path(f[k].name), W, H, f[k].depth, f[k].ctype, f[k].d, f[k].rb,
+                               NULL, 0, f[k].il));
+        CHECK_OK(rpiv_image_load(tu_path(f[k].name), 0, &im, &warned));
+        CHECK(holds_pattern(im, W, H, 0, f[k].eight) && warned == 0);
+        CHECK(im && im->bits == f[k].depth);
+        warned = -1;
+        CHECK_OK(rpiv_image_load_halves(tu_path(f[k].name), &a, &b, &warned));
+        CHECK(holds_pattern(a, W, H / 2, 0, f[k].eight) && warned == 0);
+        CHECK(holds_pattern(b, W, H / 2, H / 2, f[k].eight));
+        CHECK(a && b && a->bits == f[k].depth && b->bits == f[k].depth);
+        rpiv_image_free(im);
+        rpiv_image_free(a);
+        rpiv_image_free(b);
+    }
+    /* TIFF through load and split: the same halves */
+    rpiv_image *im = image16(W, H), *a = NULL, *b = NULL;
+    CHECK_OK(rpiv_image_save_tiff16(im, tu_path("g16.tif")));
+    CHECK_OK(rpiv_image_load_halves(tu_path("g16.tif"), &a, &b, NULL));
+    CHECK(holds_pattern(a, W, H / 2, 0, 0) && holds_pattern(b, W, H / 2, H / 2, 0));
+    CHECK(a && b && a->bits == 16 && b->bits == 16);
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+    rpiv_image_free(im);
+    /* odd height, PNG and TIFF */
+    im = image16(W, H + 1);
+    CHECK_OK(rpiv_image_save_png16(im, tu_path("odd.png")));
+    CHECK_OK(rpiv_image_save_tiff16(im, tu_path("odd.tif")));
+    a = b = (rpiv_image *)&a;
+    CHECK_ERR(rpiv_image_load_halves(tu_path("odd.png"), &a, &b, NULL), RPIV_ESIZE, "odd.png");
+    CHECK(a == NULL && b == NULL && strstr(rpiv_errmsg(), "even height"));
+    CHECK_ERR(rpiv_image_load_halves(tu_path("odd.tif"), &a, &b, NULL), RPIV_ESIZE, "odd.tif");
+    CHECK(a == NULL && b == NULL);
+    rpiv_image_free(im);
+    /* the pixel limit applies to the whole file, not to a half */
+    setenv("RPIV_MAX_IMAGE_PIXELS", "887", 1); /* 37 x 24 = 888 */
+    CHECK_FAILS(rpiv_image_load_halves(tu_path("g16.png"), &a, &b, NULL), RPIV_ELIMIT);
+    CHECK(a == NULL && b == NULL && strstr(rpiv_errmsg(), "g16.png"));
+    unsetenv("RPIV_MAX_IMAGE_PIXELS");
+    /* cut inside the pixel data */
+    size_t n;
+    unsigned char *buf = tu_read(tu_path("g16.png"), &n);
+    CHECK(buf && tu_write(tu_path("g16cut.png"), buf, n - 40));
+    CHECK_ERR(rpiv_image_load_halves(tu_path("g16cut.png"), &a, &b, NULL), RPIV_EFORMAT,
+              "g16cut.png");
+    CHECK(a == NULL && b == NULL);
+    free(buf);
+    /* a palette index past the PLTE entries (3 colours, index 5 in the second row) */
+    const png_color pal[3] = {{10, 20, 30}, {40, 50, 60}, {70, 80, 90}};
+    const unsigned char idx[4] = {0x01, 0x20, 0x12, 0x50}; /* 0 1 2 0 | 1 2 5 0 */
+    CHECK(png_write_raw(tu_path("pidx.png"), 4, 2, 4, PNG_COLOR_TYPE_PALETTE, idx, 2, pal, 3));
+    im = (rpiv_image *)&im;
+    CHECK_ERR(rpiv_image_load(tu_path("pidx.png"), 0, &im, NULL), RPIV_EFORMAT, "pidx.png");
+    CHECK(im == NULL && strstr(rpiv_errmsg(), "palette index"));
+    CHECK_ERR(rpiv_image_load_halves(tu_path("pidx.png"), &a, &b, NULL), RPIV_EFORMAT, "pidx.png");
+    CHECK(a == NULL && b == NULL && strstr(rpiv_errmsg(), "palette index"));
 }
 
 static void png_low_depth_palette_alpha_rgb(void)
@@ -1231,6 +1342,7 @@ int main(void)
     RUN_TEST(tiff_truncated_and_silent);
     RUN_TEST(png_low_depth_palette_alpha_rgb);
     RUN_TEST(png_bad_input);
+    RUN_TEST(png_rows_interlaced_and_halves);
     RUN_TEST(bmp_palette_is_grey_of_palette);
     RUN_TEST(bmp24_and_jpeg);
     RUN_TEST(missing_empty_unknown);

@@ -61,6 +61,13 @@ rpiv_image_stats rpiv_image_stats_of(const rpiv_image *im);
 RPIV_NODISCARD rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out,
                                            int *warned);
 
+/* Read a one-page double-frame image: frame A is the top half of the image, frame B the
+ * bottom half (*a and *b, each w x h/2, new images). A PNG is decoded straight into the two
+ * halves. Errors as for rpiv_image_load (page 0), and RPIV_ESIZE naming the file for an odd
+ * height; on failure *a and *b are NULL. */
+RPIV_NODISCARD rpiv_status rpiv_image_load_halves(const char *path, rpiv_image **a, rpiv_image **b,
+                                                  int *warned);
+
 /* Number of pages (frames) in an image file: 1 except for multi-page TIFF. Errors as for
  * rpiv_image_format_of, and RPIV_EFORMAT for an unreadable TIFF directory. */
 RPIV_NODISCARD rpiv_status rpiv_image_count_pages(const char *path, int *npages);

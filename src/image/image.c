@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <time.h>
 #ifdef __SSE2__
@@ -41,9 +42,8 @@ rpiv_status img_check_size(const char *path, uint64_t w, uint64_t h)
     return RPIV_OK;
 }
 
-rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_image **out)
+rpiv_status img_check_limit(const char *path, uint64_t w, uint64_t h)
 {
-    *out = NULL;
     rpiv_status st = img_check_size(path, w, h);
     if (st)
         return st;
@@ -56,13 +56,24 @@ rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_i
                          "(set RPIV_MAX_IMAGE_PIXELS to allow more)",
                          path, (unsigned long long)w, (unsigned long long)h,
                          (unsigned long long)lim);
+    return RPIV_OK;
+}
+
+rpiv_status img_alloc_ex(const char *path, uint64_t w, uint64_t h, int bits, int zeroed,
+                         rpiv_image **out)
+{
+    *out = NULL;
+    rpiv_status st = img_check_limit(path, w, h);
+    if (st)
+        return st;
     rpiv_image *im = malloc(sizeof *im);
     if (!im)
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory for the image header", path);
     im->w = (int)w;
     im->h = (int)h;
     im->bits = bits;
-    im->px = calloc((size_t)(w * h), sizeof *im->px);
+    im->px =
+        zeroed ? calloc((size_t)(w * h), sizeof *im->px) : malloc((size_t)(w * h) * sizeof *im->px);
     if (!im->px) {
         free(im);
         return rpiv_fail(RPIV_ENOMEM, "%s: out of memory for a %llux%llu image", path,
@@ -70,6 +81,31 @@ rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_i
     }
     *out = im;
     return RPIV_OK;
+}
+
+void img_populate(const rpiv_image *im, uint64_t fsize)
+{
+#ifdef MADV_POPULATE_WRITE
+    if (!im)
+        return;
+    const size_t n = (size_t)im->w * (size_t)im->h * sizeof *im->px;
+    const long pg = sysconf(_SC_PAGESIZE);
+    if (pg <= 0 || n < ((size_t)4 << 20) || n / 32 > fsize)
+        return;
+    uintptr_t a = (uintptr_t)im->px, e = a + n, m = (uintptr_t)pg - 1;
+    a = (a + m) & ~m;
+    e &= ~m;
+    if (e > a)
+        (void)madvise((void *)a, e - a, MADV_POPULATE_WRITE); /* an old kernel: EINVAL */
+#else
+    (void)im;
+    (void)fsize;
+#endif
+}
+
+rpiv_status img_alloc(const char *path, uint64_t w, uint64_t h, int bits, rpiv_image **out)
+{
+    return img_alloc_ex(path, w, h, bits, 1, out);
 }
 
 rpiv_status rpiv_image_new(int w, int h, rpiv_image **out)

@@ -123,7 +123,7 @@ rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out, int *w
         break;
     case RPIV_IMAGE_PNG:
         fclose(f);
-        st = img_png_load(path, out, &warn);
+        st = img_png_load(path, out, NULL, &warn);
         break;
     case RPIV_IMAGE_PGM:
     case RPIV_IMAGE_BMP:
@@ -146,6 +146,67 @@ rpiv_status rpiv_image_load(const char *path, int page, rpiv_image **out, int *w
         break;
     }
     if (st == RPIV_OK && warned)
+        *warned = warn;
+    return st;
+}
+
+/* Split a double-frame image into its top and bottom halves: the top half keeps im's pixel
+ * buffer (cut down in place), the bottom half is a copy. im is consumed. */
+static rpiv_status split_halves(const char *path, rpiv_image *im, rpiv_image **a, rpiv_image **b)
+{
+    if (im->h % 2) {
+        rpiv_status st = rpiv_fail(RPIV_ESIZE,
+                                   "%s: a double-frame image needs an even height (frame A "
+                                   "above frame B), got %dx%d",
+                                   path, im->w, im->h);
+        rpiv_image_free(im);
+        return st;
+    }
+    int hh = im->h / 2;
+    rpiv_status st = img_alloc_ex(path, (uint64_t)im->w, (uint64_t)hh, im->bits, 0, b);
+    if (st) {
+        rpiv_image_free(im);
+        return st;
+    }
+    size_t half = (size_t)im->w * (size_t)hh;
+    memcpy((*b)->px, im->px + half, half * sizeof *im->px); /* every pixel of *b */
+    float *px = realloc(im->px, half * sizeof *im->px);     /* shrinks: cannot fail in practice */
+    if (px)
+        im->px = px;
+    im->h = hh;
+    *a = im;
+    return RPIV_OK;
+}
+
+rpiv_status rpiv_image_load_halves(const char *path, rpiv_image **a, rpiv_image **b, int *warned)
+{
+    rpiv_image_format fmt;
+    size_t size = 0;
+    int warn = 0;
+    *a = *b = NULL;
+    if (warned)
+        *warned = 0;
+    rpiv_status st = read_magic(path, &fmt, NULL, &size);
+    if (st)
+        return st;
+    rpiv_image *im = NULL;
+    if (fmt == RPIV_IMAGE_PNG) {
+        /* decoded straight into the two halves (no whole image, no copy) unless the height
+         * is odd: then the whole image, refused below after a complete read as for any
+         * format */
+        st = img_png_load(path, &im, b, &warn);
+        if (!st && *b) {
+            *a = im;
+            if (warned)
+                *warned = warn;
+            return RPIV_OK;
+        }
+    } else {
+        st = rpiv_image_load(path, 0, &im, &warn);
+    }
+    if (!st)
+        st = split_halves(path, im, a, b);
+    if (!st && warned)
         *warned = warn;
     return st;
 }

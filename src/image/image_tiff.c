@@ -500,9 +500,10 @@ rpiv_status img_tiff_load(const char *path, int page, rpiv_image **out, int *war
     int bits = ti.sf == SAMPLEFORMAT_IEEEFP ? 32 : ti.bps;
     if (ti.photo == PHOTOMETRIC_PALETTE)
         bits = ti.bps <= 8 ? 8 : 16;
-    st = img_alloc(path, ti.w, ti.h, bits, &im);
+    st = img_alloc_ex(path, ti.w, ti.h, bits, 0, &im); /* read_blocks writes every pixel */
     if (st)
         goto out_close;
+    img_populate(im, (uint64_t)TIFFGetSizeProc(t)(TIFFClientdata(t)));
     size_t npx = (size_t)ti.w * ti.h;
     if (ti.nch == 3) {
         rgb = malloc(3 * npx * sizeof *rgb);

@@ -398,31 +398,6 @@ rpiv_status rpiv_pairs_from_args(int nargs, char *const *args, rpiv_pairing rule
     return RPIV_OK;
 }
 
-/* Split a double-frame image: frame A is the top half, frame B the bottom half. */
-static rpiv_status split_frames(const char *path, const rpiv_image *im, rpiv_image **a,
-                                rpiv_image **b)
-{
-    if (im->h % 2)
-        return rpiv_fail(RPIV_ESIZE,
-                         "%s: a double-frame image needs an even height (frame A above "
-                         "frame B), got %dx%d",
-                         path, im->w, im->h);
-    int hh = im->h / 2;
-    rpiv_status st = rpiv_image_new(im->w, hh, a);
-    if (!st)
-        st = rpiv_image_new(im->w, hh, b);
-    if (st) {
-        rpiv_image_free(*a);
-        *a = NULL;
-        return st;
-    }
-    size_t half = (size_t)im->w * (size_t)hh;
-    memcpy((*a)->px, im->px, half * sizeof *im->px);
-    memcpy((*b)->px, im->px + half, half * sizeof *im->px);
-    (*a)->bits = (*b)->bits = im->bits;
-    return RPIV_OK;
-}
-
 static rpiv_status load_pair(const rpiv_pair_src *s, rpiv_image **a, rpiv_image **b)
 {
     rpiv_status st;
@@ -436,13 +411,7 @@ static rpiv_status load_pair(const rpiv_pair_src *s, rpiv_image **a, rpiv_image 
             if (!st)
                 st = rpiv_image_load(s->path_a, 1, b, NULL);
         } else {
-            rpiv_image *im;
-            st = rpiv_image_load(s->path_a, 0, &im, NULL);
-            if (st)
-                return st;
-            st = split_frames(s->path_a, im, a, b);
-            rpiv_image_free(im);
-            return st;
+            return rpiv_image_load_halves(s->path_a, a, b, NULL);
         }
     } else {
         st = rpiv_image_load(s->path_a, 0, a, NULL);
