@@ -91,8 +91,9 @@ typedef struct acc {
  * of whether that term would help instantaneous fields (docs/uncertainty.md). */
 static const unc_model *g_sys;
 
-/* With g_dump set (RPIV_UNC_DUMP), acc_field prints every valid vector: grid i j, position,
- * error and sigma of u and v, the field's serial number (diagnostics). */
+/* With g_dump set (RPIV_UNC_DUMP), acc_field prints every valid vector: the field's serial
+ * number, grid i j, position, error and sigma of u and v; and the replaced ones, the line
+ * starting with "R" (not counted in the statistics) (diagnostics). */
 static FILE *g_dump;
 static int g_dump_field;
 
@@ -122,11 +123,17 @@ static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
     for (int j = 0; j < f->ny; j++)
         for (int i = 0; i < f->nx; i++) {
             size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
-            if (f->flag[k] != RPIV_FLAG_VALID)
+            if (f->flag[k] != RPIV_FLAG_VALID && !(g_dump && f->flag[k] == RPIV_FLAG_REPLACED))
                 continue;
             double u, v;
             fl->fn(fl->user, f->x0 + i * f->dx, f->y0 + j * f->dy, &u, &v);
             double eu = (double)f->u[k] - u, ev = (double)f->v[k] - v;
+            if (f->flag[k] != RPIV_FLAG_VALID) { /* a replaced vector: dumped, "R" first */
+                fprintf(g_dump, "R %d %d %d %.2f %.2f %.6f %.6f %.6f %.6f\n", g_dump_field, i, j,
+                        f->x0 + i * f->dx, f->y0 + j * f->dy, eu, ev, (double)qu->data[k],
+                        (double)qv->data[k]);
+                continue;
+            }
             if (g_sys) {
                 double bx, by;
                 if (unc_model_bias(g_sys, (double)f->u[k], (double)f->v[k], (double)f->u[k],
