@@ -91,6 +91,12 @@ typedef struct acc {
  * of whether that term would help instantaneous fields (docs/uncertainty.md). */
 static const unc_model *g_sys;
 
+/* With g_dump set (RPIV_UNC_DUMP), acc_field prints every valid vector: the field's serial
+ * number, grid i j, position, error and sigma of u and v; and the replaced ones, the line
+ * starting with "R" (not counted in the statistics) (diagnostics). */
+static FILE *g_dump;
+static int g_dump_field;
+
 static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
 {
     const rpiv_quantity *qu = rpiv_field_quantity(f, "sigma_u");
@@ -113,14 +119,21 @@ static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
         }
     }
     stats *s = &c->s;
+    g_dump_field++;
     for (int j = 0; j < f->ny; j++)
         for (int i = 0; i < f->nx; i++) {
             size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
-            if (f->flag[k] != RPIV_FLAG_VALID)
+            if (f->flag[k] != RPIV_FLAG_VALID && !(g_dump && f->flag[k] == RPIV_FLAG_REPLACED))
                 continue;
             double u, v;
             fl->fn(fl->user, f->x0 + i * f->dx, f->y0 + j * f->dy, &u, &v);
             double eu = (double)f->u[k] - u, ev = (double)f->v[k] - v;
+            if (f->flag[k] != RPIV_FLAG_VALID) { /* a replaced vector: dumped, "R" first */
+                fprintf(g_dump, "R %d %d %d %.2f %.2f %.6f %.6f %.6f %.6f\n", g_dump_field, i, j,
+                        f->x0 + i * f->dx, f->y0 + j * f->dy, eu, ev, (double)qu->data[k],
+                        (double)qv->data[k]);
+                continue;
+            }
             if (g_sys) {
                 double bx, by;
                 if (unc_model_bias(g_sys, (double)f->u[k], (double)f->v[k], (double)f->u[k],
@@ -129,6 +142,10 @@ static void acc_field(acc *c, const flow *fl, const rpiv_field *f)
                     qv->data[k] = (float)hypot((double)qv->data[k], by);
                 }
             }
+            if (g_dump)
+                fprintf(g_dump, "%d %d %d %.2f %.2f %.6f %.6f %.6f %.6f\n", g_dump_field, i, j,
+                        f->x0 + i * f->dx, f->y0 + j * f->dy, eu, ev, (double)qu->data[k],
+                        (double)qv->data[k]);
             s->cov_u += fabs(eu) <= (double)qu->data[k];
             s->cov_v += fabs(ev) <= (double)qv->data[k];
             s->rms_u += eu * eu;
@@ -444,7 +461,8 @@ static rpiv_status ens_done(void *user, size_t k, rpiv_status st, int loaded)
 
 /* The ensemble field of npairs pairs of src, every pass; threads; with ckpt (a path) the final
  * pass is saved after half its pairs and resumed from the file. */
-static int g_ens_passes; /* > 0: ens_run stops after this many passes (diagnostics) */
+static int g_ens_passes;        /* > 0: ens_run stops after this many passes (diagnostics) */
+static int g_ens_subpixel = -1; /* >= 0: the ensembles' estimator (diagnostics) */
 
 static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const char *ckpt)
 {
@@ -452,6 +470,8 @@ static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const ch
     prm.uncertainty = 1;
     prm.ensemble = 1;
     prm.threads = threads;
+    if (g_ens_subpixel >= 0) /* diagnostics: RPIV_UNC_SUBPIXEL */
+        prm.subpixel = (rpiv_subpixel)g_ens_subpixel;
     rpiv_piv *pv = NULL;
     rpiv_field *pred = NULL;
     CHECK_OK(rpiv_piv_new(&prm, src->size, src->size, NULL, &pv));
@@ -843,6 +863,30 @@ int main(void)
     double nz, tau;
     if (one && sscanf(one, "%d %lf %lf %d", &q, &nz, &tau, &nens) == 4 && q >= 0 && q < 2) {
         stats s = ens_case(&flows[q], nz, tau, nens, 20, 128);
+        print_case(flows[q].name, nz, tau, &s);
+        return check_summary();
+    }
+    /* every valid vector of one case: RPIV_UNC_DUMP="kind flow noise d_tau [count]" (kind 0:
+     * the instantaneous sweep's seeds, count pairs, 4 by default; kind 1: the ensemble sweep's,
+     * count ensembles of 20 pairs, 40 by default); RPIV_UNC_SUBPIXEL the ensembles' estimator.
+     * tests/tools/unc_where.py reads it (docs/uncertainty.md, "Where the error is"). */
+    const char *dump = getenv("RPIV_UNC_DUMP");
+    if (getenv("RPIV_UNC_SUBPIXEL"))
+        g_ens_subpixel = atoi(getenv("RPIV_UNC_SUBPIXEL"));
+    int kind, count = 0;
+    if (dump && sscanf(dump, "%d %d %lf %lf %d", &kind, &q, &nz, &tau, &count) >= 4 && q >= 0 &&
+        q < 3) {
+        const double noises[] = {0, 0.02, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
+        int k = 0, t = 0;
+        for (int i = 0; i < 4; i++)
+            k = fabs(noises[i] - nz) < 1e-9 ? i : k;
+        for (int i = 0; i < 3; i++)
+            t = fabs(taus[i] - tau) < 1e-9 ? i : t;
+        g_dump = stdout;
+        stats s = kind ? ens_case(&flows[q], nz, tau, count > 0 ? count : 40, 20, 128)
+                       : run_case(&flows[q], nz, tau, 1000 + 17 * (uint64_t)k + 3 * (uint64_t)t,
+                                  256, 0, count > 0 ? count : 4);
+        g_dump = NULL;
         print_case(flows[q].name, nz, tau, &s);
         return check_summary();
     }

@@ -157,8 +157,9 @@ static rpiv_status ens_systematic(const rpiv_ensemble *e, const rpiv_field *f, f
         h[w] = (float)hx;
         h[e->nwin + w] = (float)hy;
     }
+    const int frame[6] = {pv->w, pv->h, ps->ox, ps->oy, ps->sx, ps->sy};
     unc_systematic(f, ps->ww, ps->wh, h, h + e->nwin, p, p + e->nwin, src.deform,
-                   src.offsets ? 0 : src.shift, su, sv, pv->nthreads);
+                   src.offsets ? 0 : src.shift, frame, su, sv, pv->nthreads);
     free(h);
     free(p);
     return RPIV_OK;

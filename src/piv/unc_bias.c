@@ -150,6 +150,138 @@ int unc_model_fit(unc_model *m, double hx, double hy, double dx, double dy, doub
     return 1;
 }
 
+/* ---- the image's edge (docs/uncertainty.md, "The image's edge") ------------------------- */
+
+enum {
+    EL = 256,  /* longest model frame, px */
+    EPOS = 2,  /* particle positions per px */
+    ELEAK = 12 /* px over which the prefilter's mirror boundary reaches (0.268^12 ~ 1e-7) */
+};
+
+/* One axis of a window of ww px whose first pixel is o px from the frame's first: the part of
+ * the expected correlation at lags k0 - MR .. k0 + MR contributed by the particles within
+ * `span` px of the window's first pixel (from `reach` px before it), EPOS per px, each
+ * pixel-integrated (s px) and cut by the frame as the camera cuts it, at x - d/2 and x + d/2;
+ * both frames turned into B-spline coefficients (mirror boundaries) and sampled at
+ * x + c -+ p/2 as rpiv_deform_run does, a pixel whose either sample leaves the frame adding
+ * nothing (it takes the frame's mean), the pairs of pixels within the window (the circular
+ * correlation's other pairs are unrelated particles). The model frame ends a few px beyond
+ * what these particles reach (the same place relative to the window whatever o, so that end
+ * cancels between two o). 0 if it would be longer than EL. */
+static int edge_part(double s, double d, double p, double c, int o, int ww, int k0, double reach,
+                     double span, double C[2 * MR + 1])
+{
+    int Y = (int)ceil(span + reach) + 2;
+    Y = Y < ww ? Y : ww;
+    const int L = o + Y + (int)ceil(0.5 * fabs(p) + fabs(c)) + ELEAK;
+    if (L > EL)
+        return 0;
+    float fa[EL], fb[EL];
+    double ta[EL], tb[EL], a[EL], b[EL];
+    int ok[EL];
+    const double k = 1.0 / (sqrt(2.0) * s);
+    for (int y = 0; y < Y; y++) {
+        ta[y] = o + y + c - 0.5 * p;
+        tb[y] = o + y + c + 0.5 * p;
+        ok[y] = ta[y] >= -0.5 && ta[y] <= L - 0.5 && tb[y] >= -0.5 && tb[y] <= L - 0.5;
+    }
+    memset(C, 0, (2 * MR + 1) * sizeof *C);
+    const int np = (int)ceil((span + reach) * EPOS);
+    for (int q = 0; q < np; q++) {
+        const double xm = o - reach + (q + 0.5) / EPOS;
+        const double xc[2] = {xm - 0.5 * d, xm + 0.5 * d};
+        float *fr[2] = {fa, fb};
+        for (int f = 0; f < 2; f++) {
+            memset(fr[f], 0, (size_t)L * sizeof *fr[f]);
+            const int x0 = (int)floor(xc[f] - 4 * s - 1), x1 = (int)ceil(xc[f] + 4 * s + 1);
+            for (int x = x0 > 0 ? x0 : 0; x <= x1 && x < L; x++)
+                fr[f][x] = (float)(0.5 * (erf((x + 0.5 - xc[f]) * k) - erf((x - 0.5 - xc[f]) * k)));
+        }
+        rpiv_deform_prefilter(fa, L, 1, 1);
+        rpiv_deform_prefilter(fb, L, 1, 1);
+        for (int y = 0; y < Y; y++) {
+            a[y] = ok[y] ? (double)rpiv_deform_sample(fa, L, 1, ta[y], 0.0, 0.0f) : 0;
+            b[y] = ok[y] ? (double)rpiv_deform_sample(fb, L, 1, tb[y], 0.0, 0.0f) : 0;
+        }
+        for (int l = -MR; l <= MR; l++) {
+            double t = 0;
+            for (int y = 0; y < Y; y++) {
+                const int z = y + k0 + l;
+                if (z >= 0 && z < Y)
+                    t += a[y] * b[z];
+            }
+            C[l + MR] += t;
+        }
+    }
+    return 1;
+}
+
+/* The estimate of the plane cx (x) cy (lags -MR .. MR about 0). */
+static int plane_est(const double cx[2 * MR + 1], const double cy[2 * MR + 1], rpiv_subpixel method,
+                     double *ex, double *ey)
+{
+    float plane[MW * MW];
+    rpiv_peak pk;
+    memset(plane, 0, sizeof plane);
+    for (int l = -MR; l <= MR; l++)
+        for (int i = -MR; i <= MR; i++)
+            plane[((l + MW) % MW) * MW + (i + MW) % MW] = (float)(cx[i + MR] * cy[l + MR]);
+    rpiv_peak_find(plane, MW, MW, 0, method, &pk);
+    *ex = pk.dx;
+    *ey = pk.dy;
+    return pk.fit_ok;
+}
+
+/* The image edge's share of the systematic error of one window, per axis (added to the bias
+ * of a window far from it): lo[a], hi[a] the window's distance (px) from the frame's first
+ * and last pixel along axis a; p the predictor (the pass converged: d = p). Only where the
+ * window's samples or its particles' images reach the frame's edge. The window's expected
+ * correlation far from the edge is model_1d's (its 16 phases a density of MPH particles per
+ * px, the window's EPOS); near it, the particles within reach of the edge contribute
+ * differently: edge_part at the window's distance minus edge_part far from any edge. The
+ * last pixel's side is the first's with the axis reversed (x -> -x: d, p and c change sign,
+ * and so does the estimate). */
+static void edge_bias(const unc_model *m, const int lo[2], const int hi[2], const double p[2],
+                      double out[2])
+{
+    const double s[2] = {m->sx, m->sy};
+    const int w[2] = {m->ww, m->wh};
+    int near[2][2];
+    double reach[2];
+    out[0] = out[1] = 0;
+    for (int a = 0; a < 2; a++) {
+        reach[a] = 0.5 * fabs(p[a]) + fabs(m->c) + 3 * s[a] + 2;
+        near[a][0] = lo[a] < reach[a];
+        near[a][1] = hi[a] < reach[a];
+    }
+    for (int a = 0; a < 2; a++)
+        for (int side = 0; side < 2; side++) {
+            if (!near[a][side] || w[a] <= 0 || w[1 - a] <= 0)
+                continue;
+            const int o = 1 - a;
+            const double sg = side ? -1 : 1, span = reach[a] + ELEAK;
+            const int ofar = (int)ceil(reach[a]) + ELEAK;
+            double cf[2][2 * MR + 1], ce[2][2 * MR + 1], pe[2 * MR + 1], pf[2 * MR + 1], ef[2],
+                ee[2];
+            model_1d(s[o], p[o], p[o], 1, m->c, 0, w[o], cf[o]);
+            model_1d(s[a], sg * p[a], sg * p[a], 1, sg * m->c, 0, w[a], cf[a]);
+            if (!edge_part(s[a], sg * p[a], sg * p[a], sg * m->c, side ? hi[a] : lo[a], w[a], 0,
+                           reach[a], span, pe) ||
+                !edge_part(s[a], sg * p[a], sg * p[a], sg * m->c, ofar, w[a], 0, reach[a], span,
+                           pf))
+                continue;
+            const double scale = (double)w[a] * EPOS / MPH;
+            memcpy(ce[o], cf[o], sizeof cf[o]);
+            for (int l = 0; l <= 2 * MR; l++) {
+                cf[a][l] *= scale;
+                ce[a][l] = cf[a][l] + pe[l] - pf[l];
+            }
+            if (plane_est(cf[0], cf[1], m->method, &ef[0], &ef[1]) &&
+                plane_est(ce[0], ce[1], m->method, &ee[0], &ee[1]))
+                out[a] += sg * (ee[a] - ef[a]);
+        }
+}
+
 static int cmp_double(const void *a, const void *b)
 {
     const double x = *(const double *)a, y = *(const double *)b;
@@ -218,8 +350,8 @@ static void node_grad(const double *g, const rpiv_field *f, int i, int j, double
 }
 
 void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const float *hy,
-                    const double *pu, const double *pv, int deform, double c, float *su, float *sv,
-                    int nthreads)
+                    const double *pu, const double *pv, int deform, double c, const int *frame,
+                    float *su, float *sv, int nthreads)
 {
     const size_t n = (size_t)f->nx * (size_t)f->ny;
     /* q: 6 columns for the medians, then the keys (the predictor with deformation, else the
@@ -315,12 +447,23 @@ void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const 
     }
     tx[UNC_TAB] = tx[0];
     ty[UNC_TAB] = ty[0];
+    /* with the frame known, a window near the image's edge adds the edge's share (edge_bias) */
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nthreads)
     for (size_t k = 0; k < n; k++) {
         if (f->flag[k] != RPIV_FLAG_VALID)
             continue;
-        const double bx = tab_window(tx, period, key[0][k], grad[4 * k], grad[4 * k + 1], ww, wh);
+        double eb[2] = {0, 0};
+        if (frame && deform) {
+            const int i = (int)(k % (size_t)f->nx), j = (int)(k / (size_t)f->nx);
+            const int lo[2] = {frame[2] + i * frame[4], frame[3] + j * frame[5]};
+            const int hi[2] = {frame[0] - lo[0] - ww, frame[1] - lo[1] - wh};
+            const double p[2] = {key[0][k], key[1][k]};
+            edge_bias(&md, lo, hi, p, eb);
+        }
+        const double bx =
+            tab_window(tx, period, key[0][k], grad[4 * k], grad[4 * k + 1], ww, wh) + eb[0];
         const double by =
-            tab_window(ty, period, key[1][k], grad[4 * k + 2], grad[4 * k + 3], ww, wh);
+            tab_window(ty, period, key[1][k], grad[4 * k + 2], grad[4 * k + 3], ww, wh) + eb[1];
         su[k] = (float)hypot((double)su[k], bx);
         sv[k] = (float)hypot((double)sv[k], by);
     }

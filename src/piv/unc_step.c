@@ -84,9 +84,10 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
         float *su, *sv;
         if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(pv->unc, f, su, sv, pv->nthreads)))
             return st;
+        const int frame[6] = {pv->w, pv->h, ps->ox, ps->oy, ps->sx, ps->sy};
         if (shift != 0) /* a deforming final pass: the systematic term (unc_bias.c) */
             unc_systematic(f, ps->ww, ps->wh, cs + 2 * ps->nwin, cs + 3 * ps->nwin, NULL, NULL, 1,
-                           shift, su, sv, pv->nthreads);
+                           shift, frame, su, sv, pv->nthreads);
         if (pv->deforms)
             unc_edge_bias(f, ps->ww, ps->wh, su, sv);
         unc_replaced(f);

@@ -142,9 +142,11 @@ int unc_model_bias(const unc_model *m, double dx, double dy, double px, double p
  * whose 3-point curvature is the median of the windows' hx, hy (valid vectors with both < 0),
  * at each vector's displacement and predictor pu, pv (NULL: the vector itself, a converged
  * deforming pass); ww x wh the windows; deform and c as in unc_model, the model's estimator
- * the 3-point Gaussian. */
+ * the 3-point Gaussian. frame (NULL: not known): the frame's width and height, px, and the
+ * windows' grid, {w, h, ox, oy, sx, sy} (node (i, j)'s window starts at (ox + i sx,
+ * oy + j sy)): the windows near the image's edge get the edge's share of the bias too. */
 void unc_systematic(const rpiv_field *f, int ww, int wh, const float *hx, const float *hy,
-                    const double *pu, const double *pv, int deform, double c, float *su, float *sv,
-                    int nthreads);
+                    const double *pu, const double *pv, int deform, double c, const int *frame,
+                    float *su, float *sv, int nthreads);
 
 #endif /* RPIV_SRC_UNCERTAINTY_IMPL_H */
