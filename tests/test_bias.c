@@ -287,6 +287,7 @@ static void measured_vector_matches_window_estimate(void)
     rpiv_ccm_geometry g = {4.6, 0.4, 0.004};
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
     bp.measured = 1;
+    bp.measured_step = 1; /* exactly at every vector (the nodes: the next test) */
     rpiv_field *f = make_field(8, 2, 6.0, 0), *f0 = make_field(8, 2, 6.0, 0);
     CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
     bp.measured = 0;
@@ -328,6 +329,78 @@ static void measured_vector_matches_window_estimate(void)
     rpiv_ccm_work_free(w);
     rpiv_field_free(f);
     rpiv_field_free(f0);
+    rpiv_sheet_free(s);
+}
+
+/* measured = 1 at measured_step 8 (the window's estimate exactly at every 8th vector of a row
+ * and by bisection where the estimator's path changes, interpolated between) against every
+ * vector exact, across the section where the estimate jumps (the spline falls to the 3-point
+ * Gaussian: x* 4.6-4.7 at y* 0.5) and where the window's passes cycle; with the uncertainty's
+ * four variants of the sheet, a masked vector, 1 and 2 threads. */
+static void measured_nodes_match_exact(void)
+{
+    enum { NX = 64, NY = 2 };
+    rpiv_sheet *s = make_sheet(rpiv_sheet_params_default());
+    rpiv_ccm_model m = windowed_model();
+    rpiv_ccm_geometry g = {3.2, 0.45, 0.0015}; /* x* 3.23-6.24, y* 0.47 and 0.52 */
+    rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.measured = 1;
+    CHECK(bp.measured_step == 8);
+    rpiv_field *fe = make_field(NX, NY, 6.0, 0), *fn = make_field(NX, NY, 6.0, 0);
+    rpiv_field *f0 = make_field(NX, NY, 6.0, 0), *f2 = make_field(NX, NY, 6.0, 0);
+    if (!fe || !fn || !f0 || !f2)
+        return;
+    fe->flag[NX + 21] = fn->flag[NX + 21] = f0->flag[NX + 21] = f2->flag[NX + 21] =
+        RPIV_FLAG_MASKED;
+    bp.threads = 1;
+    CHECK_OK(rpiv_ccm_bias_field(fn, &m, s, &g, &bp, &P, NULL));
+    bp.threads = 2;
+    CHECK_OK(rpiv_ccm_bias_field(f2, &m, s, &g, &bp, &P, NULL));
+    bp.measured_step = 1;
+    CHECK_OK(rpiv_ccm_bias_field(fe, &m, s, &g, &bp, &P, NULL));
+    bp.measured = 0;
+    CHECK_OK(rpiv_ccm_bias_field(f0, &m, s, &g, &bp, &P, NULL));
+    const char *qs[] = {"bias_u", "bias_u_std", "u_corrected", "z_ref"};
+    double dmax[4] = {0}, jump = 0, lin = 0;
+    int same = 1;
+    for (int k = 0; k < NX * NY; k++) {
+        for (int q = 0; q < 4; q++) {
+            dmax[q] = fmax(dmax[q], fabs((double)qv(fn, qs[q], k) - (double)qv(fe, qs[q], k)));
+            same = same && qv(fn, qs[q], k) == qv(f2, qs[q], k);
+        }
+        /* the exact offset from the continuous peak: its largest step between columns, and
+         * the error of interpolating it linearly between every 8th column (no refinement) */
+        int i = k % NX, a = i / 8 * 8, b = a + 8 < NX ? a + 8 : NX - 1;
+        double off = (double)qv(fe, "bias_u", k) - (double)qv(f0, "bias_u", k);
+        if (i > 0 && k != NX + 21 && k != NX + 22)
+            jump = fmax(jump, fabs(off - ((double)qv(fe, "bias_u", k - 1) -
+                                          (double)qv(f0, "bias_u", k - 1))));
+        if (k / NX == 0 && b > a) {
+            int ka = k - i + a, kb = k - i + b;
+            double oa = (double)qv(fe, "bias_u", ka) - (double)qv(f0, "bias_u", ka);
+            double ob = (double)qv(fe, "bias_u", kb) - (double)qv(f0, "bias_u", kb);
+            lin = fmax(lin, fabs(oa + (ob - oa) * (i - a) / (b - a) - off));
+        }
+    }
+    printf("  %d x %d vectors, x* 3.23-6.24: largest step of the exact dx_sub - dx between "
+           "columns %.4f px (linear interpolation every 8th column errs by up to %.4f px); "
+           "nodes against exact: bias_u %.2e, bias_u_std %.2e, u_corrected %.2e px, z_ref %.1e\n",
+           NX, NY, jump, lin, dmax[0], dmax[1], dmax[2], dmax[3]);
+    CHECK(jump > 0.03); /* the estimate jumps here */
+    CHECK(lin > 0.01);  /* and plain interpolation would not follow it */
+    /* the interpolation's own error (smooth between nodes 0.38 x* apart): 9.9e-5 px */
+    CHECK(dmax[0] < 2e-4);
+    CHECK(dmax[1] < 2e-4);
+    CHECK(dmax[2] < 2e-4);
+    CHECK(dmax[3] == 0);
+    CHECK(same); /* bit-identical for 1 and 2 threads */
+    CHECK(qv(fn, "bias_u", NX + 21) == 0 && qv(fn, "u_corrected", NX + 21) == 0);
+    bp.measured_step = 0;
+    CHECK_FAILS(rpiv_ccm_bias_field(fn, &m, s, &g, &bp, &P, NULL), RPIV_EINVAL);
+    rpiv_field_free(fe);
+    rpiv_field_free(fn);
+    rpiv_field_free(f0);
+    rpiv_field_free(f2);
     rpiv_sheet_free(s);
 }
 
@@ -533,6 +606,7 @@ int main(void)
     RUN_TEST(field_gradient_is_a_linear_profile);
     RUN_TEST(duct_vector_matches_predict);
     RUN_TEST(measured_vector_matches_window_estimate);
+    RUN_TEST(measured_nodes_match_exact);
     RUN_TEST(correction_pays_on_images);
     RUN_TEST(invert_fits_what_the_engine_measures);
     RUN_TEST(bad_input);

@@ -102,7 +102,8 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv
  * mean-removed windows sums to zero); with deform = 1 the plane sampled at integer shifts about
  * the predictor (the deformed frames' residual shifts), with 0 at integer shifts (whole-pixel
  * window offsets). The predictor starts at the infinite window's estimate and is the estimate
- * itself at convergence (the passes repeated to 1e-5 px). dx, dy, value, mx, my: the infinite
+ * itself at convergence (the passes repeated to 1e-5 px; passes that alternate between two
+ * estimates: the 20th pass's). dx, dy, value, mx, my: the infinite
  * window's, as rpiv_ccm_corr_peak. win_w = win_h = 0: rpiv_ccm_corr_peak. RPIV_EINVAL for a
  * window outside 4..4096 px. */
 RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c,
@@ -517,6 +518,13 @@ typedef struct rpiv_ccm_bias_params {
                                     (rpiv_ccm_peak.dx_sub, dy_sub of rpiv_ccm_predict: the
                                     forward model of rpiv_ccm_invert_params.measured = 1);
                                     0 = the continuous peak of <R_D> (dx, dy)              */
+    int measured_step;           /* [bias] measured_step: with measured, the window's estimate
+                                    is computed exactly at every measured_step-th unmasked
+                                    vector of a row (and between two of them whose estimator
+                                    paths differ, by bisection), its offset from the
+                                    continuous peak interpolated between two with the same
+                                    path (docs/bias.md); 1 = exactly at every vector. The
+                                    `field` variation is always exact (8)                  */
     int threads;                 /* OpenMP threads over rows; 0 = default (0)               */
 } rpiv_ccm_bias_params;
 
@@ -525,7 +533,8 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params
 
 /* For every unmasked vector of f (image coordinates, not y-up), placed in the channel by g:
  * the displacement Eq. "statform" predicts through the sheet at the vector's x* (its
- * continuous peak; with bp->measured the estimate on the plane of base's window, dx_sub), D_pred,
+ * continuous peak; with bp->measured the estimate on the plane of base's window, dx_sub, exact
+ * at nodes and interpolated between them, bp->measured_step), D_pred,
  * for the velocity's variation across the depth of bp->vary, against the displacement D_ref at the
  * depth of bp->depth: bias = D_pred - D_ref (px), and the corrected field u - bias_u. The
  * uncertainty of the bias is the half-difference of the bias with the sheet's thickness scaled by 1

@@ -28,6 +28,7 @@ rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void)
     bp.pixel_box = 1;
     bp.window_model = 1;
     bp.measured = 0;
+    bp.measured_step = 8;
     bp.threads = 0;
     return bp;
 }
@@ -52,6 +53,8 @@ rpiv_status rpiv_ccm_bias_params_check(const rpiv_ccm_bias_params *bp)
         return rpiv_fail(RPIV_EINVAL, "bias: window_model %d is neither 0 nor 1", bp->window_model);
     if (bp->measured != 0 && bp->measured != 1)
         return rpiv_fail(RPIV_EINVAL, "bias: measured %d is neither 0 nor 1", bp->measured);
+    if (bp->measured_step < 1 || bp->measured_step > 64)
+        return rpiv_fail(RPIV_EINVAL, "bias: measured_step %d outside 1..64", bp->measured_step);
     if (bp->threads < 0 || bp->threads > 1024)
         return rpiv_fail(RPIV_EINVAL, "bias: %d threads outside 0..1024", bp->threads);
     return RPIV_OK;
@@ -141,6 +144,20 @@ typedef struct bias_job {
     float *q[NQ];
 } bias_job;
 
+/* The quantities of vector k: bias (bu, bv), squared std (su, sv), reference depth. */
+static void store(const bias_job *jb, size_t k, double bu, double bv, double su, double sv,
+                  double zref)
+{
+    const rpiv_field *f = jb->f;
+    jb->q[Q_BU][k] = (float)bu;
+    jb->q[Q_BV][k] = (float)bv;
+    jb->q[Q_UC][k] = (float)((double)f->u[k] - bu);
+    jb->q[Q_VC][k] = (float)((double)f->v[k] - bv);
+    jb->q[Q_SU][k] = (float)sqrt(su);
+    jb->q[Q_SV][k] = (float)sqrt(sv);
+    jb->q[Q_Z][k] = (float)zref;
+}
+
 /* One vector (i, j); m has the row's velocity (DUCT, PROFILE) and uref its untabulated U*. */
 static rpiv_status vector(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_model *mrow,
                           const rpiv_ccm_func *uref, int i, int j)
@@ -208,14 +225,212 @@ static rpiv_status vector(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_m
         su += 0.25 * (pu - nu) * (pu - nu);
         sv += 0.25 * (pv - nv) * (pv - nv);
     }
-    jb->q[Q_BU][k] = (float)bu;
-    jb->q[Q_BV][k] = (float)bv;
-    jb->q[Q_UC][k] = (float)((double)f->u[k] - bu);
-    jb->q[Q_VC][k] = (float)((double)f->v[k] - bv);
-    jb->q[Q_SU][k] = (float)sqrt(su);
-    jb->q[Q_SV][k] = (float)sqrt(sv);
-    jb->q[Q_Z][k] = (float)zref;
+    store(jb, k, bu, bv, su, sv, zref);
     return RPIV_OK;
+}
+
+/* ---- measured = 1 at measured_step > 1: the window's estimate at nodes, interpolated -------
+ * Along a row (duct, profile) the model of a vector depends only on its section x*, and the
+ * window's estimate less the continuous peak, dx_sub - dx, is a smooth function of x* except
+ * where the estimator's path on the sampled plane changes: the sampled maximum moves to the
+ * next pixel, a sample its logarithms read turns non-positive (the 7 x 7 spline falls to
+ * 5 x 5, then to the 3-point Gaussian, which is off by up to 0.08 px on a broad skewed peak),
+ * or the window's passes cycle instead of converging. Those are its signature (ccm_wsig). The
+ * estimate is computed exactly every measured_step-th unmasked vector of the row; between two
+ * exact vectors whose signatures differ, or that did not converge, exactly at the middle one,
+ * recursively; the offset of every other vector is interpolated between two exact vectors of
+ * the same signature (cubic with the next exact vectors on both sides when they share it, else
+ * quadratic or linear). The continuous peak is computed once at every vector. With an infinite
+ * window (window_model 0) the rows are exact at every vector (its estimate's signature is not
+ * kept). */
+
+enum { MAXVAR = 5 };
+
+/* One vector through one variant of the sheet. */
+typedef struct npt {
+    double dx, dy; /* the continuous peak, px */
+    double sx, sy; /* the window's estimate (exact), px */
+    ccm_wsig sig;
+    int exact;
+} npt;
+
+typedef struct nrow {
+    const bias_job *jb;
+    rpiv_ccm_work *w;
+    const rpiv_ccm_model *m; /* the row's model (its velocity) */
+    int n, nvar;
+    double stretch[MAXVAR], shift[MAXVAR];
+    double *xstar, *zmax; /* [n] */
+    npt *pt;              /* [t nvar + v] */
+} nrow;
+
+/* Vector t through variant v: the continuous peak; with window, the estimate and signature. */
+static rpiv_status npredict(nrow *r, int t, int v, int window)
+{
+    rpiv_ccm_model m = *r->m;
+    pert_sheet ps = {r->jb->sheet, r->xstar[t], r->zmax[t], r->stretch[v], r->shift[v]};
+    npt *q = &r->pt[(size_t)t * (size_t)r->nvar + (size_t)v];
+    m.illum = (rpiv_ccm_func){pert_fn, &ps};
+    if (!window)
+        m.window_w = m.window_h = 0;
+    if (m.nbreaks < RPIV_CCM_MAX_BREAKS && ps.zc + ps.shift > m.zlo && ps.zc + ps.shift < m.zhi)
+        m.breaks[m.nbreaks++] = ps.zc + ps.shift; /* the sheet's peak, as bias_one */
+    rpiv_ccm_peak pk;
+    rpiv_status st = ccm_predict_sig(&m, r->w, &pk, window ? &q->sig : NULL);
+    if (st)
+        return st;
+    q->dx = pk.dx;
+    q->dy = pk.dy;
+    if (window) {
+        q->sx = pk.dx_sub;
+        q->sy = pk.dy_sub;
+        q->exact = 1;
+    }
+    return RPIV_OK;
+}
+
+static int sig_same(const ccm_wsig *a, const ccm_wsig *b)
+{
+    return a->conv && b->conv && a->mx == b->mx && a->my == b->my && a->sig == b->sig;
+}
+
+#define NPT(r, t, v) (&(r)->pt[(size_t)(t) * (size_t)(r)->nvar + (size_t)(v)])
+
+/* Exact vectors between a and b (both exact) until every gap lies between two of the same
+ * signature. */
+static rpiv_status refine(nrow *r, int v, int a, int b)
+{
+    while (b - a > 1 && !sig_same(&NPT(r, a, v)->sig, &NPT(r, b, v)->sig)) {
+        int mid = a + (b - a) / 2;
+        rpiv_status st = npredict(r, mid, v, 1);
+        if (st || (st = refine(r, v, a, mid)))
+            return st;
+        a = mid;
+    }
+    return RPIV_OK;
+}
+
+/* The offset (estimate less continuous peak) of vector t of variant v between the exact
+ * vectors l < t < h of the same signature; ll, hh: the exact ones beyond them (-1: none). */
+static void interp(nrow *r, int v, int t, int ll, int l, int h, int hh, double *ox, double *oy)
+{
+    int idx[4], k = 0;
+    const ccm_wsig *sg = &NPT(r, l, v)->sig;
+    if (ll >= 0 && sig_same(&NPT(r, ll, v)->sig, sg))
+        idx[k++] = ll;
+    idx[k++] = l;
+    idx[k++] = h;
+    if (hh >= 0 && sig_same(&NPT(r, hh, v)->sig, sg))
+        idx[k++] = hh;
+    double x = r->xstar[t];
+    *ox = *oy = 0;
+    for (int a = 0; a < k; a++) { /* Lagrange through the k exact vectors */
+        double wgt = 1;
+        for (int b = 0; b < k; b++)
+            if (b != a)
+                wgt *= (x - r->xstar[idx[b]]) / (r->xstar[idx[a]] - r->xstar[idx[b]]);
+        const npt *q = NPT(r, idx[a], v);
+        *ox += wgt * (q->sx - q->dx);
+        *oy += wgt * (q->sy - q->dy);
+    }
+}
+
+/* Row j by nodes (measured, duct or profile): m the row's model, uref its untabulated U*. */
+static rpiv_status row_nodes(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_model *m,
+                             const rpiv_ccm_func *uref, int j)
+{
+    const rpiv_field *f = jb->f;
+    const rpiv_ccm_bias_params *bp = jb->bp;
+    nrow r = {jb, w, m, 0, 1, {1}, {0}, NULL, NULL, NULL};
+    if (bp->rel_thickness > 0) {
+        r.stretch[r.nvar] = 1 + bp->rel_thickness;
+        r.stretch[r.nvar + 1] = 1 - bp->rel_thickness;
+        r.nvar += 2;
+    }
+    if (bp->dz > 0) {
+        r.stretch[r.nvar] = r.stretch[r.nvar + 1] = 1;
+        r.shift[r.nvar] = bp->dz;
+        r.shift[r.nvar + 1] = -bp->dz;
+        r.nvar += 2;
+    }
+    int *col = malloc((size_t)f->nx * sizeof *col);
+    double *buf = malloc(3 * (size_t)f->nx * sizeof *buf);
+    r.pt = calloc((size_t)f->nx * (size_t)r.nvar, sizeof *r.pt);
+    rpiv_status st = RPIV_OK;
+    if (!col || !buf || !r.pt) {
+        st = rpiv_fail(RPIV_ENOMEM, "bias: out of memory for a row of %d vectors", f->nx);
+        goto out_free;
+    }
+    r.xstar = buf;
+    r.zmax = buf + f->nx;
+    double *zref = buf + 2 * (size_t)f->nx;
+    for (int i = 0; i < f->nx; i++) {
+        size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
+        if (f->flag[k] == RPIV_FLAG_MASKED) {
+            for (int q = 0; q < NQ; q++)
+                jb->q[q][k] = 0;
+            continue;
+        }
+        col[r.n++] = i;
+    }
+    const int step = bp->measured_step;
+    for (int t = 0; t < r.n && !st; t++) {
+        r.xstar[t] = jb->g->x0_star + (f->x0 + col[t] * f->dx + 0.5) * jb->g->star_per_px;
+        if ((st = rpiv_ccm_sheet_zmax(jb->sheet, r.xstar[t], jb->p, &r.zmax[t])))
+            break;
+        zref[t] = bp->depth == RPIV_CCM_DEPTH_ZMAX ? r.zmax[t] : m->camera.zop_star;
+        for (int v = 0; v < r.nvar && !st && (t % step == 0 || t == r.n - 1); v++)
+            st = npredict(&r, t, v, 1); /* the nodes */
+    }
+    for (int v = 0; v < r.nvar && !st; v++) {
+        int a = 0;
+        for (int t = 1; t < r.n && !st; t++)
+            if (NPT(&r, t, v)->exact) {
+                st = refine(&r, v, a, t);
+                a = t;
+            }
+    }
+    for (int t = 0; t < r.n && !st; t++) /* the continuous peak of the others */
+        for (int v = 0; v < r.nvar && !st; v++)
+            if (!NPT(&r, t, v)->exact)
+                st = npredict(&r, t, v, 0);
+    for (int t = 0; t < r.n && !st; t++) {
+        double d[MAXVAR][2];
+        for (int v = 0; v < r.nvar; v++) {
+            const npt *q = NPT(&r, t, v);
+            if (q->exact) {
+                d[v][0] = q->sx;
+                d[v][1] = q->sy;
+                continue;
+            }
+            int l = t - 1, h = t + 1, ll, hh;
+            while (!NPT(&r, l, v)->exact)
+                l--;
+            while (!NPT(&r, h, v)->exact)
+                h++;
+            for (ll = l - 1; ll >= 0 && !NPT(&r, ll, v)->exact; ll--)
+                ;
+            for (hh = h + 1; hh < r.n && !NPT(&r, hh, v)->exact; hh++)
+                ;
+            double ox, oy;
+            interp(&r, v, t, ll, l, h, hh < r.n ? hh : -1, &ox, &oy);
+            d[v][0] = q->dx + ox;
+            d[v][1] = q->dy + oy;
+        }
+        double dref_u = m->scale_px * uref->fn(uref->user, zref[t]), su = 0, sv = 0;
+        for (int v = 1; v + 1 < r.nvar; v += 2) {
+            double pu = d[v][0] - d[v + 1][0], pv = d[v][1] - d[v + 1][1];
+            su += 0.25 * pu * pu;
+            sv += 0.25 * pv * pv;
+        }
+        store(jb, (size_t)j * (size_t)f->nx + (size_t)col[t], d[0][0] - dref_u, d[0][1], su, sv,
+              zref[t]);
+    }
+out_free:
+    free(col);
+    free(buf);
+    free(r.pt);
+    return st;
 }
 
 /* One row j of the field. */
@@ -236,6 +451,12 @@ static rpiv_status row(const bias_job *jb, rpiv_ccm_work *w, int j)
     tm = m;
     if (jb->bp->vary == RPIV_CCM_VARY_DUCT && (st = ccm_utab_init(&tab, &m, jb->p, &tm)))
         return st;
+    if (jb->bp->measured && jb->bp->measured_step > 1 && jb->bp->vary != RPIV_CCM_VARY_FIELD &&
+        m.window_w > 0) { /* (an infinite window's estimate: exact at every vector) */
+        st = row_nodes(jb, w, &tm, &m.u, j);
+        ccm_utab_free(&tab);
+        return st;
+    }
     for (int i = 0; i < f->nx && !st; i++) {
         size_t k = (size_t)j * (size_t)f->nx + (size_t)i;
         if (f->flag[k] == RPIV_FLAG_MASKED) {

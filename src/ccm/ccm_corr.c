@@ -675,24 +675,42 @@ int ccm_subpixel_rad(const rpiv_ccm_params *p)
  * -1..1, normalised by the centre; the samples the estimator reads (the 3-point fits: the row
  * and the column through the centre; the centroid: 3 x 3; the spline: 7 x 7). */
 void ccm_subpixel(double rows[7][7], const rpiv_ccm_params *p, double base, int mx, int my,
-                  double *dx_sub, double *dy_sub)
+                  double *dx_sub, double *dy_sub, uint64_t *sig)
 {
     enum { PW = 8 };
     float plane[PW * PW] = {0};
     rpiv_subpixel method = rpiv_subpixel_resolve(p->subpixel, 1);
-    int rad = ccm_subpixel_rad(p);
+    int rad = ccm_subpixel_rad(p), bit = 0, spline = method == RPIV_SUBPIXEL_SPLINE;
     double r0 = rows[rad][rad] + base;
+    uint64_t mask = 0, pos7 = 1, pos5 = 1, pos3 = 1;
     for (int j = -rad; j <= rad; j++)
         for (int i = -rad; i <= rad; i++) {
-            if (i && j && method != RPIV_SUBPIXEL_CENTROID && method != RPIV_SUBPIXEL_SPLINE)
+            if (i && j && method != RPIV_SUBPIXEL_CENTROID && !spline)
                 continue;
             double v = i || j ? (rows[j + rad][i + rad] + base) / r0 : 1.0;
             plane[((j + PW) % PW) * PW + (i + PW) % PW] = (float)v;
+            /* the estimator's path: which samples its logarithms accept (the spline's 7 x 7,
+             * else its 5 x 5, else the 3-point fit's row and column) */
+            uint64_t pos = (float)v > 0;
+            mask |= spline ? 0 : pos << bit++;
+            pos7 &= pos;
+            pos5 &= pos || abs(i) > 2 || abs(j) > 2;
+            pos3 &= pos || abs(i) + abs(j) > 1;
         }
+    if (spline)
+        mask = pos7 | pos5 << 1 | pos3 << 2;
     rpiv_peak fit;
     rpiv_peak_find(plane, PW, PW, 1, method, &fit);
     *dx_sub = mx + fit.dx;
     *dy_sub = my + fit.dy;
+    if (sig) {
+        /* the spline falls back to the 3-point Gaussian when its Newton search fails */
+        rpiv_peak g = fit;
+        if (method == RPIV_SUBPIXEL_SPLINE)
+            rpiv_peak_find(plane, PW, PW, 1, RPIV_SUBPIXEL_GAUSS, &g);
+        int fallback = method == RPIV_SUBPIXEL_SPLINE && g.dx == fit.dx && g.dy == fit.dy;
+        *sig = mask | (uint64_t)fallback << 62 | (uint64_t)fit.fit_ok << 63;
+    }
 }
 
 rpiv_status ccm_sampled_rows(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, double rows[7][7],
@@ -726,7 +744,7 @@ rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
     }
     out->mx = mx;
     out->my = my;
-    ccm_subpixel(rows, p, 0, mx, my, &out->dx_sub, &out->dy_sub);
+    ccm_subpixel(rows, p, 0, mx, my, &out->dx_sub, &out->dy_sub, NULL);
     /* the continuous maximum; its value along the line (one factor per term) */
     pkline l = {c, s.mode & 1 ? 0 : 1, s.mode & 1 ? s.dy0 : s.dx0, wq};
     double rmax = (double)NAN;

@@ -7,6 +7,7 @@
 
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_integration.h>
+#include <stdint.h>
 #include <stdio.h>
 
 struct rpiv_ccm_work {
@@ -72,8 +73,30 @@ RPIV_NODISCARD rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_cc
 int ccm_subpixel_rad(const rpiv_ccm_params *p);
 RPIV_NODISCARD rpiv_status ccm_sampled_rows(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
                                             double rows[7][7], int *mx, int *my);
+/* sig (or NULL): the estimator's branch on this plane, equal for two planes on which it takes
+ * the same path: bit k = sample k it reads is > 0 (its logarithms need that; the 7 x 7 spline
+ * falls to 5 x 5, then to the 3-point Gaussian), bit 62 = the spline fell back to the 3-point
+ * Gaussian, bit 63 = the fit succeeded. */
 void ccm_subpixel(double rows[7][7], const rpiv_ccm_params *p, double base, int mx, int my,
-                  double *dx_sub, double *dy_sub);
+                  double *dx_sub, double *dy_sub, uint64_t *sig);
+
+/* What the window's estimate depends on discontinuously (ccm_bias.c interpolates it between
+ * vectors of equal signatures): the sampled maximum (mx, my) and the estimator's path (sig,
+ * ccm_subpixel's) on the last pass's plane, and whether the passes converged (0: they cycle
+ * between two estimates, and the estimate is the last pass's). */
+typedef struct ccm_wsig {
+    int conv, mx, my;
+    uint64_t sig;
+} ccm_wsig;
+
+/* rpiv_ccm_corr_peak_window with the signature (sig may be NULL; with an infinite window
+ * conv = 1 and the rest 0). */
+RPIV_NODISCARD rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c,
+                                                    const rpiv_ccm_params *p, int win_w, int win_h,
+                                                    int deform, rpiv_ccm_peak *out, ccm_wsig *sig);
+/* rpiv_ccm_predict with the signature (NULL: none). */
+RPIV_NODISCARD rpiv_status ccm_predict_sig(const rpiv_ccm_model *m, rpiv_ccm_work *w,
+                                           rpiv_ccm_peak *out, ccm_wsig *sig);
 
 /* Breakpoints for the quadrature over [zlo, zhi]: zlo, the model's breaks, z*_OP, the sampled
  * maxima and quarter-height crossings of I0 and P, zhi; sorted, unique. Returns the count. */

@@ -336,11 +336,17 @@ rpiv_status rpiv_ccm_stat_corr(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_c
 
 rpiv_status rpiv_ccm_predict(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm_peak *out)
 {
+    return ccm_predict_sig(m, w, out, NULL);
+}
+
+rpiv_status ccm_predict_sig(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm_peak *out,
+                            ccm_wsig *sig)
+{
     rpiv_status st = rpiv_ccm_stat_corr(m, w, w->corr);
     if (st)
         return st;
-    return rpiv_ccm_corr_peak_window(w->corr, &w->p, m->window_w, m->window_h, m->window_deform,
-                                     out);
+    return ccm_corr_peak_window_sig(w->corr, &w->p, m->window_w, m->window_h, m->window_deform, out,
+                                    sig);
 }
 
 /* ---- the tabulated velocity profile ----------------------------------------------------- */

@@ -13,7 +13,10 @@
  *  - the deformation: the final pass correlates frames deformed by the predictor, so the plane
  *    is R sampled at integer shifts about the predictor (not about 0), and the estimate is the
  *    predictor plus the estimator's offset on that plane; the engine's passes converge to the
- *    predictor that the estimate reproduces (a fixed point, found by repeating the pass).
+ *    predictor that the estimate reproduces (a fixed point, found by repeating the pass);
+ *    where the estimator's path changes between two predictors (the spline's fall to the
+ *    3-point Gaussian) there may be none, and the passes alternate between two estimates: the
+ *    estimate is then the last of WINDOW_ITER passes', found once the alternation repeats.
  * The baseline's lattice sum: a term's lattice sum is its
  *    volume amp pi / c (the box keeps the volume) to the aliasing of a sampled Gaussian,
  *    exp(-pi^2 / c) relative (Poisson's summation): below 1e-3 for a term narrower than
@@ -31,7 +34,7 @@
  * offset from the lattice's origin (px, py with deform, else 0). */
 static rpiv_status window_estimate(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int win_w,
                                    int win_h, int deform, double px, double py, rpiv_ccm_corr *cw,
-                                   double *ex, double *ey)
+                                   double *ex, double *ey, ccm_wsig *sig)
 {
     double vol = 0, ox = deform ? px : 0, oy = deform ? py : 0;
     rpiv_status st;
@@ -56,7 +59,12 @@ static rpiv_status window_estimate(const rpiv_ccm_corr *c, const rpiv_ccm_params
     int mx = 0, my = 0;
     if ((st = ccm_sampled_rows(cw, p, rows, &mx, &my)))
         return st;
-    ccm_subpixel(rows, p, -vol / ((double)win_w * (double)win_h), mx, my, ex, ey);
+    ccm_subpixel(rows, p, -vol / ((double)win_w * (double)win_h), mx, my, ex, ey,
+                 sig ? &sig->sig : NULL);
+    if (sig) {
+        sig->mx = mx;
+        sig->my = my;
+    }
     *ex += ox;
     *ey += oy;
     return RPIV_OK;
@@ -65,13 +73,21 @@ static rpiv_status window_estimate(const rpiv_ccm_corr *c, const rpiv_ccm_params
 rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int win_w,
                                       int win_h, int deform, rpiv_ccm_peak *out)
 {
-    if (win_w == 0 && win_h == 0)
-        return rpiv_ccm_corr_peak(c, p, out);
-    if (win_w < 4 || win_h < 4 || win_w > 4096 || win_h > 4096)
+    return ccm_corr_peak_window_sig(c, p, win_w, win_h, deform, out, NULL);
+}
+
+rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int win_w,
+                                     int win_h, int deform, rpiv_ccm_peak *out, ccm_wsig *sig)
+{
+    if (!(win_w == 0 && win_h == 0) && (win_w < 4 || win_h < 4 || win_w > 4096 || win_h > 4096))
         return rpiv_fail(RPIV_EINVAL, "ccm: window %d x %d px outside 4..4096 px", win_w, win_h);
     rpiv_status st = rpiv_ccm_corr_peak(c, p, out);
     if (st)
         return st;
+    if (sig)
+        *sig = (ccm_wsig){1, 0, 0, 0};
+    if (win_w == 0 && win_h == 0)
+        return RPIV_OK;
     /* the predictor: from the infinite window's estimate, the engine's passes repeated until
      * the estimate is its own predictor (to 1e-5 px, at most WINDOW_ITER passes) */
     double px = isfinite(out->dx_sub) ? out->dx_sub : out->dx;
@@ -79,18 +95,31 @@ rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c, const rpiv_ccm_par
     rpiv_ccm_corr *cw = NULL;
     if ((st = rpiv_ccm_corr_new(c->n, &cw)))
         return st;
-    for (int it = 0; it < WINDOW_ITER; it++) {
-        if ((st = window_estimate(c, p, win_w, win_h, deform, px, py, cw, &ex, &ey)))
+    int done = 0;
+    double qx = (double)NAN, qy = (double)NAN; /* the predictor of the previous pass */
+    for (int it = 0; it < WINDOW_ITER && !done; it++) {
+        if ((st = window_estimate(c, p, win_w, win_h, deform, px, py, cw, &ex, &ey, sig)))
             break;
-        int done = fabs(ex - px) < 1e-5 && fabs(ey - py) < 1e-5;
+        done = fabs(ex - px) < 1e-5 && fabs(ey - py) < 1e-5;
+        if (!done && fabs(ex - qx) < 1e-5 && fabs(ey - qy) < 1e-5) {
+            /* the passes alternate between two estimates (no fixed point: the estimator's
+             * path changes between them): the last pass's is the one of this parity */
+            if ((WINDOW_ITER - 1 - it) % 2) {
+                ex = px;
+                ey = py;
+            }
+            break;
+        }
+        qx = px;
+        qy = py;
         px = ex;
         py = ey;
-        if (done)
-            break;
     }
     if (!st) {
         out->dx_sub = ex;
         out->dy_sub = ey;
+        if (sig)
+            sig->conv = done;
     }
     rpiv_ccm_corr_free(cw);
     return st;

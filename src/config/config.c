@@ -295,6 +295,11 @@ static const key_spec keys[] = {
      "the per-vector bias is that of what the engine measures (its sub-pixel estimator on the "
      "plane of its final window, as window_model sets it); 0 = the CCM's continuous peak",
      0},
+    {"bias", "measured_step", KEY_INT, OFF(bias.measured_step), 1, 64, 1, "-",
+     "with measured, the window's estimate is computed exactly every N-th vector of a row (and "
+     "by bisection where the estimator's path changes), interpolated between; 1 = at every "
+     "vector",
+     0},
     {"output", "dir", KEY_STRING, OFF(output.dir), 0, 0, 1, "path", "output folder", 0},
     {"output", "plots", KEY_BOOL, OFF(output.plots), 0, 1, 1, "-", "write PNG plots", 0},
 };
