@@ -32,6 +32,19 @@ static void weak_pair(uint64_t seed, double ppp, double noise, double lost, floa
     }
 }
 
+/* Two n x n frames: 1, or 0 (a failed check) when out of memory. */
+static int frames_new(int n, float **a, float **b)
+{
+    *a = malloc(sizeof(float) * (size_t)n * (size_t)n);
+    *b = malloc(sizeof(float) * (size_t)n * (size_t)n);
+    if (*a && *b)
+        return 1;
+    CHECK(0);
+    free(*a);
+    free(*b);
+    return 0;
+}
+
 static rpiv_field *run(const rpiv_piv_params *prm, const float *a, const float *b, int w, int h)
 {
     rpiv_image ia = {w, h, 16, (float *)a}, ib = {w, h, 16, (float *)b};
@@ -71,8 +84,10 @@ static void cbc_fewer_wrong_vectors_on_weak_peaks(void)
     /* the weakest peaks of docs/piv.md's 54 pairs: 0.006 ppp, noise 20 %, none to twice as
      * many particles without a partner, two seeds */
     int w1[3] = {0}, w5[3] = {0}, n = 0;
-    float *a = malloc(sizeof(float) * 512 * 512), *b = malloc(sizeof(float) * 512 * 512);
-    for (int lost = 0; lost <= 2 && a && b; lost++)
+    float *a, *b;
+    if (!frames_new(512, &a, &b))
+        return;
+    for (int lost = 0; lost <= 2; lost++)
         for (uint64_t seed = 1; seed <= 2; seed++) {
             weak_pair(seed, 0.006, 0.2, lost, a, b);
             for (int m = 0; m < 3; m++) {
@@ -103,13 +118,9 @@ static void cbc_leaves_a_clean_pair_alone(void)
     /* clear peaks: the neighbours agree with each window's own choice, the same bits */
     double d[2] = {3.3187, -1.7413};
     ti_params tp = {256, 256, 0.05, 2.5, 1000, 0.01, 0, 4242};
-    float *a = malloc(sizeof(float) * 256 * 256), *b = malloc(sizeof(float) * 256 * 256);
-    if (!a || !b) {
-        CHECK(0);
-        free(a);
-        free(b);
+    float *a, *b;
+    if (!frames_new(256, &a, &b))
         return;
-    }
     ti_pair(&tp, ti_uniform, d, a, b);
     rpiv_piv_params prm = rpiv_piv_params_default();
     rpiv_field *f0 = run(&prm, a, b, 256, 256);
@@ -126,13 +137,9 @@ static void cbc_leaves_a_clean_pair_alone(void)
 
 static void cbc_same_bits_for_any_thread_count(void)
 {
-    float *a = malloc(sizeof(float) * 512 * 512), *b = malloc(sizeof(float) * 512 * 512);
-    if (!a || !b) {
-        CHECK(0);
-        free(a);
-        free(b);
+    float *a, *b;
+    if (!frames_new(512, &a, &b))
         return;
-    }
     weak_pair(5, 0.01, 0.2, 1, a, b);
     for (int m = 1; m <= 2; m++) {
         rpiv_piv_params prm = rpiv_piv_params_default();
@@ -169,13 +176,9 @@ static void cbc_refused_with_an_ensemble_or_out_of_range(void)
  * vectors' coverage of the truth is that of the field without the correction. */
 static void cbc_uncertainty_of_moved_vectors(void)
 {
-    float *a = malloc(sizeof(float) * 512 * 512), *b = malloc(sizeof(float) * 512 * 512);
-    if (!a || !b) {
-        CHECK(0);
-        free(a);
-        free(b);
+    float *a, *b;
+    if (!frames_new(512, &a, &b))
         return;
-    }
     weak_pair(2, 0.01, 0.2, 1, a, b);
     rpiv_piv_params prm = rpiv_piv_params_default();
     prm.uncertainty = 1;

@@ -32,6 +32,35 @@ static const real_pair pairs[] = {
     {"openpiv_camera", "Camera1-0101.tif", "Camera1-0102.tif", 1},
 };
 
+/* The field of root/dir/fa, fb by prm (NULL when a step failed: a failed check); *w, *h the
+ * frames' size. */
+static rpiv_field *run_pair(const char *root, const char *dir, const char *fa, const char *fb,
+                            const rpiv_piv_params *prm, int *w, int *h)
+{
+    char pa[1024], pb[1024];
+    snprintf(pa, sizeof pa, "%s/%s/%s", root, dir, fa);
+    snprintf(pb, sizeof pb, "%s/%s/%s", root, dir, fb);
+    char *args[2] = {pa, pb};
+    rpiv_pairs *pp = NULL;
+    rpiv_image *a = NULL, *b = NULL;
+    rpiv_piv *pv = NULL;
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_pairs_from_args(2, args, RPIV_PAIR_AB, &pp));
+    if (pp)
+        CHECK_OK(rpiv_pairs_load(pp, 0, &a, &b));
+    if (a)
+        CHECK_OK(rpiv_piv_new(prm, a->w, a->h, NULL, &pv));
+    if (pv)
+        CHECK_OK(rpiv_piv_run(pv, a, b, &f));
+    *w = a ? a->w : 0;
+    *h = a ? a->h : 0;
+    rpiv_piv_free(pv);
+    rpiv_image_free(a);
+    rpiv_image_free(b);
+    rpiv_pairs_free(pp);
+    return f;
+}
+
 static void real_pairs_are_processed(void)
 {
     const char *root = getenv("RPIV_SHARED_DATA");
@@ -44,23 +73,10 @@ static void real_pairs_are_processed(void)
     for (size_t i = 0; i < sizeof pairs / sizeof *pairs; i++) {
         if (pairs[i].slow && !slow)
             continue;
-        char pa[1024], pb[1024];
-        snprintf(pa, sizeof pa, "%s/%s/%s", root, pairs[i].dir, pairs[i].a);
-        snprintf(pb, sizeof pb, "%s/%s/%s", root, pairs[i].dir, pairs[i].b);
-        char *args[2] = {pa, pb};
-        rpiv_pairs *pp = NULL;
-        rpiv_image *a = NULL, *b = NULL;
-        rpiv_piv *pv = NULL;
-        rpiv_field *f = NULL;
         rpiv_piv_params prm = rpiv_piv_params_default();
         prm.threads = 1;
-        CHECK_OK(rpiv_pairs_from_args(2, args, RPIV_PAIR_AB, &pp));
-        if (pp)
-            CHECK_OK(rpiv_pairs_load(pp, 0, &a, &b));
-        if (a)
-            CHECK_OK(rpiv_piv_new(&prm, a->w, a->h, NULL, &pv));
-        if (pv)
-            CHECK_OK(rpiv_piv_run(pv, a, b, &f));
+        int w, h;
+        rpiv_field *f = run_pair(root, pairs[i].dir, pairs[i].a, pairs[i].b, &prm, &w, &h);
         if (f) {
             size_t n = (size_t)f->nx * (size_t)f->ny, rep = 0, finite = 1;
             for (size_t k = 0; k < n; k++) {
@@ -68,48 +84,27 @@ static void real_pairs_are_processed(void)
                 finite &= isfinite(f->u[k]) && isfinite(f->v[k]) && isfinite(f->corr[k]);
             }
             printf("    %-20s %4dx%-4d %6zu vectors, %5.2f %% rejected and replaced\n",
-                   pairs[i].dir, a->w, a->h, n, 100.0 * (double)rep / (double)n);
+                   pairs[i].dir, w, h, n, 100.0 * (double)rep / (double)n);
             CHECK(finite);
             CHECK(rep < n / 2); /* a sanity bound: these are all usable recordings */
         }
         rpiv_field_free(f);
-        rpiv_piv_free(pv);
-        rpiv_image_free(a);
-        rpiv_image_free(b);
-        rpiv_pairs_free(pp);
     }
 }
 
 /* The replaced fraction of milestone run with preprocessing ops and correction cbc. */
 static double milestone_replaced(const char *root, const char *ops, int cbc)
 {
-    char pa[1024], pb[1024];
-    snprintf(pa, sizeof pa, "%s/milestone/im00505a.png", root);
-    snprintf(pb, sizeof pb, "%s/milestone/im00505b.png", root);
-    char *args[2] = {pa, pb};
-    rpiv_pairs *pp = NULL;
-    rpiv_image *a = NULL, *b = NULL;
-    rpiv_piv *pv = NULL;
-    rpiv_field *f = NULL;
     rpiv_piv_params prm = rpiv_piv_params_default();
     double frac = 1;
+    int w, h;
     prm.cbc = cbc;
     CHECK(strlen(ops) < sizeof prm.prep.ops);
     snprintf(prm.prep.ops, sizeof prm.prep.ops, "%s", ops);
-    CHECK_OK(rpiv_pairs_from_args(2, args, RPIV_PAIR_AB, &pp));
-    if (pp)
-        CHECK_OK(rpiv_pairs_load(pp, 0, &a, &b));
-    if (a)
-        CHECK_OK(rpiv_piv_new(&prm, a->w, a->h, NULL, &pv));
-    if (pv)
-        CHECK_OK(rpiv_piv_run(pv, a, b, &f));
+    rpiv_field *f = run_pair(root, "milestone", "im00505a.png", "im00505b.png", &prm, &w, &h);
     if (f)
         frac = (double)rpiv_field_count(f, RPIV_FLAG_REPLACED) / ((double)f->nx * f->ny);
     rpiv_field_free(f);
-    rpiv_piv_free(pv);
-    rpiv_image_free(a);
-    rpiv_image_free(b);
-    rpiv_pairs_free(pp);
     return frac;
 }
 
