@@ -70,12 +70,14 @@ build-memcheck: deps
 memcheck: build-memcheck
 	cd build-memcheck && ctest -L unit -T memcheck -j $(JOBS) --output-on-failure
 
-# The same over the unit programs that take seconds under valgrind (all but the demo, the
-# calibration, the CCM, the ensemble, the uncertainty sweep, the noise sweep and the 2.6 M
-# formatted numbers of test_field_fmt (97 s under valgrind), which
-# the sanitizer run of `make test` covers): about 1.5 minutes, part of `make test`.
+# The same over the unit programs that take seconds to minutes under valgrind (all but the
+# demo, the calibration, the CCM, the ensemble, the uncertainty sweep, the noise sweep, the 2.6 M
+# formatted numbers of test_field_fmt (97 s under valgrind), and the CCM-heavy test_bias (over
+# 600 s since session 8's measured_nodes test) and test_peak_shear (242 s), which the sanitizer
+# run of `make test` covers and `make memcheck` runs): about 6 minutes on 2 cores, part of
+# `make test`.
 memcheck-quick: build-memcheck
-	cd build-memcheck && ctest -L unit -E 'test_(demo|calib|ccm|ensemble|uncertainty|noise|field_fmt)$$' -T memcheck \
+	cd build-memcheck && ctest -L unit -E 'test_(demo|calib|ccm|ensemble|uncertainty|noise|field_fmt|bias|peak_shear)$$' -T memcheck \
 	    -j $(JOBS) --output-on-failure
 
 format:
