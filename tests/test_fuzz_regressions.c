@@ -53,6 +53,9 @@ static const expect table[] = {
     /* 56-byte 24-bit BMP with compression code 0x9b9b9b6d: decoded by stb_image as
      * uncompressed 33 x 4194564 pixels, zeros past the end (2.5 s, 1 GB) */
     {"bmp_unknown_compression.bmp", IMAGE, 0, RPIV_EFORMAT, "compression"},
+    /* an 8-bit BMP whose pixels index past its 248-colour palette: stb_image read palette
+     * entries it never set, a different image at each load (fuzz_bmp_jpeg, session 8) */
+    {"bmp_index_beyond_palette.bmp", IMAGE, 0, RPIV_EFORMAT, "palette index"},
     /* 365-byte JPEG whose frame header announces 30000 x 30000: stb_image decoded the short
      * scan and 900 Mpx of zeros (63 s, 4.4 GB) and the load succeeded */
     {"jpeg_scan_shorter_than_image.jpg", IMAGE, 0, RPIV_EFORMAT, "cannot be coded"},

@@ -63,6 +63,27 @@ static rpiv_status bmp_check(const char *path, const unsigned char *b, size_t n,
         return rpiv_fail(RPIV_EFORMAT,
                          "%s: truncated BMP: pixel data end at byte %llu, file has %zu", path,
                          (unsigned long long)need, n);
+    if (bpp > 8)
+        return RPIV_OK;
+    /* An index beyond the palette the file holds would make stb_image read palette entries
+     * it never set (uninitialised memory: a different image at each load): refused. The
+     * palette's size as stb_image counts it. */
+    int64_t psize = hsize == 12 ? ((int64_t)off - 14 - 24) / 3 : ((int64_t)off - 14 - hsize) / 4;
+    if (psize >= (1 << bpp))
+        return RPIV_OK;
+    for (int64_t y = 0; y < h; y++) {
+        const unsigned char *row = b + off + (uint64_t)y * rowbytes;
+        for (int64_t x = 0; x < w; x++) {
+            const uint64_t bit = (uint64_t)x * bpp;
+            const unsigned v = (row[bit / 8] >> (8 - bpp - bit % 8)) & ((1u << bpp) - 1);
+            if ((int64_t)v >= psize)
+                return rpiv_fail(RPIV_EFORMAT,
+                                 "%s: BMP pixel (%lld, %lld) has palette index %u, beyond its "
+                                 "palette of %lld colours",
+                                 path, (long long)x, (long long)y, v,
+                                 (long long)(psize > 0 ? psize : 0));
+        }
+    }
     return RPIV_OK;
 }
 
