@@ -132,6 +132,8 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, cons
  * eighth of the smaller side of the window of the pass before, which made the predictor, or
  * of the first pass's own; at least 2 px); 0 without a predictor or when off. */
 int piv_search_radius(const rpiv_piv *pv, int pass, int has_predictor);
+/* The same from the parameters alone (the memory estimate's). */
+int piv_params_search_radius(const rpiv_piv_params *p, int pass, int has_predictor);
 
 /* Validate (median test if enabled) and replace rejected vectors. */
 RPIV_NODISCARD rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f);

@@ -73,12 +73,9 @@ rpiv_piv_mem rpiv_piv_mem_estimate(const rpiv_piv_params *p, int w, int h, int m
         for (int k = 0; k < p->npass; k++) {
             const double n = pass_vectors(p, rw, rh, k), fb = k == last ? final_b : FIELD_B;
             double pass = n * (fb + VALID_B); /* the new field, validated */
-            if (p->cbc) { /* the correlation-based correction's planes (piv_cbc.c) */
-                const int sr = p->search_radius, pw = k > 0 ? p->win_w[k - 1] : 0,
-                          ph = k > 0 ? p->win_h[k - 1] : 0, ps = pw < ph ? pw : ph;
-                const int near = k == 0 || sr == 0 ? 0 : sr > 0 ? sr : ps / 8 > 2 ? ps / 8 : 2;
-                pass += n * piv_cbc_bytes(p->win_w[k], p->win_h[k], near);
-            }
+            if (p->cbc) /* the correlation-based correction's planes (piv_cbc.c) */
+                pass += n * piv_cbc_bytes(p->win_w[k], p->win_h[k],
+                                          piv_params_search_radius(p, k, k > 0));
             if (k > 0) {
                 const double n0 = pass_vectors(p, rw, rh, k - 1);
                 /* the previous field, held; its copy being filled, or its spline

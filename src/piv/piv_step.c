@@ -40,17 +40,22 @@ void piv_vector(const rpiv_piv *pv, const piv_pass *ps, const float *plane, cons
     f->corr[win] = (float)((double)pk.value / sqrt(ea * eb));
 }
 
-int piv_search_radius(const rpiv_piv *pv, int pass, int has_predictor)
+int piv_params_search_radius(const rpiv_piv_params *p, int pass, int has_predictor)
 {
-    const int r = pv->p.search_radius;
+    const int r = p->search_radius;
     if (!has_predictor || r == 0)
         return 0;
     if (r > 0)
         return r;
     /* the window of the pass that made the predictor (the pass before; the first pass's own) */
-    const piv_pass *pp = &pv->pass[pass > 0 ? pass - 1 : 0];
-    const int side = pp->ww < pp->wh ? pp->ww : pp->wh;
+    const int k = pass > 0 ? pass - 1 : 0;
+    const int side = p->win_w[k] < p->win_h[k] ? p->win_w[k] : p->win_h[k];
     return side / 8 > 2 ? side / 8 : 2;
+}
+
+int piv_search_radius(const rpiv_piv *pv, int pass, int has_predictor)
+{
+    return piv_params_search_radius(&pv->p, pass, has_predictor);
 }
 
 rpiv_status piv_validate(const rpiv_piv *pv, rpiv_field *f)
