@@ -278,6 +278,26 @@ static void plane_study(const rpiv_experiment *ec, double xs, double ys, const r
             rpiv_peak_find(pl8, PW, PW, 1, RPIV_SUBPIXEL_SPLINE, &fit);
             g_est[v] += up + mx + fit.ix + fit.dx - (double)f->u[k];
         }
+        /* SHEAR_DUMP=file (study): the engine's 7 x 7 summed samples about its predictor and
+         * the expected plane's (pair loss and baseline), with the ideal, one window a line */
+        if (cw && getenv("SHEAR_DUMP")) {
+            FILE *fd = fopen(getenv("SHEAR_DUMP"), "a");
+            rpiv_ccm_peak pc;
+            if (fd && rpiv_ccm_corr_peak(c, &p, &pc) == RPIV_OK) {
+                fprintf(fd, "%zu %.6f %.6f %.6f %.6f %.6f", k, up, vp, (double)f->u[k], pc.dx,
+                        pc.dy);
+                for (int jj = -3; jj <= 3; jj++)
+                    for (int ii = -3; ii <= 3; ii++)
+                        fprintf(fd, " %.8g", (double)pl[((jj + w) % w) * w + (ii + w) % w]);
+                for (int jj = -3; jj <= 3; jj++)
+                    for (int ii = -3; ii <= 3; ii++)
+                        fprintf(fd, " %.8g",
+                                rpiv_ccm_corr_eval(cw, up + ii, vp + jj) - vol / ((double)w * w));
+                fprintf(fd, "\n");
+            }
+            if (fd)
+                fclose(fd);
+        }
         rpiv_ccm_corr_free(cw);
         /* the window's average over its area (hypothesis 2): the CCM's terms at 4 x 4
          * sub-positions of the final window, each shifted by the linear part of the
