@@ -46,6 +46,11 @@ typedef struct unc_level {
      * and the error's estimate at the level before's nodes, u and v */
     double *hx0, *ax0, *hy0, *ay0;
     float *pe[2];
+    /* the first level of a pass without deformation (unc_chain_keep_first): its field as the
+     * next pass's predictor took it (fv), and its error against the final field (fe,
+     * unc_chain_first_error; fe_ok once set) */
+    float *fv[2], *fe[2];
+    int fe_ok;
 } unc_level;
 
 struct unc_chain {
@@ -70,6 +75,10 @@ static void shrink_free(unc_level *l)
 static void level_free(unc_level *l)
 {
     shrink_free(l);
+    free(l->fv[0]);
+    free(l->fv[1]);
+    free(l->fe[0]);
+    free(l->fe[1]);
     free(l->s[0]);
     free(l->s[1]);
     free(l->hx);
@@ -286,6 +295,51 @@ rpiv_status unc_chain_pred_error(unc_chain *c, const unc_geom *g, const rpiv_fie
     return RPIV_OK;
 }
 
+rpiv_status unc_chain_keep_first(unc_chain *c, const rpiv_field *f)
+{
+    if (!c || c->n != 1 || c->lv[0].shift != 0 || f->nx != c->lv[0].nx || f->ny != c->lv[0].ny)
+        return RPIV_OK;
+    unc_level *l = &c->lv[0];
+    const size_t n = (size_t)f->nx * (size_t)f->ny;
+    for (int q = 0; q < 2; q++) {
+        free(l->fv[q]);
+        free(l->fe[q]);
+        l->fv[q] = malloc(n * sizeof *l->fv[q]);
+        l->fe[q] = malloc(n * sizeof *l->fe[q]);
+    }
+    l->fe_ok = 0;
+    if (!l->fv[0] || !l->fv[1] || !l->fe[0] || !l->fe[1])
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
+    memcpy(l->fv[0], f->u, n * sizeof *l->fv[0]);
+    memcpy(l->fv[1], f->v, n * sizeof *l->fv[1]);
+    return RPIV_OK;
+}
+
+rpiv_status unc_chain_first_error(unc_chain *c, const rpiv_field *f, int img_w, int img_h)
+{
+    if (!c || !c->n)
+        return RPIV_OK;
+    unc_level *l = &c->lv[0];
+    l->fe_ok = 0;
+    if (c->n < 2 || !l->fv[0])
+        return RPIV_OK;
+    rpiv_deform_pred *p = NULL;
+    rpiv_status st = rpiv_deform_pred_new(f, img_w, img_h, 0, &p);
+    if (st)
+        return st;
+    for (int j = 0; j < l->ny; j++)
+        for (int i = 0; i < l->nx; i++) {
+            const size_t k = (size_t)j * (size_t)l->nx + (size_t)i;
+            double u, v;
+            rpiv_deform_pred_eval(p, l->x0 + i * l->dx, l->y0 + j * l->dy, &u, &v);
+            l->fe[0][k] = (float)((double)l->fv[0][k] - u);
+            l->fe[1][k] = (float)((double)l->fv[1][k] - v);
+        }
+    rpiv_deform_pred_free(p);
+    l->fe_ok = 1;
+    return RPIV_OK;
+}
+
 void unc_chain_set_hash(unc_chain *c, const rpiv_field *f)
 {
     if (c)
@@ -297,6 +351,13 @@ int unc_chain_links(const unc_chain *c, const rpiv_field *predictor)
     return c && c->n && predictor && c->lv[c->n - 1].nx == predictor->nx &&
            c->lv[c->n - 1].ny == predictor->ny && c->hash == unc_field_hash(predictor);
 }
+
+/* The first level's measured error carried into a vector (expand_var): eh = sum_k cf_k fe_k
+ * (u, v), c2 = sum_k cf_k^2, var0 the variance of the first level's own terms. */
+typedef struct first_err {
+    double eh[2], c2, var0[2];
+    int ok;
+} first_err;
 
 /* One term of a vector's expansion: a window of some level, its coefficient. */
 typedef struct term {
@@ -430,16 +491,18 @@ static int back_map(const unc_level *l, const double *hx, const double *ax, cons
  * level L (cf: their coefficients, taken over and freed): each level's window noises and,
  * through the maps, those of the levels before. Returns 0, or -1 when out of memory. */
 static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int by1, double *cf,
-                      double var[2])
+                      double var[2], first_err *fst)
 {
     double *nx_cf = NULL;
     term *t = NULL;
-    size_t nt = 0, cap = 0;
-    int bad = !cf;
+    size_t nt = 0, cap = 0, nt0 = 0;
+    int bad = !cf, at0 = 0;
     var[0] = var[1] = 0;
     for (int lev = L; lev >= 0 && !bad; lev--) {
         const unc_level *l = &c->lv[lev];
         const int bw = bx1 - bx0 + 1, bh = by1 - by0 + 1;
+        nt0 = nt;
+        at0 = lev == 0;
         /* this level's terms */
         for (int j = 0; j < bh; j++)
             for (int i = 0; i < bw; i++) {
@@ -494,6 +557,23 @@ static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int 
      * holding the pixel)^2, summed on cells of g pixels (g: the common divisor of the edges) */
     if (!bad && nt)
         bad = terms_var(t, nt, var);
+    if (fst && !bad && at0 && L > 0 && c->lv[0].fe_ok) {
+        /* the first level's error as the final field measured it, through the coefficients
+         * cf of its nodes; the variance its window noises were counted with (its terms) */
+        const unc_level *l = &c->lv[0];
+        const int bw = bx1 - bx0 + 1, bh = by1 - by0 + 1;
+        for (int j = 0; j < bh; j++)
+            for (int i = 0; i < bw; i++) {
+                const double a = cf[(size_t)j * (size_t)bw + (size_t)i];
+                const size_t k = (size_t)(by0 + j) * (size_t)l->nx + (size_t)(bx0 + i);
+                fst->eh[0] += a * (double)l->fe[0][k];
+                fst->eh[1] += a * (double)l->fe[1][k];
+                fst->c2 += a * a;
+            }
+        if (nt > nt0)
+            bad = terms_var(t + nt0, nt - nt0, fst->var0);
+        fst->ok = !bad;
+    }
     free(cf);
     free(nx_cf);
     free(t);
@@ -502,12 +582,12 @@ static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int 
 
 /* The variance of vector (ix, iy) of the newest level, u and v. Returns 0, or -1 when out of
  * memory. */
-static int vector_var(const unc_chain *c, int ix, int iy, double var[2])
+static int vector_var(const unc_chain *c, int ix, int iy, double var[2], first_err *fst)
 {
     double *cf = malloc(sizeof *cf);
     if (cf)
         cf[0] = 1;
-    return expand_var(c, c->n - 1, ix, ix, iy, iy, cf, var);
+    return expand_var(c, c->n - 1, ix, ix, iy, iy, cf, var, fst);
 }
 
 /* The denoiser's shrinkage of the true field, for vector (ix, iy) of the newest level (docs/
@@ -547,7 +627,7 @@ static int shrink_var(const unc_chain *c, int ix, int iy, double add[2])
         free(d);
         return -1;
     }
-    if (expand_var(c, c->n - 2, kx0, kx1, ky0, ky1, d, vn))
+    if (expand_var(c, c->n - 2, kx0, kx1, ky0, ky1, d, vn, NULL))
         return -1;
     for (int q = 0; q < 2; q++)
         add[q] = fmax(0, eh[q] * eh[q] - vn[q]);
@@ -567,12 +647,22 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
         double var[2];
         const int ix = (int)(k % (size_t)l->nx), iy = (int)(k / (size_t)l->nx);
         double add[2] = {0, 0};
-        if (vector_var(c, ix, iy, var) || (l->pe[0] && shrink_var(c, ix, iy, add))) {
+        first_err fst = {{0, 0}, 0, {0, 0}, 0};
+        if (vector_var(c, ix, iy, var, &fst) || (l->pe[0] && shrink_var(c, ix, iy, add))) {
             bad = 1;
             continue;
         }
         var[0] += add[0];
         var[1] += add[1];
+        if (fst.ok)
+            for (int q = 0; q < 2; q++) {
+                /* the first level's error, measured, in place of its window noise: the excess
+                 * of eh^2 over the variance its terms were counted with and over the noise of
+                 * the estimate (the final field's error at the first level's nodes, taken as
+                 * this vector's, through the same coefficients) */
+                const double vn = var[q] * fst.c2;
+                var[q] += fmax(0, fst.eh[q] * fst.eh[q] - vn - fst.var0[q]);
+            }
         su[k] = (float)fmin(sqrt(var[0] > 0 ? var[0] : 0), UNC_SIGMA_MAX);
         sv[k] = (float)fmin(sqrt(var[1] > 0 ? var[1] : 0), UNC_SIGMA_MAX);
     }

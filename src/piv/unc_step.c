@@ -77,6 +77,22 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
                                     cs + ps->nwin);
     if (st)
         return st;
+    if (!linked && shift == 0 && pass < pv->npass - 1) { /* the first level, not deformed */
+        rpiv_field *q = NULL;
+        if ((st = unc_prepared(f, &q)) || (st = unc_chain_keep_first(pv->unc, q))) {
+            rpiv_field_free(q);
+            return st;
+        }
+        rpiv_field_free(q);
+    }
+    if (pass == pv->npass - 1 && linked) { /* the first level's error, measured */
+        rpiv_field *q = NULL;
+        if ((st = unc_prepared(f, &q)) || (st = unc_chain_first_error(pv->unc, q, pv->w, pv->h))) {
+            rpiv_field_free(q);
+            return st;
+        }
+        rpiv_field_free(q);
+    }
     if (linked && g.denoise && pass == pv->npass - 1 && !(refines && pv->p.refine_filter > 0) &&
         (st = unc_shrink(pv, predictor, &g)))
         return st;

@@ -96,6 +96,21 @@ RPIV_NODISCARD rpiv_status unc_chain_pred_error(unc_chain *c, const unc_geom *g,
 RPIV_NODISCARD rpiv_status unc_pred_error(const rpiv_piv *pv, const rpiv_field *predictor,
                                           int denoise, const rpiv_field *f, rpiv_field **out);
 
+/* The chain's first level is a pass without deformation (no predictor, or window offsets):
+ * keep its field f as the next pass took it for its predictor (prepared as piv_pred_new
+ * prepares it). No-op unless the chain holds that level alone. Correlation statistics assume
+ * the window's particles moved alike; without deformation a window spans the flow's whole
+ * displacement variation across it, whose error they do not see (docs/uncertainty.md,
+ * "Session 9"). */
+RPIV_NODISCARD rpiv_status unc_chain_keep_first(unc_chain *c, const rpiv_field *f);
+
+/* The kept first level's error at its nodes, measured against the final field f (prepared;
+ * images img_w x img_h): its field minus f's spline at its nodes; unc_chain_total carries it
+ * into the vectors in place of the first level's window noise where it is larger. No-op
+ * without a kept first level or with the chain at one level. */
+RPIV_NODISCARD rpiv_status unc_chain_first_error(unc_chain *c, const rpiv_field *f, int img_w,
+                                                 int img_h);
+
 /* Remember f as the field the newest level returned (unc_chain_links compares with it). */
 void unc_chain_set_hash(unc_chain *c, const rpiv_field *f);
 
