@@ -9,6 +9,7 @@
 #include <ctype.h>
 #include <errno.h>
 #include <glob.h>
+#include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -398,6 +399,27 @@ rpiv_status rpiv_pairs_from_args(int nargs, char *const *args, rpiv_pairing rule
     return RPIV_OK;
 }
 
+/* The two frames of a pair from two sources (two files, or pages 0 and 1 of one file), read
+ * side by side when OpenMP has a second thread for it: each reader has its own handle and
+ * reports into its own thread's message, taken back here; frame a's error first, as when read
+ * one after the other. */
+static rpiv_status load_two(const char *pa, int ka, const char *pb, int kb, rpiv_image **a,
+                            rpiv_image **b)
+{
+    rpiv_status st[2] = {RPIV_OK, RPIV_OK};
+    char msg[2][1024] = {"", ""};
+#pragma omp parallel for num_threads(2) schedule(static, 1) if (omp_get_max_threads() > 1)
+    for (int k = 0; k < 2; k++) {
+        st[k] = rpiv_image_load(k ? pb : pa, k ? kb : ka, k ? b : a, NULL);
+        if (st[k])
+            snprintf(msg[k], sizeof msg[k], "%s", rpiv_errmsg());
+    }
+    for (int k = 0; k < 2; k++)
+        if (st[k])
+            return rpiv_fail(st[k], "%s", msg[k]);
+    return RPIV_OK;
+}
+
 static rpiv_status load_pair(const rpiv_pair_src *s, rpiv_image **a, rpiv_image **b)
 {
     rpiv_status st;
@@ -406,17 +428,12 @@ static rpiv_status load_pair(const rpiv_pair_src *s, rpiv_image **a, rpiv_image 
         st = rpiv_image_count_pages(s->path_a, &npages);
         if (st)
             return st;
-        if (npages >= 2) {
-            st = rpiv_image_load(s->path_a, 0, a, NULL);
-            if (!st)
-                st = rpiv_image_load(s->path_a, 1, b, NULL);
-        } else {
+        if (npages >= 2)
+            st = load_two(s->path_a, 0, s->path_a, 1, a, b);
+        else
             return rpiv_image_load_halves(s->path_a, a, b, NULL);
-        }
     } else {
-        st = rpiv_image_load(s->path_a, 0, a, NULL);
-        if (!st)
-            st = rpiv_image_load(s->path_b, 0, b, NULL);
+        st = load_two(s->path_a, 0, s->path_b, 0, a, b);
     }
     if (!st && ((*a)->w != (*b)->w || (*a)->h != (*b)->h)) {
         if (s->path_b)
