@@ -376,6 +376,118 @@ static double win_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int w, 
     return est;
 }
 
+/* deform 2 ([bias] window_interp; docs/ccm.md "The planes' skew"): the frames interpolated by
+ * the cardinal cubic spline at X + 1/4 -+ p/2 (each axis), so the plane at the shift n about the
+ * predictor p is sum_m kappa(n - m) S(m) of the integer-shift plane S, kappa(j) = sum_u
+ * eta(u + ta) eta(u + j + tb), weighted by the window's overlap 1 - |n|/W; eta built here from
+ * the spline coefficients of a unit impulse solved as a tridiagonal system (not the library's
+ * closed form); the baseline as for deform 1; p iterated to the fixed point. */
+enum { ETA_L = 40 };
+static double eta_coef[2 * ETA_L + 1];
+
+static void eta_init(void)
+{
+    enum { N = 2 * ETA_L + 1 };
+    double cp[N], dp[N];
+    for (int i = 0; i < N; i++) { /* (c_k-1 + 4 c_k + c_k+1) / 6 = delta_k0: Thomas */
+        double a = i ? 1.0 / 6 : 0, b = 4.0 / 6, c = i < N - 1 ? 1.0 / 6 : 0;
+        double d = i == ETA_L ? 1 : 0, m = b - a * (i ? cp[i - 1] : 0);
+        cp[i] = c / m;
+        dp[i] = (d - a * (i ? dp[i - 1] : 0)) / m;
+    }
+    for (int i = N - 1; i >= 0; i--)
+        eta_coef[i] = dp[i] - (i < N - 1 ? cp[i] * eta_coef[i + 1] : 0);
+}
+
+static double eta_test(double x)
+{
+    double s = 0;
+    for (int k = -ETA_L; k <= ETA_L; k++) {
+        double t = fabs(x - k);
+        s += eta_coef[k + ETA_L] * (t < 1   ? 2.0 / 3 - t * t + 0.5 * t * t * t
+                                    : t < 2 ? (2 - t) * (2 - t) * (2 - t) / 6
+                                            : 0);
+    }
+    return s;
+}
+
+static double kappa_test(double ta, double tb, int j)
+{
+    double s = 0;
+    for (int u = -25; u <= 25; u++)
+        s += eta_test(u + ta) * eta_test(u + j + tb);
+    return s;
+}
+
+static double interp_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int w)
+{
+    double p = p0, est = p0, sy[2];
+    eta_init();
+    for (int k = 0; k < n; k++) { /* the row v = 0 through kappa along y (p_y = 0) */
+        sy[k] = 0;
+        for (int l = -20; l <= 20; l++)
+            sy[k] += kappa_test(0.25, 0.25, -l) * exp(-g[k].c * l * l);
+    }
+    for (int it = 0; it < 50; it++) {
+        double vol = 0, r[9];
+        for (int k = 0; k < n; k++)
+            vol += fmax(0, 1 - fabs(g[k].dx - p) / w) * g[k].amp * M_PI / g[k].c;
+        int m = 0;
+        for (int i = -4; i <= 4; i++) {
+            double acc = 0;
+            for (int mm = (int)floor(p) - 25; mm <= (int)floor(p) + 25; mm++) {
+                double kx = kappa_test(0.25 - 0.5 * p, 0.25 + 0.5 * p, i - mm);
+                for (int k = 0; k < n; k++)
+                    acc += kx * g[k].amp * exp(-g[k].c * (mm - g[k].dx) * (mm - g[k].dx)) * sy[k];
+            }
+            r[i + 4] = acc * (1 - fabs((double)i) / w) - vol / ((double)w * w);
+        }
+        for (int i = -3; i <= 3; i++)
+            if (r[i + 4] > r[m + 4])
+                m = i;
+        double a = log(r[m + 3]), b = log(r[m + 4]), c = log(r[m + 5]);
+        est = p + m + 0.5 * (a - c) / (a - 2 * b + c);
+        if (fabs(est - p) < 1e-9)
+            break;
+        p = est;
+    }
+    return est;
+}
+
+static void window_interp_matches_closed_form(void)
+{
+    rpiv_ccm_gauss g[2] = {{1.0, 1.0, 0.3, 0, 0}, {0.4, 0.5, 2.2, 0, 0}};
+    rpiv_ccm_corr *c = NULL;
+    CHECK_OK(rpiv_ccm_corr_new(2, &c));
+    if (!c)
+        return;
+    CHECK_OK(rpiv_ccm_corr_add(c, g[0]));
+    CHECK_OK(rpiv_ccm_corr_add(c, g[1]));
+    rpiv_ccm_params p = P;
+    p.subpixel = RPIV_SUBPIXEL_GAUSS;
+    rpiv_ccm_peak inf, p1, p2;
+    CHECK_OK(rpiv_ccm_corr_peak(c, &p, &inf));
+    CHECK_OK(rpiv_ccm_corr_peak_window(c, &p, 16, 16, 1, &p1));
+    CHECK_OK(rpiv_ccm_corr_peak_window(c, &p, 16, 16, 2, &p2));
+    double want = interp_closed_form(g, 2, inf.dx_sub, 16);
+    printf("  deform 2: 16 px window %.5f (closed form %.5f; deform 1 %.5f) px\n", p2.dx_sub, want,
+           p1.dx_sub);
+    CHECK_NEAR(p2.dx_sub, want, 2e-5);
+    CHECK_NEAR(p2.dy_sub, 0, 1e-6);
+    CHECK(fabs(p2.dx_sub - p1.dx_sub) > 1e-3);
+    /* one narrow symmetric term: at the fixed point only the interpolation's own bias, small */
+    rpiv_ccm_corr *one = NULL;
+    CHECK_OK(rpiv_ccm_corr_new(1, &one));
+    if (one) {
+        CHECK_OK(rpiv_ccm_corr_add(one, (rpiv_ccm_gauss){1.0, 0.2, 4.37, -1.2, 1}));
+        CHECK_OK(rpiv_ccm_corr_peak_window(one, &p, 32, 32, 2, &p2));
+        CHECK_NEAR(p2.dx_sub, 4.37, 2e-3);
+        CHECK_NEAR(p2.dy_sub, -1.2, 2e-3);
+    }
+    rpiv_ccm_corr_free(one);
+    rpiv_ccm_corr_free(c);
+}
+
 static void window_model_matches_closed_form(void)
 {
     rpiv_ccm_gauss g[2] = {{1.0, 1.0, 0.3, 0, 0}, {0.4, 0.5, 2.2, 0, 0}};
@@ -1706,6 +1818,7 @@ int main(void)
     RUN_TEST(sampled_plane_matches_whole_terms);
     RUN_TEST(peak_errors);
     RUN_TEST(window_model_matches_closed_form);
+    RUN_TEST(window_interp_matches_closed_form);
     RUN_TEST(window_area_average);
     RUN_TEST(window_area_follows);
     RUN_TEST(config_area_average);

@@ -101,11 +101,13 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv
  * constant baseline -V/(W H), V = sum amp pi / c of the weighted terms (the circular plane of
  * mean-removed windows sums to zero); with deform = 1 the plane sampled at integer shifts about
  * the predictor (the deformed frames' residual shifts), with 0 at integer shifts (whole-pixel
- * window offsets). The predictor starts at the infinite window's estimate and is the estimate
- * itself at convergence (the passes repeated to 1e-5 px; passes that alternate between two
- * estimates: the 20th pass's). dx, dy, value, mx, my: the infinite
- * window's, as rpiv_ccm_corr_peak. win_w = win_h = 0: rpiv_ccm_corr_peak. RPIV_EINVAL for a
- * window outside 4..4096 px. */
+ * window offsets); with deform = 2 (opt-in, [bias] window_interp) the deformed pass's plane
+ * through the cubic-spline interpolation kernel of its frames' sampling offsets, its pairs lost
+ * per shift of the plane (docs/ccm.md, "The planes' skew"). The predictor starts at the infinite
+ * window's estimate and is the estimate itself at convergence (the passes repeated to 1e-5 px;
+ * passes that alternate between two estimates: the 20th pass's). dx, dy, value, mx, my: the
+ * infinite window's, as rpiv_ccm_corr_peak. win_w = win_h = 0: rpiv_ccm_corr_peak. RPIV_EINVAL for
+ * a window outside 4..4096 px. */
 RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c,
                                                      const rpiv_ccm_params *p, int win_w, int win_h,
                                                      int deform, rpiv_ccm_peak *out);
@@ -148,7 +150,10 @@ typedef struct rpiv_ccm_model {
                              * rpiv_ccm_corr_peak_window; 0 (both): an infinite window, the
                              * paper's. The continuous peak (dx, dy) never depends on it */
     int window_deform;      /* 1: the engine deforms its final pass by the predictor (the
-                             * plane is sampled about it), 0: whole-pixel window offsets */
+                             * plane is sampled about it), 0: whole-pixel window offsets;
+                             * 2: deformed, the plane through the deformation's cubic-spline
+                             * interpolation kernel, its pairs lost per shift of the plane
+                             * ([bias] window_interp; docs/ccm.md, "The planes' skew") */
 } rpiv_ccm_model;
 
 /* The paper's channel defaults: the camera of imaging.h, h = 8 mm, d_p = 10 um, scale_px of
@@ -505,6 +510,11 @@ typedef struct rpiv_ccm_bias_params {
                                     loss, mean removal: rpiv_ccm_model.window_w/h, copied
                                     by rpiv_config_ccm_model); 0 = an infinite window. Not
                                     read by rpiv_ccm_bias_field (it uses base's window)    */
+    int window_interp;           /* [bias] window_interp: 1 = with window_model and a deformed
+                                    final pass, the window's plane through the deformation's
+                                    interpolation kernel and its pairs lost per shift of the
+                                    plane (rpiv_ccm_model.window_deform = 2); 0 (default):
+                                    per term, no interpolation (docs/ccm.md)               */
     int window_area;             /* [bias] window_area: with window_model, N >= 2 makes
                                     rpiv_config_ccm_predict average the model over N x N
                                     sub-positions of the final window (rpiv_ccm_predict_area,

@@ -163,6 +163,9 @@ rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox
     }
     /* every sub-position's terms, amplitude / n, moved by minus the deformation's variation at
      * it */
+    ccm_sub *sub = calloc(n, sizeof *sub);
+    if (!sub && !st)
+        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for %zu sub-positions", n);
     for (size_t k = 0; k < n && !st; k++) {
         if ((st = rpiv_ccm_stat_corr(&models[k], w, w->corr)))
             break;
@@ -182,6 +185,7 @@ rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox
                 sy += r[1][i] * b[i];
             }
         }
+        sub[k] = (ccm_sub){sum->n, sum->n, sx, sy};
         for (size_t t = 0; t < w->corr->n && !st; t++) {
             rpiv_ccm_gauss g = w->corr->g[t];
             g.amp /= (double)n;
@@ -189,10 +193,12 @@ rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox
             g.dy -= sy;
             st = rpiv_ccm_corr_add(sum, g);
         }
+        sub[k].t1 = sum->n;
     }
     if (!st)
-        st = rpiv_ccm_corr_peak_window(sum, &w->p, m0->window_w, m0->window_h, m0->window_deform,
-                                       out);
+        st = ccm_corr_peak_window_sig(sum, sub, n, &w->p, m0->window_w, m0->window_h,
+                                      m0->window_deform, out, NULL);
+    free(sub);
     rpiv_deform_pred_free(pred);
     rpiv_ccm_corr_free(sum);
     free(du);

@@ -350,6 +350,12 @@ static void lattice(const rpiv_ccm_corr *c, int xa, int nx, int ya, int ny, doub
     }
 }
 
+void ccm_lattice(const rpiv_ccm_corr *c, int xa, int nx, int ya, int ny, double *r, double *fx,
+                 double *fy)
+{
+    lattice(c, xa, nx, ya, ny, r, fx, fy, NULL, 0);
+}
+
 /* Lattices up to this many points are sampled in one pass; larger boxes (a general sum with
  * DX and DY spread over many pixels) row by row. */
 #define LATTICE_MAX (1 << 18)

@@ -70,6 +70,10 @@ RPIV_NODISCARD rpiv_status ccm_sampled_max(const rpiv_ccm_corr *c, const rpiv_cc
  * rows[j + rad][i + rad]) around the integer-sampled maximum (mx, my), and the engine's
  * sub-pixel estimator on it with base added to every sample (ccm_subpixel: the estimate
  * (dx_sub, dy_sub), px). rad: 3 for the spline, else 1. */
+/* R at the integer lattice (xa + i, ya + j), 0 <= i < nx, 0 <= j < ny, into r (row j at
+ * r + j nx); fx, fy: scratch of nx and ny values. */
+void ccm_lattice(const rpiv_ccm_corr *c, int xa, int nx, int ya, int ny, double *r, double *fx,
+                 double *fy);
 int ccm_subpixel_rad(const rpiv_ccm_params *p);
 RPIV_NODISCARD rpiv_status ccm_sampled_rows(const rpiv_ccm_corr *c, const rpiv_ccm_params *p,
                                             double rows[7][7], int *mx, int *my);
@@ -89,11 +93,20 @@ typedef struct ccm_wsig {
     uint64_t sig;
 } ccm_wsig;
 
+/* A part of a window (the area average, ccm_area.c): its terms c->g[t0 .. t1) of the summed
+ * list, moved there by minus the deformation's variation (sx, sy) at it. */
+typedef struct ccm_sub {
+    size_t t0, t1;
+    double sx, sy;
+} ccm_sub;
+
 /* rpiv_ccm_corr_peak_window with the signature (sig may be NULL; with an infinite window
- * conv = 1 and the rest 0). */
-RPIV_NODISCARD rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c,
-                                                    const rpiv_ccm_params *p, int win_w, int win_h,
-                                                    int deform, rpiv_ccm_peak *out, ccm_wsig *sig);
+ * conv = 1 and the rest 0) and, with deform, the window's parts (sub, nsub; NULL: c is one
+ * part, not moved), each deformed by its own predictor. */
+RPIV_NODISCARD rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub,
+                                                    size_t nsub, const rpiv_ccm_params *p,
+                                                    int win_w, int win_h, int deform,
+                                                    rpiv_ccm_peak *out, ccm_wsig *sig);
 /* rpiv_ccm_predict with the signature (NULL: none). */
 RPIV_NODISCARD rpiv_status ccm_predict_sig(const rpiv_ccm_model *m, rpiv_ccm_work *w,
                                            rpiv_ccm_peak *out, ccm_wsig *sig);

@@ -345,8 +345,8 @@ rpiv_status ccm_predict_sig(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm_
     rpiv_status st = rpiv_ccm_stat_corr(m, w, w->corr);
     if (st)
         return st;
-    return ccm_corr_peak_window_sig(w->corr, &w->p, m->window_w, m->window_h, m->window_deform, out,
-                                    sig);
+    return ccm_corr_peak_window_sig(w->corr, NULL, 0, &w->p, m->window_w, m->window_h,
+                                    m->window_deform, out, sig);
 }
 
 /* ---- the tabulated velocity profile ----------------------------------------------------- */

@@ -23,20 +23,158 @@
  *    c = 1.4 px^-2, and the baseline is itself below 1 % of the peak at 32 px windows. */
 #include "ccm_impl.h"
 
+#include "rpiv/deform.h"
+
 #include <math.h>
 #include <stdlib.h>
 
 #define WINDOW_ITER 20
 
-/* The estimate on the plane of the window about the predictor (px, py): every term weighted by
- * its pairs kept and, with deform, moved by -(px, py) (the deformed frames are correlated at
- * integer residual shifts), the plane lowered by the baseline; *ex, *ey: the estimate's
- * offset from the lattice's origin (px, py with deform, else 0). */
-static rpiv_status window_estimate(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int win_w,
-                                   int win_h, int deform, double px, double py, rpiv_ccm_corr *cw,
-                                   double *ex, double *ey, ccm_wsig *sig)
+/* ---- the deformed pass: the interpolation's kernel and the window's overlap ------------- */
+
+/* The cubic B-spline and the cardinal spline eta through unit samples that the engine
+ * interpolates its frames with (prefiltered coefficients, rpiv/deform.h): eta(x) = sqrt 3
+ * sum_k z^|k| beta3(x - k), z = sqrt 3 - 2 (eta(0) = 1, eta(k) = 0 at the other integers). */
+static double beta3(double x)
 {
-    double vol = 0, ox = deform ? px : 0, oy = deform ? py : 0;
+    x = fabs(x);
+    return x < 1 ? 2.0 / 3 - x * x + 0.5 * x * x * x : x < 2 ? (2 - x) * (2 - x) * (2 - x) / 6 : 0;
+}
+
+static double eta(double x)
+{
+    const double z = sqrt(3.0) - 2;
+    const int k0 = (int)floor(x);
+    double s = 0;
+    for (int k = k0 - 1; k <= k0 + 2; k++)
+        s += pow(z, abs(k)) * beta3(x - k);
+    return sqrt(3.0) * s;
+}
+
+/* Half-widths: the deformed plane's shifts -NR..NR; eta below 1e-9 beyond KR px. */
+enum { NR = 6, KR = 16, NP = 2 * NR + 1, NM = 2 * (NR + KR) + 2 };
+
+/* k[n + NR][a] = kappa(n - (m0 + a)), n = -NR..NR, a = 0..NM-1, where kappa(j) = sum_u
+ * eta(u + ta) eta(u + j + tb): frames interpolated at X + ta (a) and X + tb (b) have, over
+ * particles at uniformly random sub-pixel places, the expected plane P(n) = sum_m kappa(n - m)
+ * S(m), S the frames' plane at the integer shifts m (Sum_X a'(X) b'(X + n) with a'(X) = sum_u
+ * a(u) eta(X + ta - u), and E a(u) b(v) = S(v - u)). An ideal interpolator would give the
+ * band-limited S at n + tb - ta; the cubic spline's kernel also widens it a little. */
+static void kappa_table(double ta, double tb, int m0, double k[NP][NM])
+{
+    const int u0 = -KR - 1 - (int)floor(ta), nu = 2 * KR + 3;
+    const int jlo = -NR - (m0 + NM - 1), jhi = NR - m0, nj = jhi - jlo + 1;
+    double ea[2 * KR + 3], eb[2 * KR + 3 + NM + NP], kap[NM + NP];
+    for (int u = 0; u < nu; u++)
+        ea[u] = eta(u0 + u + ta);
+    for (int v = 0; v < nu + nj - 1; v++)
+        eb[v] = eta(u0 + jlo + v + tb);
+    for (int j = 0; j < nj; j++) {
+        double acc = 0;
+        for (int u = 0; u < nu; u++)
+            acc += ea[u] * eb[u + j];
+        kap[j] = acc;
+    }
+    for (int n = -NR; n <= NR; n++)
+        for (int a = 0; a < NM; a++)
+            k[n + NR][a] = kap[n - (m0 + a) - jlo];
+}
+
+/* The expected plane of the engine's final, deformed pass about the predictor (px, py), at
+ * its shifts n, m = -NR..NR (P[m + NR][n + NR]), before the mean removal's baseline: the
+ * infinite window's R at the integer lattice, through the interpolation's kernel of the frames'
+ * sampling offsets c -+ p/2 (c = RPIV_DEFORM_SHIFT, each axis), times the share of the window's
+ * pixel pairs that overlap at that shift, (1 - |n|/W)(1 - |m|/H) (the window's overlap at the
+ * plane's shift, not at each term's own displacement: docs/ccm.md, "The planes' skew"). With
+ * sub-positions (sub, nsub; NULL: the whole list, not deformed), each one's terms c->g[t0..t1)
+ * (moved by minus its deformation s) are put back and sampled about its own predictor p + s:
+ * the window's plane is the sum of its parts' planes, each deformed by its own predictor. */
+static rpiv_status deformed_plane(const rpiv_ccm_corr *c, const ccm_sub *sub, size_t nsub,
+                                  int win_w, int win_h, double px, double py, double P[NP][NP])
+{
+    const double sh = RPIV_DEFORM_SHIFT;
+    const ccm_sub whole = {0, c->n, 0, 0};
+    double *S = malloc((size_t)NM * NM * sizeof *S), *kx = malloc(sizeof(double[NP][NM])),
+           *ky = malloc(sizeof(double[NP][NM])), *T = malloc(sizeof(double[NM][NP]));
+    rpiv_ccm_corr *one = NULL;
+    rpiv_status st = RPIV_OK;
+    if (!S || !kx || !ky || !T) {
+        st = rpiv_fail(RPIV_ENOMEM, "ccm: out of memory for the deformed window's plane");
+        goto out_free;
+    }
+    if (!sub) {
+        sub = &whole;
+        nsub = 1;
+    } else if ((st = rpiv_ccm_corr_new(0, &one))) {
+        goto out_free;
+    }
+    double fx[NM], fy[NM];
+    double(*kxa)[NM] = (double(*)[NM])kx, (*kya)[NM] = (double(*)[NM])ky;
+    double(*Ta)[NP] = (double(*)[NP])T;
+    for (int m = 0; m < NP; m++)
+        for (int n = 0; n < NP; n++)
+            P[m][n] = 0;
+    for (size_t o = 0; o < nsub; o++) {
+        /* sub-position o: its terms where they are (moved back by its deformation s), the
+         * frames sampled about its own predictor p + s */
+        const rpiv_ccm_corr *co = c;
+        if (one) {
+            one->n = 0;
+            for (size_t t = sub[o].t0; t < sub[o].t1 && !st; t++) {
+                rpiv_ccm_gauss g = c->g[t];
+                g.dx += sub[o].sx;
+                g.dy += sub[o].sy;
+                st = rpiv_ccm_corr_add(one, g);
+            }
+            if (st)
+                goto out_free;
+            co = one;
+        }
+        const double qx = px + sub[o].sx, qy = py + sub[o].sy;
+        const int m0x = (int)floor(qx) - NR - KR, m0y = (int)floor(qy) - NR - KR;
+        ccm_lattice(co, m0x, NM, m0y, NM, S, fx, fy);
+        kappa_table(sh - 0.5 * qx, sh + 0.5 * qx, m0x, kxa);
+        kappa_table(sh - 0.5 * qy, sh + 0.5 * qy, m0y, kya);
+        for (int b = 0; b < NM; b++) /* along x, every row of the lattice */
+            for (int n = 0; n < NP; n++) {
+                double acc = 0;
+                for (int a = 0; a < NM; a++)
+                    acc += kxa[n][a] * S[(size_t)b * NM + (size_t)a];
+                Ta[b][n] = acc;
+            }
+        for (int m = 0; m < NP; m++) /* then along y */
+            for (int n = 0; n < NP; n++) {
+                double acc = 0;
+                for (int b = 0; b < NM; b++)
+                    acc += kya[m][b] * Ta[b][n];
+                P[m][n] += acc;
+            }
+    }
+    for (int m = 0; m < NP; m++) /* the window's overlap at the plane's shift */
+        for (int n = 0; n < NP; n++)
+            P[m][n] *= (1 - fabs((double)(n - NR)) / win_w) * (1 - fabs((double)(m - NR)) / win_h);
+out_free:
+    rpiv_ccm_corr_free(one);
+    free(S);
+    free(kx);
+    free(ky);
+    free(T);
+    return st;
+}
+
+/* The estimate on the plane of the window about the predictor (px, py), lowered by the mean
+ * removal's baseline -V / (W H), V the volume of the pairs kept (every term weighted by the
+ * share of its pairs that stay in the window at its residual shift). deform 0: the weighted
+ * terms at the integer shifts; 1: moved by -(px, py), at integer residual shifts; 2 (opt-in,
+ * [bias] window_interp): the plane of the deformed pass through the interpolation's kernel,
+ * the pairs lost per shift (deformed_plane). *ex, *ey: the estimate (px, py added with
+ * deform). */
+static rpiv_status window_estimate(const rpiv_ccm_corr *c, const ccm_sub *sub, size_t nsub,
+                                   const rpiv_ccm_params *p, int win_w, int win_h, int deform,
+                                   double px, double py, rpiv_ccm_corr *cw, double *ex, double *ey,
+                                   ccm_wsig *sig)
+{
+    double vol = 0;
     rpiv_status st;
     cw->n = 0;
     for (size_t k = 0; k < c->n; k++) {
@@ -46,38 +184,62 @@ static rpiv_status window_estimate(const rpiv_ccm_corr *c, const rpiv_ccm_params
         g.amp *= fmax(0, 1 - fabs(g.dx - px) / win_w) * fmax(0, 1 - fabs(g.dy - py) / win_h);
         if (!(g.amp > 0))
             continue;
-        g.dx -= ox;
-        g.dy -= oy;
         vol += g.amp * M_PI / g.c;
-        if ((st = rpiv_ccm_corr_add(cw, g)))
+        if (deform == 1) { /* the deformed frames are correlated at integer residual shifts */
+            g.dx -= px;
+            g.dy -= py;
+        }
+        if (deform != 2 && (st = rpiv_ccm_corr_add(cw, g)))
             return st;
     }
-    if (!cw->n)
+    if (!(vol > 0))
         return rpiv_fail(RPIV_ENUMERIC, "ccm: no pair stays inside the %d x %d px window", win_w,
                          win_h);
     double rows[7][7] = {{0}};
     int mx = 0, my = 0;
-    if ((st = ccm_sampled_rows(cw, p, rows, &mx, &my)))
+    if (deform == 2) {
+        double P[NP][NP];
+        if ((st = deformed_plane(c, sub, nsub, win_w, win_h, px, py, P)))
+            return st;
+        /* the highest sample within NR - rad of the predictor (first of equal values, y outer)
+         * and the samples the estimator reads around it */
+        const int rad = ccm_subpixel_rad(p), lim = NR - rad;
+        double best = -HUGE_VAL;
+        for (int m = -lim; m <= lim; m++)
+            for (int n = -lim; n <= lim; n++)
+                if (P[m + NR][n + NR] > best) {
+                    best = P[m + NR][n + NR];
+                    mx = n;
+                    my = m;
+                }
+        for (int j = -rad; j <= rad; j++)
+            for (int i = -rad; i <= rad; i++)
+                rows[j + rad][i + rad] = P[my + j + NR][mx + i + NR];
+    } else if ((st = ccm_sampled_rows(cw, p, rows, &mx, &my))) {
         return st;
+    }
     ccm_subpixel(rows, p, -vol / ((double)win_w * (double)win_h), mx, my, ex, ey,
                  sig ? &sig->sig : NULL);
     if (sig) {
         sig->mx = mx;
         sig->my = my;
     }
-    *ex += ox;
-    *ey += oy;
+    if (deform) {
+        *ex += px;
+        *ey += py;
+    }
     return RPIV_OK;
 }
 
 rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int win_w,
                                       int win_h, int deform, rpiv_ccm_peak *out)
 {
-    return ccm_corr_peak_window_sig(c, p, win_w, win_h, deform, out, NULL);
+    return ccm_corr_peak_window_sig(c, NULL, 0, p, win_w, win_h, deform, out, NULL);
 }
 
-rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int win_w,
-                                     int win_h, int deform, rpiv_ccm_peak *out, ccm_wsig *sig)
+rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub, size_t nsub,
+                                     const rpiv_ccm_params *p, int win_w, int win_h, int deform,
+                                     rpiv_ccm_peak *out, ccm_wsig *sig)
 {
     if (!(win_w == 0 && win_h == 0) && (win_w < 4 || win_h < 4 || win_w > 4096 || win_h > 4096))
         return rpiv_fail(RPIV_EINVAL, "ccm: window %d x %d px outside 4..4096 px", win_w, win_h);
@@ -98,7 +260,8 @@ rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const rpiv_ccm_para
     int done = 0;
     double qx = (double)NAN, qy = (double)NAN; /* the predictor of the previous pass */
     for (int it = 0; it < WINDOW_ITER && !done; it++) {
-        if ((st = window_estimate(c, p, win_w, win_h, deform, px, py, cw, &ex, &ey, sig)))
+        if ((st =
+                 window_estimate(c, sub, nsub, p, win_w, win_h, deform, px, py, cw, &ex, &ey, sig)))
             break;
         done = fabs(ex - px) < 1e-5 && fabs(ey - py) < 1e-5;
         if (!done && fabs(ex - qx) < 1e-5 && fabs(ey - qy) < 1e-5) {

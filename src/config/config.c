@@ -285,6 +285,11 @@ static const key_spec keys[] = {
      "the CCM's prediction of what the engine measures models the [piv] final window (pairs "
      "lost at its edges, the mean removal's baseline; 0 = an infinite window)",
      0},
+    {"bias", "window_interp", KEY_BOOL, OFF(bias.window_interp), 0, 1, 0, "-",
+     "with window_model and [piv] deform, the final window's plane through the deformation's "
+     "cubic-spline interpolation kernel, the pairs lost per shift of the plane (docs/ccm.md, "
+     "\"The planes' skew\"; off: per term, no interpolation)",
+     0},
     {"bias", "window_area", KEY_INT, OFF(bias.window_area), 0, 64, 1, "-",
      "with window_model, rpiv_config_ccm_predict (python rpiv.ccm.predict) averages the "
      "model over N x N sub-positions of the final window (the flow across it, followed by the "

@@ -38,7 +38,7 @@ rpiv_ccm_model rpiv_config_ccm_model(const rpiv_experiment *e, double dt_s)
     if (e->bias.window_model && e->piv.npass >= 1) { /* the final window (docs/ccm.md) */
         m.window_w = e->piv.win_w[e->piv.npass - 1];
         m.window_h = e->piv.win_h[e->piv.npass - 1];
-        m.window_deform = e->piv.deform;
+        m.window_deform = e->piv.deform ? (e->bias.window_interp ? 2 : 1) : 0;
     }
     return m;
 }
