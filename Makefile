@@ -10,6 +10,7 @@ WERROR ?= OFF
 DEMO_ARGS ?=
 FUZZ_SECONDS ?= 30
 FUZZ_JOBS ?= 1
+CTEST_ARGS ?=
 CMAKE ?= cmake
 
 .PHONY: all deps build build-test demo test install-check fuzz bench memcheck memcheck-quick \
@@ -52,14 +53,13 @@ test: deps
 	@scripts/stage install-check scripts/check-install build-memcheck
 	@scripts/stage fuzz $(MAKE) --no-print-directory fuzz FUZZ_JOBS=$(JOBS)
 
-# The test runs of `make test` alone, in trees already built (no configure, no build step).
+# The test runs of `make test` alone, in trees already built (no configure, no build step):
+# run-test-asan here (CTEST_ARGS are added to its ctest, e.g. CTEST_ARGS='-R test_piv'),
+# run-memcheck-quick below.
 run-test-asan:
 	cd build-test && ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 \
 	    UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-	    ctest -j $(JOBS) --output-on-failure
-run-memcheck-quick:
-	cd build-memcheck && ctest -L unit -E 'test_(demo|calib|ccm|ensemble|uncertainty|noise|field_fmt|bias|peak_shear)$$' \
-	    -T memcheck -j $(JOBS) --output-on-failure
+	    ctest -j $(JOBS) --output-on-failure $(CTEST_ARGS)
 
 # libFuzzer targets (clang, ASan+UBSan), each run FUZZ_SECONDS on its seed corpus, FUZZ_JOBS
 # at a time (default 1: the machine is shared; `make test` runs JOBS at a time).
@@ -93,10 +93,17 @@ memcheck: build-memcheck
 # demo, the calibration, the CCM, the ensemble, the uncertainty sweep, the noise sweep, the 2.6 M
 # formatted numbers of test_field_fmt (97 s under valgrind), and the CCM-heavy test_bias (over
 # 600 s since session 8's measured_nodes test) and test_peak_shear (242 s), which the sanitizer
-# run of `make test` covers and `make memcheck` runs): about 6 minutes on 2 cores, part of
-# `make test`.
+# run of `make test` covers and `make memcheck` runs), part of `make test`. test_refine (109 s
+# under valgrind, the second longest) is left out too: of the library lines it runs, all but two
+# (two stores of the iteration count in src/piv/refine.c) are run under valgrind by the other
+# programs here (gcov per test, docs/benchmarks.md); it still runs under ASan+UBSan in
+# `make test` and under valgrind in `make memcheck`. About 4.5 minutes on 2 cores.
+MEMCHECK_QUICK_SKIP = demo|calib|ccm|ensemble|uncertainty|noise|field_fmt|bias|peak_shear|refine
 memcheck-quick: build-memcheck
 	@$(MAKE) --no-print-directory run-memcheck-quick
+run-memcheck-quick:
+	cd build-memcheck && ctest -L unit -E 'test_($(MEMCHECK_QUICK_SKIP))$$' -T memcheck \
+	    -j $(JOBS) --output-on-failure
 
 format:
 	clang-format -i include/rpiv/*.h src/*/*.c src/*/*.h app/*.c app/*.h tests/*.c tests/*.h bench/*.c 2>/dev/null || true
