@@ -454,17 +454,28 @@ static double interp_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int 
     return est;
 }
 
+/* The two terms of the window tests (NULL if out of memory) and the 3-point Gaussian's
+ * parameters. */
+static const rpiv_ccm_gauss WIN_TERMS[2] = {{1.0, 1.0, 0.3, 0, 0}, {0.4, 0.5, 2.2, 0, 0}};
+
+static rpiv_ccm_corr *win_terms(rpiv_ccm_params *p)
+{
+    rpiv_ccm_corr *c = NULL;
+    *p = P;
+    p->subpixel = RPIV_SUBPIXEL_GAUSS;
+    CHECK_OK(rpiv_ccm_corr_new(2, &c));
+    for (int k = 0; c && k < 2; k++)
+        CHECK_OK(rpiv_ccm_corr_add(c, WIN_TERMS[k]));
+    return c;
+}
+
 static void window_interp_matches_closed_form(void)
 {
-    rpiv_ccm_gauss g[2] = {{1.0, 1.0, 0.3, 0, 0}, {0.4, 0.5, 2.2, 0, 0}};
-    rpiv_ccm_corr *c = NULL;
-    CHECK_OK(rpiv_ccm_corr_new(2, &c));
+    const rpiv_ccm_gauss *g = WIN_TERMS;
+    rpiv_ccm_params p;
+    rpiv_ccm_corr *c = win_terms(&p);
     if (!c)
         return;
-    CHECK_OK(rpiv_ccm_corr_add(c, g[0]));
-    CHECK_OK(rpiv_ccm_corr_add(c, g[1]));
-    rpiv_ccm_params p = P;
-    p.subpixel = RPIV_SUBPIXEL_GAUSS;
     rpiv_ccm_peak inf, p1, p2;
     CHECK_OK(rpiv_ccm_corr_peak(c, &p, &inf));
     CHECK_OK(rpiv_ccm_corr_peak_window(c, &p, 16, 16, 1, &p1));
@@ -490,15 +501,11 @@ static void window_interp_matches_closed_form(void)
 
 static void window_model_matches_closed_form(void)
 {
-    rpiv_ccm_gauss g[2] = {{1.0, 1.0, 0.3, 0, 0}, {0.4, 0.5, 2.2, 0, 0}};
-    rpiv_ccm_corr *c = NULL;
-    CHECK_OK(rpiv_ccm_corr_new(2, &c));
+    const rpiv_ccm_gauss *g = WIN_TERMS;
+    rpiv_ccm_params p;
+    rpiv_ccm_corr *c = win_terms(&p);
     if (!c)
         return;
-    CHECK_OK(rpiv_ccm_corr_add(c, g[0]));
-    CHECK_OK(rpiv_ccm_corr_add(c, g[1]));
-    rpiv_ccm_params p = P;
-    p.subpixel = RPIV_SUBPIXEL_GAUSS;
     rpiv_ccm_peak inf, pw;
     CHECK_OK(rpiv_ccm_corr_peak(c, &p, &inf));
     for (int deform = 0; deform <= 1; deform++) {
