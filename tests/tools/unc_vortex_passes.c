@@ -11,7 +11,8 @@
  * the second pass with the first pass's field against with the truth, and the linear map of
  * the first pass's error (spline at the centre minus its window mean); den: the final
  * predictor's error after the refinement's denoiser, against the chain's linear model and the
- * denoiser's tangent at the predictor (finite difference); rho: the final pass's residual
+ * denoiser's tangent at the predictor (finite difference), nodes within 64 px of the centre
+ * (env DEN_R0, DEN_R1: other radii, px); rho: the final pass's residual
  * against a white-predictor-error model. Env: NPASS, NODENOISE=1, FLOW=uniform.
  * Build (from build/): cc -O2 -fopenmp -std=c11 -D_DEFAULT_SOURCE -I../tests -I../include
  *   -Iinclude -I../src/piv -I../src/base ../tests/tools/unc_vortex_passes.c -o unc_vortex_passes
@@ -265,12 +266,16 @@ int main(int argc, char **argv)
             }
             if (piv_pred_denoise(pv, qe) || piv_pred_denoise(pv, q2))
                 return 5;
+            /* the nodes at den_r0 <= r < den_r1 px (env DEN_R0, DEN_R1; the core by default) */
+            const double den_r0 = getenv("DEN_R0") ? atof(getenv("DEN_R0")) : 0,
+                         den_r1 = getenv("DEN_R1") ? atof(getenv("DEN_R1")) : 64;
             static double S2[3];
             for (int j = 0; j < f1->ny; j++)
                 for (int i = 0; i < f1->nx; i++) {
                     size_t k = (size_t)j * f1->nx + i;
                     double x = f1->x0 + i * f1->dx, y = f1->y0 + j * f1->dy;
-                    if (hypot(x - 128.37, y - 127.81) >= 64)
+                    const double rr = hypot(x - 128.37, y - 127.81);
+                    if (rr < den_r0 || rr >= den_r1)
                         continue;
                     double je = (q2->u[k] - qe->u[k]) / eps, dd = q1->u[k] - dt->u[k];
                     S2[0] += je * je;
@@ -284,7 +289,8 @@ int main(int argc, char **argv)
                 for (int i = 0; i < f1->nx; i++) {
                     size_t k = (size_t)j * f1->nx + i;
                     double x = f1->x0 + i * f1->dx, y = f1->y0 + j * f1->dy;
-                    if (hypot(x - 128.37, y - 127.81) >= 64)
+                    const double rr = hypot(x - 128.37, y - 127.81);
+                    if (rr < den_r0 || rr >= den_r1)
                         continue;
                     double A = q1->u[k] - t1->u[k], B = lq->u[k] - (t1->u[k] - dt->u[k]),
                            E = f1->u[k] - t1->u[k];
@@ -296,9 +302,11 @@ int main(int argc, char **argv)
                 }
             (void)nn;
             if (q == nseed - 1)
-                printf("core nodes u: pass-1 error %.4f; denoised predictor error: actual %.4f, "
+                printf("nodes at r %g-%g px, u: pass-1 error %.4f; denoised predictor error: "
+                       "actual %.4f, "
                        "chain's linear model %.4f, difference %.4f\n",
-                       sqrt(S[3] / nS), sqrt(S[0] / nS), sqrt(S[1] / nS), sqrt(S[2] / nS));
+                       den_r0, den_r1, sqrt(S[3] / nS), sqrt(S[0] / nS), sqrt(S[1] / nS),
+                       sqrt(S[2] / nS));
             if (q == nseed - 1)
                 printf("  D q - D t %.4f, J_q e_q %.4f, difference %.4f\n", sqrt(S2[1] / nS),
                        sqrt(S2[0] / nS), sqrt(S2[2] / nS));
