@@ -213,7 +213,9 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
     g.denoise = linked && pv->p.refine_denoise && piv_pred_repeats(pv, p);
     {
         float *gain = NULL;
-        if (!(st = g.denoise ? unc_pred_weights(pv, p, 0, &gain) : RPIV_OK))
+        /* the denoiser's linear part L (docs/uncertainty.md, "The denoiser in the chain": with
+         * its weights the ensemble sweep got worse) */
+        if (!(st = g.denoise ? unc_pred_weights(pv, p, 0, 0, &gain) : RPIV_OK))
             st = unc_chain_push(&c, linked, &g, 0, f, cs, cs + e->nwin, gain);
         free(gain);
         if (st)

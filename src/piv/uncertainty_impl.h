@@ -67,9 +67,10 @@ typedef struct unc_geom {
 
 /* The weights of the refinement's denoiser on the predictor built from field predictor
  * (prepared as piv_pred_new prepares it, low-passed with weight filter, then denoised):
- * piv_pred_denoise_weights's *gain (new), on predictor's grid. */
+ * piv_pred_denoise_weights's *gain (new), on predictor's grid; kept = 0: every kept detail's
+ * weight set to 0 (the denoiser's linear part L, every detail taken as dropped). */
 RPIV_NODISCARD rpiv_status unc_pred_weights(const rpiv_piv *pv, const rpiv_field *predictor,
-                                            double filter, float **gain);
+                                            double filter, int kept, float **gain);
 
 void unc_chain_free(unc_chain *c); /* NULL is a no-op */
 
