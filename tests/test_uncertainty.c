@@ -716,86 +716,181 @@ static void one_level_line(float *u, int n)
     u[n - 1] = (5 * t[n - 1] + 2 * t[n - 2] - t[n - 3]) / 6;
 }
 
-/* The largest |a - b| after the chain's line operator (new = 1: unc_denoise_line; 0: the old
- * one level) on the rows, then the columns, of g (nx x ny), against d. */
-static double lines_vs(const float *g, const float *d, int nx, int ny, int new)
+/* The largest |a - b| after the old one-level model on the rows, then the columns, of g
+ * (nx x ny), against d. */
+static double lines_vs(const float *g, const float *d, int nx, int ny)
 {
     float w[64 * 64], col[64];
     double worst = 0;
     memcpy(w, g, (size_t)nx * (size_t)ny * sizeof *w);
-    for (int j = 0; j < ny; j++) {
-        if (new)
-            CHECK(unc_denoise_line(w + j * nx, nx, nx, ny) == 0);
-        else
-            one_level_line(w + j * nx, nx);
-    }
+    for (int j = 0; j < ny; j++)
+        one_level_line(w + j * nx, nx);
     for (int i = 0; i < nx; i++) {
         for (int j = 0; j < ny; j++)
             col[j] = w[j * nx + i];
-        if (new)
-            CHECK(unc_denoise_line(col, ny, nx, ny) == 0);
-        else
-            one_level_line(col, ny);
+        one_level_line(col, ny);
         for (int j = 0; j < ny; j++)
             worst = fmax(worst, fabs((double)col[j] - (double)d[j * nx + i]));
     }
     return worst;
 }
 
-/* The chain's model of the refinement's denoiser (unc_denoise_line, rows then columns) against
- * the denoiser itself (piv_pred_denoise) on fields of pure noise whose details all fall below
- * their thresholds, where the denoiser drops every detail of every level and is linear: the
- * same field to float rounding, ends included (three grid shapes). The old one-level model
- * misses by 1.1-1.9 times the noise's standard deviation (0.144). */
+/* Row m of the denoiser's map A for component q (weights of piv_pred_denoise_weights on an
+ * nx x ny grid): A^T e_m, into row (n doubles). */
+static void map_row(const float *gain, int nx, int ny, int q, int m, double *row)
+{
+    double tmp[64 * 64];
+    memset(row, 0, (size_t)nx * (size_t)ny * sizeof *row);
+    row[m] = 1;
+    piv_pred_denoise_map_t(gain, nx, ny, q, row, 0, nx, 0, ny, tmp);
+}
+
+/* The noise field c of the denoiser tests (grid nx x ny, generator seeded with c): the
+ * predictor's noise of windows of 2 grid steps at 50 % overlap, the mean of 4 x 4 white
+ * cells of half a step, uniform in [-1, 1]; u and v. */
+static void noise_field(int c, int nx, int ny, rpiv_field *f)
+{
+    uint64_t x = 0x9e3779b97f4a7c15u + (uint64_t)c;
+    static float w[132 * 132];
+    for (int q = 0; q < 2; q++) {
+        for (int k = 0; k < (2 * nx + 2) * (2 * ny + 2); k++) {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            w[k] = (float)((double)(x >> 11) / 4503599627370496.0 - 1.0);
+        }
+        for (int j = 0; j < ny; j++)
+            for (int i = 0; i < nx; i++) {
+                double sum = 0;
+                for (int b = 0; b < 4; b++)
+                    for (int a = 0; a < 4; a++)
+                        sum += (double)w[(2 * j + b) * (2 * nx + 2) + 2 * i + a];
+                (q ? f->v : f->u)[j * nx + i] = (float)(sum / 16);
+            }
+    }
+}
+
+/* The chain's model of the refinement's denoiser: the linear map A it was on the predictor, its
+ * weights held (piv_pred_denoise_weights, piv_pred_denoise_map_t; docs/uncertainty.md, "The
+ * denoiser's weights"), A q = D q. (1) On fields of pure noise whose details all fall below
+ * their thresholds the denoiser drops every detail of every level and is linear: the same field
+ * to float rounding, ends included (three grid shapes); the old one-level model misses by
+ * 1.1-1.9 times the noise's standard deviation (0.144). (2) With details kept (the noise plus
+ * a peak of 3 at the grid's centre, 1.5 grid steps wide): A q = D q to float rounding, where
+ * the map with every detail dropped (the chain's model before) misses by 0.5 or more. The
+ * transpose of the predictor's low-pass filter (refine_filter 0.3) against the filter. */
 static void unc_denoiser_operator(void)
 {
     rpiv_piv_params prm = rpiv_piv_params_default();
     rpiv_piv *pv = NULL;
     CHECK_OK(rpiv_piv_new(&prm, 256, 256, NULL, &pv));
-    /* the noise fields c (grid dims[c % 3], generator seeded with c) whose component q has no
-     * detail of any level above its threshold (the others keep one or more: in 52 of 60 such
-     * fields a few details of a coarser level pass, docs/uncertainty.md) */
     const int dims[3][2] = {{15, 15}, {23, 11}, {9, 40}};
     const int cases[][2] = {{15, 1}, {16, 0}, {16, 1}, {29, 0}};
+    static double row[64 * 64];
     for (int e = 0; pv && e < 4; e++) {
-        const int c = cases[e][0], nx = dims[c % 3][0], ny = dims[c % 3][1];
-        uint64_t x = 0x9e3779b97f4a7c15u + (uint64_t)c;
+        const int c = cases[e][0], nx = dims[c % 3][0], ny = dims[c % 3][1], q = cases[e][1];
         rpiv_field *f = NULL;
+        float *gain = NULL;
         CHECK_OK(rpiv_field_new(nx, ny, 23.5, 23.5, 16, 16, &f));
         if (!f)
             continue;
-        /* the predictor's noise: windows of 2 grid steps at 50 % overlap, the mean of 4 x 4
-         * white cells of half a step, uniform in [-1, 1] */
-        float g[2][64 * 64], w[132 * 132];
-        for (int q = 0; q < 2; q++) {
-            for (int k = 0; k < (2 * nx + 2) * (2 * ny + 2); k++) {
-                x ^= x << 13;
-                x ^= x >> 7;
-                x ^= x << 17;
-                w[k] = (float)((double)(x >> 11) / 4503599627370496.0 - 1.0);
-            }
-            for (int j = 0; j < ny; j++)
-                for (int i = 0; i < nx; i++) {
-                    double sum = 0;
-                    for (int b = 0; b < 4; b++)
-                        for (int a = 0; a < 4; a++)
-                            sum += (double)w[(2 * j + b) * (2 * nx + 2) + 2 * i + a];
-                    g[q][j * nx + i] = (float)(sum / 16);
-                    (q ? f->v : f->u)[j * nx + i] = g[q][j * nx + i];
-                }
-        }
-        CHECK_OK(piv_pred_denoise(pv, f));
-        {
-            const int q = cases[e][1];
+        noise_field(c, nx, ny, f);
+        float g[64 * 64];
+        memcpy(g, q ? f->v : f->u, (size_t)nx * (size_t)ny * sizeof *g);
+        CHECK_OK(piv_pred_denoise_weights(pv, f, &gain));
+        if (gain) {
             const float *d = q ? f->v : f->u;
-            const double now = lines_vs(g[q], d, nx, ny, 1), old = lines_vs(g[q], d, nx, ny, 0);
+            double now = 0;
+            for (int m = 0; m < nx * ny; m++) {
+                map_row(gain, nx, ny, q, m, row);
+                double jq = 0;
+                for (int k = 0; k < nx * ny; k++)
+                    jq += row[k] * (double)g[k];
+                now = fmax(now, fabs(jq - (double)d[m]));
+            }
+            const double old = lines_vs(g, d, nx, ny);
             printf("    %d x %d, %c: largest difference from the denoiser %.2e (session 5's "
                    "model %.3f)\n",
                    nx, ny, q ? 'v' : 'u', now, old);
             CHECK(now < 1e-5);
             CHECK(old > 0.02);
         }
+        free(gain);
         rpiv_field_free(f);
+    }
+    /* the predictor's low-pass filter F (refine_filter), taken back by the chain as F^T:
+     * <F^T c, x> = <c, F x> for the noise fields' u (x) and v (c) */
+    for (int e = 0; e < 3; e++) {
+        const int nx = dims[e][0], ny = dims[e][1], n = nx * ny;
+        rpiv_field *f = NULL;
+        static double c[64 * 64], c0[64 * 64], x[64 * 64], tmp[64 * 64];
+        double lhs = 0, rhs = 0;
+        CHECK_OK(rpiv_field_new(nx, ny, 23.5, 23.5, 16, 16, &f));
+        if (!f)
+            continue;
+        noise_field(60 + e, nx, ny, f);
+        for (int k = 0; k < n; k++) {
+            x[k] = (double)f->u[k];
+            c0[k] = c[k] = (double)f->v[k];
+        }
+        piv_pred_filter_t(c, 0.3, nx, ny, 0, nx, 0, ny, tmp);
+        CHECK_OK(piv_pred_filter(f, 0.3));
+        for (int k = 0; k < n; k++) {
+            lhs += c[k] * x[k];
+            rhs += c0[k] * (double)f->u[k];
+        }
+        printf("    %d x %d: <F^T c, x> %.6f, <c, F x> %.6f\n", nx, ny, lhs, rhs);
+        CHECK(fabs(lhs - rhs) < 1e-5);
+        rpiv_field_free(f);
+    }
+    /* (2) details kept: the noise fields plus a peak of 3 (-3 in v) at the grid's centre */
+    for (int e = 0; pv && e < 3; e++) {
+        const int nx = dims[e][0], ny = dims[e][1], n = nx * ny;
+        rpiv_field *f = NULL, *d = NULL;
+        float *gain = NULL, *zero = calloc((size_t)PIV_DENOISE_STAGES * 2 * (size_t)n, 4);
+        CHECK_OK(rpiv_field_new(nx, ny, 23.5, 23.5, 16, 16, &f));
+        if (!f || !zero) {
+            rpiv_field_free(f);
+            free(zero);
+            continue;
+        }
+        noise_field(40 + e, nx, ny, f);
+        for (int j = 0; j < ny; j++)
+            for (int i = 0; i < nx; i++) {
+                const double r2 = (i - nx / 2) * (i - nx / 2) + (j - ny / 2) * (j - ny / 2);
+                f->u[j * nx + i] += (float)(3 * exp(-r2 / (2 * 1.5 * 1.5)));
+                f->v[j * nx + i] -= (float)(3 * exp(-r2 / (2 * 1.5 * 1.5)));
+            }
+        CHECK_OK(rpiv_field_copy(f, &d));
+        if (d)
+            CHECK_OK(piv_pred_denoise_weights(pv, d, &gain));
+        int kept = 0;
+        for (int k = 0; gain && k < PIV_DENOISE_STAGES * 2 * n; k++)
+            kept += gain[k] > 0 && gain[k] < 1;
+        double now = 0, lin = 0;
+        for (int q = 0; gain && q < 2; q++)
+            for (int m = 0; m < n; m++)
+                for (int w = 0; w < 2; w++) {
+                    map_row(w ? gain : zero, nx, ny, q, m, row);
+                    double aq = 0;
+                    for (int k = 0; k < n; k++)
+                        aq += row[k] * (double)(q ? f->v : f->u)[k];
+                    const double diff = fabs(aq - (double)(q ? d->v : d->u)[m]);
+                    if (w)
+                        now = fmax(now, diff);
+                    else
+                        lin = fmax(lin, diff);
+                }
+        printf("    %d x %d with a peak: %d details kept; largest difference of the weights' map "
+               "from the denoiser %.2e (every detail dropped: %.3f)\n",
+               nx, ny, kept, now, lin);
+        CHECK(kept > 10);
+        CHECK(now < 1e-5);
+        CHECK(lin > 0.5);
+        free(gain);
+        free(zero);
+        rpiv_field_free(f);
+        rpiv_field_free(d);
     }
     rpiv_piv_free(pv);
 }

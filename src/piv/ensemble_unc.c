@@ -205,14 +205,22 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
                                  pp->sy, pp->ww, pp->wh,
                                  pv->w,  pv->h,  piv_shift(pv, e->pass - 1),
                                  0};
-            if ((st = unc_chain_push(&c, 0, &gp, 0, p, pu, pvv)))
+            if ((st = unc_chain_push(&c, 0, &gp, 0, p, pu, pvv, NULL)))
                 goto out_free;
             linked = 1;
         }
     }
     g.denoise = linked && pv->p.refine_denoise && piv_pred_repeats(pv, p);
-    if ((st = unc_chain_push(&c, linked, &g, 0, f, cs, cs + e->nwin)))
-        goto out_free;
+    {
+        float *gain = NULL;
+        /* the denoiser's linear part L (docs/uncertainty.md, "The denoiser in the chain": with
+         * its weights the ensemble sweep got worse) */
+        if (!(st = g.denoise ? unc_pred_weights(pv, p, 0, 0, &gain) : RPIV_OK))
+            st = unc_chain_push(&c, linked, &g, 0, f, cs, cs + e->nwin, gain);
+        free(gain);
+        if (st)
+            goto out_free;
+    }
     if (linked && e->pass == pv->npass - 1 && p->nx == f->nx && p->ny == f->ny) {
         /* the predictor's error as this pass corrected it (unc_chain_pred_error) */
         rpiv_field *pe = NULL;

@@ -385,7 +385,7 @@ double piv_shift(const rpiv_piv *pv, int k)
  * to a wave of k grid steps per wavelength is 1 - a (1 - cos(2 pi / k)): 1 - 2a at the grid's
  * Nyquist limit, where the window's own response is nil and the iteration would otherwise
  * keep every error it once made (docs/piv.md, "Refinement"). */
-static rpiv_status pred_filter(rpiv_field *f, double a)
+rpiv_status piv_pred_filter(rpiv_field *f, double a)
 {
     const int nx = f->nx, ny = f->ny, n = nx > ny ? nx : ny;
     float *line = malloc((size_t)n * sizeof *line);
@@ -412,6 +412,35 @@ static rpiv_status pred_filter(rpiv_field *f, double a)
     return RPIV_OK;
 }
 
+void piv_pred_filter_t(double *c, double a, int nx, int ny, int bx0, int bw, int by0, int bh,
+                       double *tmp)
+{
+    const size_t nb = (size_t)bw * (size_t)bh;
+    for (int axis = 0; axis < 2; axis++) {
+        const int len = axis ? ny : nx;
+        if (len <= 2)
+            continue;
+        memset(tmp, 0, nb * sizeof *tmp);
+        for (int j = 0; j < bh; j++)
+            for (int i = 0; i < bw; i++) {
+                const double v = c[(size_t)j * (size_t)bw + (size_t)i];
+                const int g = axis ? by0 + j : bx0 + i;
+                const size_t at = (size_t)j * (size_t)bw + (size_t)i, st = axis ? (size_t)bw : 1;
+                const int pos = axis ? j : i, lim = axis ? bh : bw;
+                if (g == 0 || g == len - 1) {
+                    tmp[at] += v;
+                    continue;
+                }
+                tmp[at] += (1 - a) * v;
+                if (pos > 0)
+                    tmp[at - st] += 0.5 * a * v;
+                if (pos < lim - 1)
+                    tmp[at + st] += 0.5 * a * v;
+            }
+        memcpy(c, tmp, nb * sizeof *c);
+    }
+}
+
 rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double shift,
                          double filter, rpiv_deform_pred **out)
 {
@@ -430,7 +459,7 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise) */
     const int denoise = pv->p.refine_denoise && piv_pred_repeats(pv, predictor);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
-        !(filter > 0 && (st = pred_filter(f, filter))) &&
+        !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
         !(denoise && (st = piv_pred_denoise(pv, f))))
         st = rpiv_deform_pred_new(f, pv->w, pv->h, shift, out);
     rpiv_field_free(f);

@@ -84,6 +84,14 @@ double piv_shift(const rpiv_piv *pv, int k);
  * low-pass filtered with weight `filter`, 0 = none), rows evaluated at pixel + shift. */
 RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
                                         double shift, double filter, rpiv_deform_pred **out);
+/* The predictor's low-pass filter [a/2, 1 - a, a/2] along x, then along y, edge nodes kept
+ * (src/piv/piv.c; refine_filter). */
+RPIV_NODISCARD rpiv_status piv_pred_filter(rpiv_field *f, double a);
+/* c := F^T c, F that filter on an nx x ny grid, c the nodes bx0.. (bw) x by0.. (bh), row after
+ * row (taken as 0 outside; what F^T would carry out of the block is dropped). tmp: bw bh
+ * doubles. */
+void piv_pred_filter_t(double *c, double a, int nx, int ny, int bx0, int bw, int by0, int bh,
+                       double *tmp);
 /* Does a predictor on this field's grid serve a pass that repeats the window size before it
  * (the grid is that of pass j, and pass j + 1, or the last pass itself, repeats)? Such
  * predictors are denoised with refine_denoise (src/piv/refine_filter.c). */
@@ -93,11 +101,22 @@ int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
  * field's own noise level (pv: the window of the pass the field's grid belongs to;
  * src/piv/refine_filter.c). */
 RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
-/* The denoiser's linear part along one axis (docs/uncertainty.md, part 2): what
- * piv_pred_denoise does to a line u of the n samples along x (n = nx) or y (n = ny) of an
- * nx x ny grid when every detail of every level falls below its threshold and is dropped; the
- * filter's own code at an infinite threshold. line: scratch of n doubles. */
-void piv_pred_denoise_linear(float *u, int n, int nx, int ny, double *line);
+/* The denoiser's stages a component: its levels, each along x then along y. */
+#define PIV_DENOISE_STAGES 6
+/* piv_pred_denoise on f, which it changes likewise, and *gain (new, PIV_DENOISE_STAGES x 2 x
+ * nx x ny floats: [((comp * levels + level) * 2 + axis) * nx ny + node]): the factor each stage
+ * applied to each node's detail (the garrote's output over its detail: 0 where the detail was
+ * dropped, 1 - t^2 / d^2 where it was kept, 1 where the stage did not run). With these weights
+ * held the denoiser is the linear map A = S_last ... S_first, S = I + diag(g - 1) D (D the
+ * stage's detail operator), and A f is the denoised f (docs/uncertainty.md, "The denoiser's
+ * weights"). */
+RPIV_NODISCARD rpiv_status piv_pred_denoise_weights(const rpiv_piv *pv, rpiv_field *f,
+                                                    float **gain);
+/* c := A^T c for component comp (0 u, 1 v) with the weights of piv_pred_denoise_weights on an
+ * nx x ny grid: c holds the nodes bx0.. (bw) x by0.. (bh), row after row, and is taken as 0
+ * outside them (what A^T would carry out of the block is dropped). tmp: bw bh doubles. */
+void piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c, int bx0, int bw,
+                            int by0, int bh, double *tmp);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

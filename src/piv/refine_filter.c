@@ -104,9 +104,11 @@ static double noise_sigma(const float *g, int nx, int ny, int step, int order, d
 
 /* Shrink the details of the given order (2 or 4) of the lines of g (count lines, n samples
  * each, sample stride s, line stride ls) with threshold t (order 2: t * 2/3 at the ends,
- * whose detail has 2/3 of the noise; order 4: t * sqrt(46/70) next to them). */
+ * whose detail has 2/3 of the noise; order 4: t * sqrt(46/70) next to them). gain (NULL: not
+ * wanted; laid out as g): the factor the garrote applied to each sample's detail (its output
+ * over its detail: 0 where the detail is dropped, 1 - t^2 / d^2 where kept). */
 static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, int order, double t,
-                         double *line)
+                         double *line, float *gain)
 {
     const double te = order == 4 ? t * sqrt(46.0 / 70.0) : t * (2.0 / 3.0);
     const int ie = order == 4; /* the sample with the end threshold: 0 or 1 from either end */
@@ -119,19 +121,24 @@ static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, int or
             /* non-negative garrote: d - t^2 / d above the threshold, 0 below */
             double kept = fabs(d) > ti ? d - ti * ti / d : 0;
             r[(size_t)i * s] = (float)((double)r[(size_t)i * s] - d + kept);
+            if (gain)
+                gain[(size_t)l * ls + (size_t)i * s] =
+                    (float)(fabs(d) > ti ? 1 - ti * ti / (d * d) : 0);
         }
     }
 }
 
 /* Shrink, at dilation `step`, the lines along one axis (n samples a line at stride s, count
- * lines at stride ls): each line split into its `step` interleaved sub-lines. */
+ * lines at stride ls): each line split into its `step` interleaved sub-lines. gain: as
+ * shrink_lines's. */
 static void shrink_axis(float *g, int count, int n, size_t s, size_t ls, int step, int order,
-                        double t, double *line)
+                        double t, double *line, float *gain)
 {
     for (int o = 0; o < step; o++) {
         const int m = (n - o + step - 1) / step;
         if (m >= (order == 4 ? 5 : 3))
-            shrink_lines(g + (size_t)o * s, count, m, s * (size_t)step, ls, order, t, line);
+            shrink_lines(g + (size_t)o * s, count, m, s * (size_t)step, ls, order, t, line,
+                         gain ? gain + (size_t)o * s : NULL);
     }
 }
 
@@ -146,6 +153,7 @@ static void shrink_axis(float *g, int count, int n, size_t s, size_t ls, int ste
  * (16 steps) of the second's, below no threshold it was above (session 6: lambda = 4 W RMS
  * 0.078 px instead of 0.082, the response at 1.5 W 0.93 instead of 0.89 over three pairs). */
 enum { LEVELS = 3, NF = 32 };
+_Static_assert(2 * LEVELS == PIV_DENOISE_STAGES, "a stage per level and axis");
 static const int ORDER[LEVELS] = {2, 4, 2};
 
 /* The noise model of a level: the standard deviation of the detail of the given order at
@@ -205,7 +213,9 @@ static int pred_pass(const rpiv_piv *pv, const rpiv_field *predictor)
     return -1;
 }
 
-rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f)
+/* piv_pred_denoise, and with gain (NULL: not wanted) the weights of its stages
+ * (piv_pred_denoise_weights). */
+static rpiv_status denoise(const rpiv_piv *pv, rpiv_field *f, float *gain)
 {
     const int nx = f->nx, ny = f->ny;
     const size_t n = (size_t)nx * (size_t)ny;
@@ -239,11 +249,106 @@ rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f)
             if (!isfinite(sigma))
                 continue;
             const double t = sigma * universal;
-            shrink_axis(g, ny, nx, 1, (size_t)nx, step, ORDER[lev], t, line);
-            shrink_axis(g, nx, ny, (size_t)nx, 1, step, ORDER[lev], t, line);
+            float *gx = gain ? gain + ((size_t)(comp * LEVELS + lev) * 2) * n : NULL;
+            shrink_axis(g, ny, nx, 1, (size_t)nx, step, ORDER[lev], t, line, gx);
+            shrink_axis(g, nx, ny, (size_t)nx, 1, step, ORDER[lev], t, line, gx ? gx + n : NULL);
         }
     free(buf);
     return RPIV_OK;
+}
+
+rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f)
+{
+    return denoise(pv, f, NULL);
+}
+
+rpiv_status piv_pred_denoise_weights(const rpiv_piv *pv, rpiv_field *f, float **gain)
+{
+    const size_t n = (size_t)f->nx * (size_t)f->ny, m = (size_t)PIV_DENOISE_STAGES * 2 * n;
+    *gain = malloc(m * sizeof **gain);
+    if (!*gain)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the denoiser's weights");
+    for (size_t k = 0; k < m; k++)
+        (*gain)[k] = 1; /* a stage that does not run: the identity */
+    rpiv_status st = denoise(pv, f, *gain);
+    if (st) {
+        free(*gain);
+        *gain = NULL;
+    }
+    return st;
+}
+
+/* The stencil of the detail of the given order of sample i of a line of n samples: the
+ * samples idx[] and weights w[] with detail = sum w U_idx (detail, detail4 with the odd
+ * reflection at the ends spelled out). Returns their count (at most 5). */
+static int stencil(int n, int order, int i, int *idx, double *w)
+{
+    int c = 0;
+    if (order == 2) {
+        const int e = i == 0 ? 1 : i == n - 1 ? -1 : 0; /* an end: the inward direction */
+        for (int q = 0; q < 3; q++) {
+            idx[c] = e ? i + q * e : i - 1 + q;
+            w[c++] = e ? (q == 1 ? -2.0 : 1.0) / 6.0 : (q == 1 ? 0.5 : -0.25);
+        }
+        return c;
+    }
+    static const double k4[5] = {1.0 / 16, -4.0 / 16, 6.0 / 16, -4.0 / 16, 1.0 / 16};
+    for (int o = -2; o <= 2; o++) {
+        const int m = i + o;
+        int at[2], na = 0;
+        double wt[2];
+        if (m < 0) /* U_m = 2 U_0 - U_-m */
+            at[0] = 0, wt[0] = 2 * k4[o + 2], at[1] = -m, wt[1] = -k4[o + 2], na = 2;
+        else if (m >= n)
+            at[0] = n - 1, wt[0] = 2 * k4[o + 2], at[1] = 2 * (n - 1) - m, wt[1] = -k4[o + 2],
+            na = 2;
+        else
+            at[0] = m, wt[0] = k4[o + 2], na = 1;
+        for (int a = 0; a < na; a++) {
+            int q = 0;
+            while (q < c && idx[q] != at[a])
+                q++;
+            if (q == c)
+                idx[c] = at[a], w[c++] = 0;
+            w[q] += wt[a];
+        }
+    }
+    return c;
+}
+
+void piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c, int bx0, int bw,
+                            int by0, int bh, double *tmp)
+{
+    const size_t n = (size_t)nx * (size_t)ny, nb = (size_t)bw * (size_t)bh;
+    for (int lev = LEVELS - 1; lev >= 0; lev--) {
+        const int step = 1 << lev, order = ORDER[lev];
+        for (int axis = 1; axis >= 0; axis--) {
+            const float *gs = gain + ((size_t)(comp * LEVELS + lev) * 2 + (size_t)axis) * n;
+            const int len = axis ? ny : nx;
+            memcpy(tmp, c, nb * sizeof *tmp);
+            for (int j = 0; j < bh; j++)
+                for (int i = 0; i < bw; i++) {
+                    const int gx = bx0 + i, gy = by0 + j;
+                    const double a = ((double)gs[(size_t)gy * (size_t)nx + (size_t)gx] - 1) *
+                                     c[(size_t)j * (size_t)bw + (size_t)i];
+                    if (a == 0)
+                        continue;
+                    /* S^T c = c + D^T ((g - 1) c): the detail of this sample scattered back
+                     * over the samples of its stencil, along its sub-line */
+                    const int p = axis ? gy : gx, o = p % step, m = (len - o + step - 1) / step;
+                    int idx[5];
+                    double w[5];
+                    const int cnt = stencil(m, order, p / step, idx, w);
+                    for (int q = 0; q < cnt; q++) {
+                        const int at = o + idx[q] * step;
+                        const int ti = axis ? i : at - bx0, tj = axis ? at - by0 : j;
+                        if (ti >= 0 && ti < bw && tj >= 0 && tj < bh)
+                            tmp[(size_t)tj * (size_t)bw + (size_t)ti] += w[q] * a;
+                    }
+                }
+            memcpy(c, tmp, nb * sizeof *c);
+        }
+    }
 }
 
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
@@ -255,14 +360,4 @@ int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
     const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
     return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
            pv->pass[k].wh == pv->pass[k - 1].wh;
-}
-
-void piv_pred_denoise_linear(float *u, int n, int nx, int ny, double *line)
-{
-    /* piv_pred_denoise runs no level when no grid direction has 8 inner second differences at
-     * dilation 1 (noise_sigma's count; the coarser levels then have fewer still) */
-    if ((nx - 2) * ny < 8 && nx * (ny - 2) < 8)
-        return;
-    for (int lev = 0, step = 1; lev < LEVELS; lev++, step *= 2)
-        shrink_axis(u, 1, n, 1, (size_t)n, step, ORDER[lev], (double)INFINITY, line);
 }

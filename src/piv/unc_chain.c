@@ -51,6 +51,12 @@ typedef struct unc_level {
      * unc_chain_first_error; fe_ok once set) */
     float *fv[2], *fe[2];
     int fe_ok;
+    /* a denoised predictor (the refinement's repeats): the map above is the spline's and the
+     * window's alone (G0), and the predictor's errors reach it through the filter [fa/2, 1 -
+     * fa, fa/2] and the denoiser as the linear map A it was on this predictor (dw: its weights
+     * on the level before's grid, piv_pred_denoise_weights): G = G0 A F */
+    float *dw;
+    double fa;
 } unc_level;
 
 struct unc_chain {
@@ -79,6 +85,7 @@ static void level_free(unc_level *l)
     free(l->fv[1]);
     free(l->fe[0]);
     free(l->fe[1]);
+    free(l->dw);
     free(l->s[0]);
     free(l->s[1]);
     free(l->hx);
@@ -106,30 +113,12 @@ uint64_t unc_field_hash(const rpiv_field *f)
     return hash_bytes(h, f->v, n * sizeof *f->v);
 }
 
-/* The refinement's denoiser (refine_filter.c) on noise: at each of its levels (dilations 1,
- * 2 and 4 grid steps) nearly every detail falls below its universal threshold and is dropped,
- * so it acts on the predictor's noise as the linear smoothings it keeps, level after level:
- * the filter's own code with every detail dropped (piv_pred_denoise_linear: at dilations 1
- * and 4 [1/4, 1/2, 1/4] and, at an end, the least-squares line through the first three
- * samples; at dilation 2 [-1/16, 1/4, 5/8, 1/4, -1/16] on the line continued by odd
- * reflection, the end samples kept). Separable: the x and y lines' operators commute. */
-int unc_denoise_line(float *u, int n, int nx, int ny)
-{
-    double *line = malloc((size_t)n * sizeof *line);
-    if (!line)
-        return -1;
-    piv_pred_denoise_linear(u, n, nx, ny, line);
-    free(line);
-    return 0;
-}
-
-/* One axis of the map: the previous grid has pn nodes at p0 + k pd (pother across: the grid
- * the denoiser sees is pn x pother); this level's n windows
+/* One axis of the map: the previous grid has pn nodes at p0 + k pd; this level's n windows
  * start at pixel w0 + i st and are ww wide; the predictor is the spline of the previous field
  * filtered by [a/2, 1 - a, a/2] (the engine's pred_filter: edge nodes unfiltered), sampled at
  * pixel + shift. Fills h and m ([k * n + i]). */
-static rpiv_status axis_map(int pn, int pother, double p0, double pd, int n, int w0, int st, int ww,
-                            double shift, double filter, int denoise, int img, double *h, double *m)
+static rpiv_status axis_map(int pn, double p0, double pd, int n, int w0, int st, int ww,
+                            double shift, double filter, int img, double *h, double *m)
 {
     rpiv_status s = RPIV_OK;
     for (int k = 0; k < pn && !s; k++) {
@@ -149,9 +138,7 @@ static rpiv_status axis_map(int pn, int pother, double p0, double pd, int n, int
             if (k + 1 <= pn - 2)
                 f->u[k + 1] = c1;
         }
-        if (denoise && unc_denoise_line(f->u, pn, pn, pother))
-            s = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
-        if (!s && !(s = rpiv_deform_pred_new(f, img, 1, shift, &p))) {
+        if (!(s = rpiv_deform_pred_new(f, img, 1, shift, &p))) {
             for (int i = 0; i < n; i++) {
                 double u, v, sum = 0;
                 const int x0 = w0 + i * st;
@@ -171,7 +158,8 @@ static rpiv_status axis_map(int pn, int pother, double p0, double pd, int n, int
 }
 
 rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, double filter,
-                           const rpiv_field *f, const float *su, const float *sv)
+                           const rpiv_field *f, const float *su, const float *sv,
+                           const float *weights)
 {
     if (!*chain && !(*chain = calloc(1, sizeof **chain)))
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
@@ -191,7 +179,9 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         free(c->lv[0].ax);
         free(c->lv[0].hy);
         free(c->lv[0].ay);
+        free(c->lv[0].dw);
         c->lv[0].hx = c->lv[0].ax = c->lv[0].hy = c->lv[0].ay = NULL;
+        c->lv[0].dw = NULL;
     }
     if (c->n) /* the shrinkage term is the newest level's only */
         shrink_free(&c->lv[c->n - 1]);
@@ -243,14 +233,19 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         l->hy = malloc(my * sizeof *l->hy);
         l->ay = malloc(my * sizeof *l->ay);
         rpiv_status st = RPIV_OK;
-        if (!l->hx || !l->ax || !l->hy || !l->ay)
+        const int adaptive = g->denoise && weights;
+        const size_t ng = (size_t)PIV_DENOISE_STAGES * 2 * (size_t)p->nx * (size_t)p->ny;
+        if (adaptive && (l->dw = malloc(ng * sizeof *l->dw)))
+            memcpy(l->dw, weights, ng * sizeof *l->dw);
+        l->fa = adaptive ? filter : 0;
+        if (!l->hx || !l->ax || !l->hy || !l->ay || (adaptive && !l->dw))
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
         if (!st)
-            st = axis_map(p->nx, p->ny, p->x0, p->dx, f->nx, g->wx0, g->sx, g->ww, g->shift, filter,
-                          g->denoise, g->img_w, l->hx, l->ax);
+            st = axis_map(p->nx, p->x0, p->dx, f->nx, g->wx0, g->sx, g->ww, g->shift,
+                          adaptive ? 0 : filter, g->img_w, l->hx, l->ax);
         if (!st)
-            st = axis_map(p->ny, p->nx, p->y0, p->dy, f->ny, g->wy0, g->sy, g->wh, g->shift, filter,
-                          g->denoise, g->img_h, l->hy, l->ay);
+            st = axis_map(p->ny, p->y0, p->dy, f->ny, g->wy0, g->sy, g->wh, g->shift,
+                          adaptive ? 0 : filter, g->img_h, l->hy, l->ay);
         if (st) {
             level_free(l);
             return st;
@@ -281,11 +276,11 @@ rpiv_status unc_chain_pred_error(unc_chain *c, const unc_geom *g, const rpiv_fie
     if (!l->hx0 || !l->ax0 || !l->hy0 || !l->ay0 || !l->pe[0] || !l->pe[1])
         st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
     if (!st)
-        st = axis_map(p->nx, p->ny, p->x0, p->dx, l->nx, g->wx0, g->sx, g->ww, g->shift, 0, 0,
-                      g->img_w, l->hx0, l->ax0);
+        st = axis_map(p->nx, p->x0, p->dx, l->nx, g->wx0, g->sx, g->ww, g->shift, 0, g->img_w,
+                      l->hx0, l->ax0);
     if (!st)
-        st = axis_map(p->ny, p->nx, p->y0, p->dy, l->ny, g->wy0, g->sy, g->wh, g->shift, 0, 0,
-                      g->img_h, l->hy0, l->ay0);
+        st = axis_map(p->ny, p->y0, p->dy, l->ny, g->wy0, g->sy, g->wh, g->shift, 0, g->img_h,
+                      l->hy0, l->ay0);
     if (st) {
         shrink_free(l);
         return st;
@@ -353,9 +348,9 @@ int unc_chain_links(const unc_chain *c, const rpiv_field *predictor)
 }
 
 /* The first level's measured error carried into a vector (expand_var): eh = sum_k cf_k fe_k
- * (u, v), c2 = sum_k cf_k^2, var0 the variance of the first level's own terms. */
+ * (u, v), c2 = sum_k cf_k^2 (u, v), var0 the variance of the first level's own terms. */
 typedef struct first_err {
-    double eh[2], c2, var0[2];
+    double eh[2], c2[2], var0[2];
     int ok;
 } first_err;
 
@@ -487,16 +482,92 @@ static int back_map(const unc_level *l, const double *hx, const double *ax, cons
     return 0;
 }
 
-/* The variance, u and v, of sum_k cf_k e_k, e the errors of the nodes bx0..bx1 x by0..by1 of
- * level L (cf: their coefficients, taken over and freed): each level's window noises and,
- * through the maps, those of the levels before. Returns 0, or -1 when out of memory. */
-static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int by1, double *cf,
+/* Nodes the filter and the denoiser carry a coefficient across, per axis: the
+ * filter 1, the denoiser's stages 2 (second difference at an end), 4 (the fourth difference
+ * at dilation 2), 8 (the second at dilation 4, at an end). */
+#define UNC_DENOISE_REACH 15
+
+/* The coefficients of the level before's nodes kx0.. (kw) x ky0.. (kh), u and v, of the
+ * errors sum_k cf_k e_k of level l's nodes bx0.. (bw) x by0.. (bh): out[q] = G^T cf[q]
+ * (new arrays; out[1] == out[0] while cf[1] == cf[0] and the map is the same for u and v).
+ * G = G0 A F for a denoised predictor (unc_level.dw), the map itself otherwise. 0, or -1 out
+ * of memory. */
+static int level_back(const unc_level *l, double *const cf[2], int bx0, int bw, int by0, int bh,
+                      int kx0, int kw, int ky0, int kh, double *out[2])
+{
+    const size_t nk = (size_t)kh * (size_t)kw;
+    out[0] = out[1] = NULL;
+    if (!l->dw) {
+        out[0] = calloc(nk, sizeof *out[0]);
+        out[1] = cf[1] == cf[0] ? out[0] : calloc(nk, sizeof *out[1]);
+        if (!out[0] || !out[1] ||
+            back_map(l, l->hx, l->ax, l->hy, l->ay, 1, cf[0], bx0, bw, by0, bh, kx0, kw, ky0, kh,
+                     out[0]) ||
+            (out[1] != out[0] && back_map(l, l->hx, l->ax, l->hy, l->ay, 1, cf[1], bx0, bw, by0, bh,
+                                          kx0, kw, ky0, kh, out[1])))
+            return -1;
+        return 0;
+    }
+    /* G0^T cf on the block widened by the denoiser's reach, then A^T and F^T there, cut back */
+    const int ex0 = kx0 - UNC_DENOISE_REACH < 0 ? 0 : kx0 - UNC_DENOISE_REACH;
+    const int ey0 = ky0 - UNC_DENOISE_REACH < 0 ? 0 : ky0 - UNC_DENOISE_REACH;
+    const int ex1 = kx0 + kw - 1 + UNC_DENOISE_REACH > l->pnx - 1
+                        ? l->pnx - 1
+                        : kx0 + kw - 1 + UNC_DENOISE_REACH;
+    const int ey1 = ky0 + kh - 1 + UNC_DENOISE_REACH > l->pny - 1
+                        ? l->pny - 1
+                        : ky0 + kh - 1 + UNC_DENOISE_REACH;
+    const int ew = ex1 - ex0 + 1, eh = ey1 - ey0 + 1;
+    const size_t ne = (size_t)ew * (size_t)eh;
+    double *e = calloc(3 * ne, sizeof *e);
+    out[0] = malloc(nk * sizeof *out[0]);
+    out[1] = malloc(nk * sizeof *out[1]);
+    if (!e || !out[0] || !out[1]) {
+        free(e);
+        return -1;
+    }
+    double *b = e + ne, *tmp = e + 2 * ne;
+    for (int q = 0; q < 2; q++) {
+        if (q == 0 || cf[1] != cf[0]) {
+            memset(b, 0, ne * sizeof *b);
+            if (back_map(l, l->hx, l->ax, l->hy, l->ay, 1, cf[q], bx0, bw, by0, bh, ex0, ew, ey0,
+                         eh, b)) {
+                free(e);
+                return -1;
+            }
+        }
+        memcpy(e, b, ne * sizeof *e);
+        piv_pred_denoise_map_t(l->dw, l->pnx, l->pny, q, e, ex0, ew, ey0, eh, tmp);
+        if (l->fa > 0)
+            piv_pred_filter_t(e, l->fa, l->pnx, l->pny, ex0, ew, ey0, eh, tmp);
+        for (int m = 0; m < kh; m++)
+            memcpy(out[q] + (size_t)m * (size_t)kw,
+                   e + (size_t)(ky0 - ey0 + m) * (size_t)ew + (size_t)(kx0 - ex0),
+                   (size_t)kw * sizeof *e);
+    }
+    free(e);
+    return 0;
+}
+
+static void cf_free(double *cf[2])
+{
+    if (cf[1] != cf[0])
+        free(cf[1]);
+    free(cf[0]);
+    cf[0] = cf[1] = NULL;
+}
+
+/* The variance, u and v, of sum_k cf[q]_k e_k, e the errors of the nodes bx0..bx1 x by0..by1
+ * of level L (cf: their coefficients, u and v, cf[1] == cf[0] when the same; taken over and
+ * freed): each level's window noises and, through the maps, those of the levels before.
+ * Returns 0, or -1 when out of memory. */
+static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int by1, double *cf[2],
                       double var[2], first_err *fst)
 {
-    double *nx_cf = NULL;
+    double *nx_cf[2] = {NULL, NULL};
     term *t = NULL;
     size_t nt = 0, cap = 0, nt0 = 0;
-    int bad = !cf, at0 = 0;
+    int bad = !cf[0] || !cf[1], at0 = 0;
     var[0] = var[1] = 0;
     for (int lev = L; lev >= 0 && !bad; lev--) {
         const unc_level *l = &c->lv[lev];
@@ -506,8 +577,10 @@ static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int 
         /* this level's terms */
         for (int j = 0; j < bh; j++)
             for (int i = 0; i < bw; i++) {
-                const double a = cf[(size_t)j * (size_t)bw + (size_t)i];
-                if (fabs(a) < UNC_TINY)
+                const size_t at = (size_t)j * (size_t)bw + (size_t)i;
+                const double a0 = fabs(cf[0][at]) < UNC_TINY ? 0 : cf[0][at];
+                const double a1 = fabs(cf[1][at]) < UNC_TINY ? 0 : cf[1][at];
+                if (a0 == 0 && a1 == 0)
                     continue;
                 if (nt == cap) {
                     cap = cap ? 2 * cap : 64;
@@ -520,14 +593,14 @@ static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int 
                 }
                 const int gx = bx0 + i, gy = by0 + j;
                 const size_t k = (size_t)gy * (size_t)l->nx + (size_t)gx;
-                const double r = a / sqrt((double)l->ww * l->wh);
+                const double r = sqrt((double)l->ww * l->wh);
                 term *e = &t[nt++];
                 e->x0 = l->wx0 + gx * l->sx;
                 e->y0 = l->wy0 + gy * l->sy;
                 e->x1 = e->x0 + l->ww;
                 e->y1 = e->y0 + l->wh;
-                e->q[0] = r * (double)l->s[0][k];
-                e->q[1] = r * (double)l->s[1][k];
+                e->q[0] = a0 / r * (double)l->s[0][k];
+                e->q[1] = a1 / r * (double)l->s[1][k];
             }
         if (bad || !l->hx || lev == 0)
             break;
@@ -537,16 +610,14 @@ static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int 
               l->pnx, &kx0, &kx1);
         reach(by0, by1, l->wy0, l->sy, l->wh, l->shift, c->lv[lev - 1].y0, c->lv[lev - 1].dy,
               l->pny, &ky0, &ky1);
-        const int kw = kx1 - kx0 + 1, kh = ky1 - ky0 + 1;
-        nx_cf = calloc((size_t)kh * (size_t)kw, sizeof *nx_cf);
-        if (!nx_cf || back_map(l, l->hx, l->ax, l->hy, l->ay, 1, cf, bx0, bw, by0, bh, kx0, kw, ky0,
-                               kh, nx_cf)) {
+        if (level_back(l, cf, bx0, bw, by0, bh, kx0, kx1 - kx0 + 1, ky0, ky1 - ky0 + 1, nx_cf)) {
             bad = 1;
             break;
         }
-        free(cf);
-        cf = nx_cf;
-        nx_cf = NULL;
+        cf_free(cf);
+        cf[0] = nx_cf[0];
+        cf[1] = nx_cf[1];
+        nx_cf[0] = nx_cf[1] = NULL;
         bx0 = kx0;
         bx1 = kx1;
         by0 = ky0;
@@ -564,18 +635,19 @@ static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int 
         const int bw = bx1 - bx0 + 1, bh = by1 - by0 + 1;
         for (int j = 0; j < bh; j++)
             for (int i = 0; i < bw; i++) {
-                const double a = cf[(size_t)j * (size_t)bw + (size_t)i];
+                const size_t at = (size_t)j * (size_t)bw + (size_t)i;
                 const size_t k = (size_t)(by0 + j) * (size_t)l->nx + (size_t)(bx0 + i);
-                fst->eh[0] += a * (double)l->fe[0][k];
-                fst->eh[1] += a * (double)l->fe[1][k];
-                fst->c2 += a * a;
+                for (int q = 0; q < 2; q++) {
+                    fst->eh[q] += cf[q][at] * (double)l->fe[q][k];
+                    fst->c2[q] += cf[q][at] * cf[q][at];
+                }
             }
         if (nt > nt0)
             bad = terms_var(t + nt0, nt - nt0, fst->var0);
         fst->ok = !bad;
     }
-    free(cf);
-    free(nx_cf);
+    cf_free(cf);
+    cf_free(nx_cf);
     free(t);
     return bad ? -1 : 0;
 }
@@ -584,19 +656,22 @@ static int expand_var(const unc_chain *c, int L, int bx0, int bx1, int by0, int 
  * memory. */
 static int vector_var(const unc_chain *c, int ix, int iy, double var[2], first_err *fst)
 {
-    double *cf = malloc(sizeof *cf);
-    if (cf)
-        cf[0] = 1;
+    double *cf[2];
+    cf[0] = cf[1] = malloc(sizeof *cf[0]);
+    if (cf[0])
+        cf[0][0] = 1;
     return expand_var(c, c->n - 1, ix, ix, iy, iy, cf, var, fst);
 }
 
 /* The denoiser's shrinkage of the true field, for vector (ix, iy) of the newest level (docs/
  * uncertainty.md, "The vortex"): the predictor's nodes hold t + n (truth, noise) and the
- * denoiser removed r = (t - D t) + (I - L) n from them (L its linear part on noise), so the
+ * denoiser removed r = (t - D t) + (I - A) n from them (A the linear map the denoiser was on
+ * this predictor, its weights held: L, its linear part, where it drops every detail), so the
  * vector carries -G0 (t - D t) besides the noise the chain counts (G0: the spline and the
- * window without the denoiser; G = G0 L the chain's map). Estimated by eh = -G0 r, whose noise
- * -G0 (I - L) n = -(G0 - G) n has the variance vn the chain gives for those coefficients:
- * add[q] = max(0, eh^2 - vn), u and v. Returns 0, or -1 when out of memory. */
+ * window without the denoiser; G = G0 A the chain's map). Estimated by eh = -G0 r, whose
+ * noise -G0 (I - A) n = -(G0 - G) n
+ * has the variance vn the chain gives for those coefficients: add[q] = max(0, eh^2 - vn), u
+ * and v. Returns 0, or -1 when out of memory. */
 static int shrink_var(const unc_chain *c, int ix, int iy, double add[2])
 {
     const unc_level *l = &c->lv[c->n - 1], *p = &c->lv[c->n - 2];
@@ -604,29 +679,32 @@ static int shrink_var(const unc_chain *c, int ix, int iy, double add[2])
     reach(ix, ix, l->wx0, l->sx, l->ww, l->shift, p->x0, p->dx, l->pnx, &kx0, &kx1);
     reach(iy, iy, l->wy0, l->sy, l->wh, l->shift, p->y0, p->dy, l->pny, &ky0, &ky1);
     const int kw = kx1 - kx0 + 1, kh = ky1 - ky0 + 1;
-    const double one = 1;
-    double *g0 = calloc((size_t)kh * (size_t)kw, sizeof *g0);
-    double *d = calloc((size_t)kh * (size_t)kw, sizeof *d);
-    if (!g0 || !d ||
-        back_map(l, l->hx0, l->ax0, l->hy0, l->ay0, 1, &one, ix, 1, iy, 1, kx0, kw, ky0, kh, g0)) {
+    const size_t nk = (size_t)kh * (size_t)kw;
+    double one = 1, *const unit[2] = {&one, &one};
+    double *g0 = calloc(nk, sizeof *g0), *d[2] = {NULL, NULL};
+    if (!g0 ||
+        back_map(l, l->hx0, l->ax0, l->hy0, l->ay0, 1, &one, ix, 1, iy, 1, kx0, kw, ky0, kh, g0) ||
+        level_back(l, unit, ix, 1, iy, 1, kx0, kw, ky0, kh, d)) {
         free(g0);
-        free(d);
+        free(d[0]);
+        if (d[1] != d[0])
+            free(d[1]);
         return -1;
     }
     double eh[2] = {0, 0}, vn[2];
     for (int m = 0; m < kh; m++)
         for (int k = 0; k < kw; k++) {
-            const double a = g0[(size_t)m * (size_t)kw + (size_t)k];
+            const size_t at = (size_t)m * (size_t)kw + (size_t)k;
             const size_t node = (size_t)(ky0 + m) * (size_t)p->nx + (size_t)(kx0 + k);
-            eh[0] += a * (double)l->pe[0][node];
-            eh[1] += a * (double)l->pe[1][node];
-            d[(size_t)m * (size_t)kw + (size_t)k] = a;
+            eh[0] += g0[at] * (double)l->pe[0][node];
+            eh[1] += g0[at] * (double)l->pe[1][node];
         }
-    free(g0);
-    if (back_map(l, l->hx, l->ax, l->hy, l->ay, -1, &one, ix, 1, iy, 1, kx0, kw, ky0, kh, d)) {
-        free(d);
-        return -1;
+    for (size_t at = 0; at < nk; at++) {
+        d[0][at] = g0[at] - d[0][at];
+        if (d[1] != d[0])
+            d[1][at] = g0[at] - d[1][at];
     }
+    free(g0);
     if (expand_var(c, c->n - 2, kx0, kx1, ky0, ky1, d, vn, NULL))
         return -1;
     for (int q = 0; q < 2; q++)
@@ -647,7 +725,7 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
         double var[2];
         const int ix = (int)(k % (size_t)l->nx), iy = (int)(k / (size_t)l->nx);
         double add[2] = {0, 0};
-        first_err fst = {{0, 0}, 0, {0, 0}, 0};
+        first_err fst = {{0, 0}, {0, 0}, {0, 0}, 0};
         if (vector_var(c, ix, iy, var, &fst) || (l->pe[0] && shrink_var(c, ix, iy, add))) {
             bad = 1;
             continue;
@@ -660,7 +738,7 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
                  * of eh^2 over the variance its terms were counted with and over the noise of
                  * the estimate (the final field's error at the first level's nodes, taken as
                  * this vector's, through the same coefficients) */
-                const double vn = var[q] * fst.c2;
+                const double vn = var[q] * fst.c2[q];
                 var[q] += fmax(0, fst.eh[q] * fst.eh[q] - vn - fst.var0[q]);
             }
         su[k] = (float)fmin(sqrt(var[0] > 0 ? var[0] : 0), UNC_SIGMA_MAX);

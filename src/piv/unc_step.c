@@ -49,6 +49,23 @@ rpiv_status unc_pred_error(const rpiv_piv *pv, const rpiv_field *predictor, int 
     return RPIV_OK;
 }
 
+rpiv_status unc_pred_weights(const rpiv_piv *pv, const rpiv_field *predictor, double filter,
+                             int kept, float **gain)
+{
+    rpiv_field *q = NULL;
+    rpiv_status st;
+    *gain = NULL;
+    if (!(st = unc_prepared(predictor, &q)) && !(filter > 0 && (st = piv_pred_filter(q, filter))))
+        st = piv_pred_denoise_weights(pv, q, gain);
+    if (!st && !kept) { /* every detail taken as dropped: the denoiser's linear part L */
+        const size_t m = (size_t)PIV_DENOISE_STAGES * 2 * (size_t)q->nx * (size_t)q->ny;
+        for (size_t k = 0; k < m; k++)
+            (*gain)[k] = (*gain)[k] < 1 ? 0 : (*gain)[k];
+    }
+    rpiv_field_free(q);
+    return st;
+}
+
 /* The predictor's error: what the refinement's denoiser removed from it (unc_pred_error
  * against the predictor's own field, docs/uncertainty.md "The vortex"), handed to the chain
  * (unc_chain_pred_error). */
@@ -73,8 +90,13 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
         pv->w,  pv->h,
         shift,  predictor && pv->p.refine_denoise && piv_pred_repeats(pv, predictor)};
     const int linked = shift != 0 && unc_chain_links(pv->unc, predictor);
-    rpiv_status st = unc_chain_push(&pv->unc, linked, &g, refines ? pv->p.refine_filter : 0, f, cs,
-                                    cs + ps->nwin);
+    const double filter = refines ? pv->p.refine_filter : 0;
+    float *gain = NULL;
+    rpiv_status st =
+        linked && g.denoise ? unc_pred_weights(pv, predictor, filter, 1, &gain) : RPIV_OK;
+    if (!st)
+        st = unc_chain_push(&pv->unc, linked, &g, filter, f, cs, cs + ps->nwin, gain);
+    free(gain);
     if (st)
         return st;
     if (!linked && shift == 0 && pass < pv->npass - 1) { /* the first level, not deformed */

@@ -56,20 +56,21 @@ typedef struct unc_chain unc_chain;
 
 /* A pass's windows: window (i, j) covers pixels [wx0 + i sx, + ww) x [wy0 + j sy, + wh); a
  * deforming pass samples its predictor at pixel + shift; the image is img_w x img_h. denoise:
- * its predictor went through the refinement's denoiser (refine_filter.c), whose effect on
- * noise is taken as the smoothings it keeps when it drops every level's detail (below the
- * thresholds; unc_denoise_line). */
+ * its predictor went through the refinement's denoiser (refine_filter.c), whose effect on the
+ * predictor's errors is the linear map it was on that predictor, its weights held
+ * (unc_pred_weights). */
 typedef struct unc_geom {
     int wx0, wy0, sx, sy, ww, wh, img_w, img_h;
     double shift;
     int denoise;
 } unc_geom;
 
-/* The chain's model of the refinement's denoiser on noise, along one axis: line u of the n
- * samples along x (n = nx) or y (n = ny) of an nx x ny grid, every level's detail dropped
- * (piv_pred_denoise_linear; its grid test is symmetric in nx and ny). Returns 0, or -1 when
- * out of memory. */
-int unc_denoise_line(float *u, int n, int nx, int ny);
+/* The weights of the refinement's denoiser on the predictor built from field predictor
+ * (prepared as piv_pred_new prepares it, low-passed with weight filter, then denoised):
+ * piv_pred_denoise_weights's *gain (new), on predictor's grid; kept = 0: every kept detail's
+ * weight set to 0 (the denoiser's linear part L, every detail taken as dropped). */
+RPIV_NODISCARD rpiv_status unc_pred_weights(const rpiv_piv *pv, const rpiv_field *predictor,
+                                            double filter, int kept, float **gain);
 
 void unc_chain_free(unc_chain *c); /* NULL is a no-op */
 
@@ -77,10 +78,12 @@ void unc_chain_free(unc_chain *c); /* NULL is a no-op */
  * sigmas su, sv (valid vectors'; the others take their RMS). linked = 1: the pass deformed
  * by the predictor built from the newest level's field, low-passed with weight `filter`; 0:
  * the chain restarts at this level (no predictor, window offsets, or a predictor from
- * elsewhere, taken as exact). Creates *chain if NULL. */
+ * elsewhere, taken as exact). weights: with g->denoise, the denoiser's weights on that
+ * predictor (unc_pred_weights; NULL: the predictor taken as not denoised). Creates *chain if
+ * NULL. */
 RPIV_NODISCARD rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g,
                                           double filter, const rpiv_field *f, const float *su,
-                                          const float *sv);
+                                          const float *sv, const float *weights);
 
 /* The newest level's predictor had the error err at the level before's nodes (estimated by
  * unc_pred_error): its part the chain does not count as noise enters the vectors' variance

@@ -241,19 +241,33 @@ int main(int argc, char **argv)
                 }
             if (rpiv_field_copy(t1, &dt) || piv_pred_denoise(pv, q1) || piv_pred_denoise(pv, dt))
                 return 4;
-            double *line = malloc(sizeof *line * 64);
-            for (int j = 0; j < f1->ny; j++)
-                piv_pred_denoise_linear(lq->u + (size_t)j * f1->nx, f1->nx, f1->nx, f1->ny, line);
-            /* columns */
-            float col[64];
-            for (int i = 0; i < f1->nx; i++) {
-                for (int j = 0; j < f1->ny; j++)
-                    col[j] = lq->u[(size_t)j * f1->nx + i];
-                piv_pred_denoise_linear(col, f1->ny, f1->nx, f1->ny, line);
-                for (int j = 0; j < f1->ny; j++)
-                    lq->u[(size_t)j * f1->nx + i] = col[j];
-            }
-            free(line);
+            /* the chain's old model of the denoiser on the error, L e (every detail dropped: the
+             * weights of piv_pred_denoise_weights all 0), and its model now, A e (the weights
+             * the denoiser had on q); row k of a map M is M^T e_k */
+            float *wq = NULL, *w0 = NULL;
+            rpiv_field *gq = NULL;
+            if (rpiv_field_copy(f1, &gq) || piv_pred_denoise_weights(pv, gq, &wq) ||
+                !(w0 = calloc((size_t)PIV_DENOISE_STAGES * 2 * nn, sizeof *w0)))
+                return 5;
+            rpiv_field_free(gq);
+            rpiv_field *ae = NULL;
+            if (rpiv_field_copy(f1, &ae))
+                return 5;
+            double *row = malloc(2 * nn * sizeof *row);
+            for (size_t k = 0; k < nn; k++)
+                for (int w = 0; w < 2; w++) {
+                    memset(row, 0, nn * sizeof *row);
+                    row[k] = 1;
+                    piv_pred_denoise_map_t(w ? wq : w0, f1->nx, f1->ny, 0, row, 0, f1->nx, 0,
+                                           f1->ny, row + nn);
+                    double a = 0;
+                    for (size_t m = 0; m < nn; m++)
+                        a += row[m] * ((double)f1->u[m] - (double)t1->u[m]);
+                    (w ? ae : lq)->u[k] = (float)a;
+                }
+            free(row);
+            free(wq);
+            free(w0);
             /* J e_q by a finite difference at q: (D q - D(q - eps e_q)) / eps */
             rpiv_field *qe = NULL, *q2 = NULL;
             if (rpiv_field_copy(f1, &qe) || rpiv_field_copy(f1, &q2))
@@ -265,12 +279,28 @@ int main(int argc, char **argv)
             }
             if (piv_pred_denoise(pv, qe) || piv_pred_denoise(pv, q2))
                 return 5;
-            static double S2[3];
+            /* the nodes at den_r0 <= r < den_r1 px (env DEN_R0, DEN_R1; the core by default) */
+            const double den_r0 = getenv("DEN_R0") ? atof(getenv("DEN_R0")) : 0,
+                         den_r1 = getenv("DEN_R1") ? atof(getenv("DEN_R1")) : 64;
+            static double S2[3], S3[2];
             for (int j = 0; j < f1->ny; j++)
                 for (int i = 0; i < f1->nx; i++) {
                     size_t k = (size_t)j * f1->nx + i;
                     double x = f1->x0 + i * f1->dx, y = f1->y0 + j * f1->dy;
-                    if (hypot(x - 128.37, y - 127.81) >= 64)
+                    const double rr = hypot(x - 128.37, y - 127.81);
+                    if (rr < den_r0 || rr >= den_r1)
+                        continue;
+                    const double dd = q1->u[k] - dt->u[k];
+                    S3[0] += (double)ae->u[k] * ae->u[k];
+                    S3[1] += (ae->u[k] - dd) * (ae->u[k] - dd);
+                }
+            rpiv_field_free(ae);
+            for (int j = 0; j < f1->ny; j++)
+                for (int i = 0; i < f1->nx; i++) {
+                    size_t k = (size_t)j * f1->nx + i;
+                    double x = f1->x0 + i * f1->dx, y = f1->y0 + j * f1->dy;
+                    const double rr = hypot(x - 128.37, y - 127.81);
+                    if (rr < den_r0 || rr >= den_r1)
                         continue;
                     double je = (q2->u[k] - qe->u[k]) / eps, dd = q1->u[k] - dt->u[k];
                     S2[0] += je * je;
@@ -284,7 +314,8 @@ int main(int argc, char **argv)
                 for (int i = 0; i < f1->nx; i++) {
                     size_t k = (size_t)j * f1->nx + i;
                     double x = f1->x0 + i * f1->dx, y = f1->y0 + j * f1->dy;
-                    if (hypot(x - 128.37, y - 127.81) >= 64)
+                    const double rr = hypot(x - 128.37, y - 127.81);
+                    if (rr < den_r0 || rr >= den_r1)
                         continue;
                     double A = q1->u[k] - t1->u[k], B = lq->u[k] - (t1->u[k] - dt->u[k]),
                            E = f1->u[k] - t1->u[k];
@@ -296,12 +327,16 @@ int main(int argc, char **argv)
                 }
             (void)nn;
             if (q == nseed - 1)
-                printf("core nodes u: pass-1 error %.4f; denoised predictor error: actual %.4f, "
+                printf("nodes at r %g-%g px, u: pass-1 error %.4f; denoised predictor error: "
+                       "actual %.4f, "
                        "chain's linear model %.4f, difference %.4f\n",
-                       sqrt(S[3] / nS), sqrt(S[0] / nS), sqrt(S[1] / nS), sqrt(S[2] / nS));
+                       den_r0, den_r1, sqrt(S[3] / nS), sqrt(S[0] / nS), sqrt(S[1] / nS),
+                       sqrt(S[2] / nS));
             if (q == nseed - 1)
-                printf("  D q - D t %.4f, J_q e_q %.4f, difference %.4f\n", sqrt(S2[1] / nS),
-                       sqrt(S2[0] / nS), sqrt(S2[2] / nS));
+                printf("  D q - D t %.4f, J_q e_q %.4f, difference %.4f; A e_q (the weights at q) "
+                       "%.4f, difference from D q - D t %.4f\n",
+                       sqrt(S2[1] / nS), sqrt(S2[0] / nS), sqrt(S2[2] / nS), sqrt(S3[0] / nS),
+                       sqrt(S3[1] / nS));
             f = f1;
             rpiv_field_free(f0);
             rpiv_field_free(q1);
