@@ -7,7 +7,9 @@
  * sqrt(2 ln n) (Donoho and Johnstone's universal threshold), sigma the median absolute detail
  * / 0.6745 along the grid direction where it is smallest, at the coarser dilations at most
  * what the noise of a window average gives there, scaled from a noise level that a smooth
- * flow's own detail cannot raise (that of the fourth differences at dilation 1). */
+ * flow's own detail cannot raise (that of the fourth differences at dilation 1). Also the
+ * repeat's fixed low-pass filter of the predictor and its transpose (for the uncertainty's
+ * chain). */
 #include "piv_impl.h"
 
 #include "rpiv/deform.h"
@@ -360,4 +362,66 @@ int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
     const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
     return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
            pv->pass[k].wh == pv->pass[k - 1].wh;
+}
+
+/* The predictor's low-pass filter: [a/2, 1 - a, a/2] along x, then along y. At the edge of
+ * the grid the missing neighbour is the point-symmetric extension 2 U(0) - U(1), with which
+ * the filter leaves the edge value as it is (and a linear field linear anywhere). Its response
+ * to a wave of k grid steps per wavelength is 1 - a (1 - cos(2 pi / k)): 1 - 2a at the grid's
+ * Nyquist limit, where the window's own response is nil and the iteration would otherwise
+ * keep every error it once made (docs/piv.md, "Refinement"). */
+rpiv_status piv_pred_filter(rpiv_field *f, double a)
+{
+    const int nx = f->nx, ny = f->ny, n = nx > ny ? nx : ny;
+    float *line = malloc((size_t)n * sizeof *line);
+    if (!line)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor filter");
+    const float c0 = (float)(1 - a), c1 = (float)(0.5 * a);
+    for (int comp = 0; comp < 2; comp++) {
+        float *g = comp ? f->v : f->u;
+        for (int j = 0; nx > 2 && j < ny; j++) {
+            float *r = g + (size_t)j * (size_t)nx;
+            memcpy(line, r, (size_t)nx * sizeof *line);
+            for (int i = 1; i < nx - 1; i++)
+                r[i] = c0 * line[i] + c1 * (line[i - 1] + line[i + 1]);
+        }
+        for (int i = 0; ny > 2 && i < nx; i++) {
+            for (int j = 0; j < ny; j++)
+                line[j] = g[(size_t)j * (size_t)nx + (size_t)i];
+            for (int j = 1; j < ny - 1; j++)
+                g[(size_t)j * (size_t)nx + (size_t)i] =
+                    c0 * line[j] + c1 * (line[j - 1] + line[j + 1]);
+        }
+    }
+    free(line);
+    return RPIV_OK;
+}
+
+void piv_pred_filter_t(double *c, double a, int nx, int ny, int bx0, int bw, int by0, int bh,
+                       double *tmp)
+{
+    const size_t nb = (size_t)bw * (size_t)bh;
+    for (int axis = 0; axis < 2; axis++) {
+        const int len = axis ? ny : nx;
+        if (len <= 2)
+            continue;
+        memset(tmp, 0, nb * sizeof *tmp);
+        for (int j = 0; j < bh; j++)
+            for (int i = 0; i < bw; i++) {
+                const double v = c[(size_t)j * (size_t)bw + (size_t)i];
+                const int g = axis ? by0 + j : bx0 + i;
+                const size_t at = (size_t)j * (size_t)bw + (size_t)i, st = axis ? (size_t)bw : 1;
+                const int pos = axis ? j : i, lim = axis ? bh : bw;
+                if (g == 0 || g == len - 1) {
+                    tmp[at] += v;
+                    continue;
+                }
+                tmp[at] += (1 - a) * v;
+                if (pos > 0)
+                    tmp[at - st] += 0.5 * a * v;
+                if (pos < lim - 1)
+                    tmp[at + st] += 0.5 * a * v;
+            }
+        memcpy(c, tmp, nb * sizeof *c);
+    }
 }
