@@ -322,33 +322,61 @@ void piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double 
                             int by0, int bh, double *tmp)
 {
     const size_t n = (size_t)nx * (size_t)ny, nb = (size_t)bw * (size_t)bh;
+    /* the box of c's non-zero samples (lo[axis] .. hi[axis]): the samples outside it have no
+     * detail to scatter; each stage widens it along its axis by its stencils' reach */
+    int lo[2] = {bw, bh}, hi[2] = {-1, -1};
+    for (int j = 0; j < bh; j++)
+        for (int i = 0; i < bw; i++)
+            if (c[(size_t)j * (size_t)bw + (size_t)i] != 0) {
+                lo[0] = i < lo[0] ? i : lo[0], hi[0] = i > hi[0] ? i : hi[0];
+                lo[1] = j < lo[1] ? j : lo[1], hi[1] = j > hi[1] ? j : hi[1];
+            }
+    if (hi[0] < 0)
+        return; /* A^T 0 = 0 */
     for (int lev = LEVELS - 1; lev >= 0; lev--) {
         const int step = 1 << lev, order = ORDER[lev];
         for (int axis = 1; axis >= 0; axis--) {
             const float *gs = gain + ((size_t)(comp * LEVELS + lev) * 2 + (size_t)axis) * n;
             const int len = axis ? ny : nx;
             memcpy(tmp, c, nb * sizeof *tmp);
-            for (int j = 0; j < bh; j++)
-                for (int i = 0; i < bw; i++) {
-                    const int gx = bx0 + i, gy = by0 + j;
-                    const double a = ((double)gs[(size_t)gy * (size_t)nx + (size_t)gx] - 1) *
-                                     c[(size_t)j * (size_t)bw + (size_t)i];
+            /* S^T c = c + D^T ((g - 1) c): the detail of each sample scattered back over the
+             * samples of its stencil, along its sub-line. The stencil depends on the sample's
+             * place along the axis only: made once per column (x) or row (y), when a sample
+             * there has a detail; each target still receives its terms in the same order. */
+            for (int r = lo[axis]; r <= hi[axis]; r++) {
+                const int p = axis ? by0 + r : bx0 + r, o = p % step;
+                const int m = (len - o + step - 1) / step;
+                int idx[5], cnt = -1;
+                double w[5];
+                for (int s2 = lo[!axis]; s2 <= hi[!axis]; s2++) {
+                    const int i = axis ? s2 : r, j = axis ? r : s2;
+                    const double a =
+                        ((double)gs[(size_t)(by0 + j) * (size_t)nx + (size_t)(bx0 + i)] - 1) *
+                        c[(size_t)j * (size_t)bw + (size_t)i];
                     if (a == 0)
                         continue;
-                    /* S^T c = c + D^T ((g - 1) c): the detail of this sample scattered back
-                     * over the samples of its stencil, along its sub-line */
-                    const int p = axis ? gy : gx, o = p % step, m = (len - o + step - 1) / step;
-                    int idx[5];
-                    double w[5];
-                    const int cnt = stencil(m, order, p / step, idx, w);
+                    if (cnt < 0) { /* the stencil's targets inside the block, their places */
+                        int at[5];
+                        double wt[5];
+                        const int all = stencil(m, order, p / step, at, wt);
+                        cnt = 0;
+                        for (int q = 0; q < all; q++) {
+                            const int t = o + at[q] * step - (axis ? by0 : bx0);
+                            if (t >= 0 && t < (axis ? bh : bw))
+                                idx[cnt] = t, w[cnt++] = wt[q];
+                        }
+                    }
                     for (int q = 0; q < cnt; q++) {
-                        const int at = o + idx[q] * step;
-                        const int ti = axis ? i : at - bx0, tj = axis ? at - by0 : j;
-                        if (ti >= 0 && ti < bw && tj >= 0 && tj < bh)
-                            tmp[(size_t)tj * (size_t)bw + (size_t)ti] += w[q] * a;
+                        const int ti = axis ? i : idx[q], tj = axis ? idx[q] : j;
+                        tmp[(size_t)tj * (size_t)bw + (size_t)ti] += w[q] * a;
                     }
                 }
+            }
             memcpy(c, tmp, nb * sizeof *c);
+            /* a stencil reaches 2 sub-line steps from its sample, 4 at a mirrored end */
+            const int reach = 4 * step, len_b = axis ? bh : bw;
+            lo[axis] = lo[axis] - reach < 0 ? 0 : lo[axis] - reach;
+            hi[axis] = hi[axis] + reach > len_b - 1 ? len_b - 1 : hi[axis] + reach;
         }
     }
 }
