@@ -11,6 +11,16 @@
 
 static int check_failures, check_run, check_skipped, check_current_failed;
 
+/* 1 under `make test`'s valgrind stage (RPIV_MEMCHECK set by run-memcheck-quick): a program
+ * whose statistical sweep takes minutes under valgrind runs a few of its cases there (the same
+ * code paths, checked for memory errors) and asserts its statistics only in the ASan+UBSan run,
+ * which runs every case. */
+static inline int check_memcheck(void)
+{
+    const char *s = getenv("RPIV_MEMCHECK");
+    return s && *s && *s != '0';
+}
+
 #define CHECK(cond)                                                                                \
     do {                                                                                           \
         if (!(cond)) {                                                                             \

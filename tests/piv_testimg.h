@@ -45,12 +45,17 @@ static inline void ti_particle(float *img, int w, int h, double xp, double yp, d
                                double amp)
 {
     enum { R = 5 };
-    double ex[2 * R + 1], ey[2 * R + 1];
+    double ex[2 * R + 1], ey[2 * R + 1], gx[2 * R + 2], gy[2 * R + 2];
     int cx = (int)floor(xp + 0.5), cy = (int)floor(yp + 0.5);
     double k = 1.0 / (sqrt(2.0) * sigma);
+    /* erf at the pixels' edges, each edge shared by its two pixels */
+    for (int i = -R; i <= R + 1; i++) {
+        gx[i + R] = erf((cx + i - 0.5 - xp) * k);
+        gy[i + R] = erf((cy + i - 0.5 - yp) * k);
+    }
     for (int i = -R; i <= R; i++) {
-        ex[i + R] = 0.5 * (erf((cx + i + 0.5 - xp) * k) - erf((cx + i - 0.5 - xp) * k));
-        ey[i + R] = 0.5 * (erf((cy + i + 0.5 - yp) * k) - erf((cy + i - 0.5 - yp) * k));
+        ex[i + R] = 0.5 * (gx[i + R + 1] - gx[i + R]);
+        ey[i + R] = 0.5 * (gy[i + R + 1] - gy[i + R]);
     }
     /* normalised so that a particle centred on a pixel has that pixel at amp */
     double c0 = erf(0.5 * k);

@@ -84,11 +84,12 @@ static void cbc_fewer_wrong_vectors_on_weak_peaks(void)
     /* the weakest peaks of docs/piv.md's 54 pairs: 0.006 ppp, noise 20 %, none to twice as
      * many particles without a partner, two seeds */
     int w1[3] = {0}, w5[3] = {0}, n = 0;
+    int quick = check_memcheck(); /* one pair under valgrind: the counts need all six */
     float *a, *b;
     if (!frames_new(512, &a, &b))
         return;
-    for (int lost = 0; lost <= 2; lost++)
-        for (uint64_t seed = 1; seed <= 2; seed++) {
+    for (int lost = quick; lost <= (quick ? 1 : 2); lost++)
+        for (uint64_t seed = 1; seed <= (quick ? 1u : 2u); seed++) {
             weak_pair(seed, 0.006, 0.2, lost, a, b);
             for (int m = 0; m < 3; m++) {
                 rpiv_piv_params prm = rpiv_piv_params_default();
@@ -109,8 +110,11 @@ static void cbc_fewer_wrong_vectors_on_weak_peaks(void)
            w1[0], w1[1], w1[2], w5[0], w5[1], w5[2], n);
     /* measured: > 1 px 731, 487, 504; > 0.5 px 2171, 1996, 2058 of 5766 (the 54 pairs of
      * docs/piv.md: below) */
-    CHECK(n > 0 && w1[1] < 0.85 * w1[0] && w1[2] < 0.8 * w1[0]);
-    CHECK(w5[1] < w5[0] && w5[2] < w5[0]);
+    CHECK(n > 0);
+    if (!quick) {
+        CHECK(w1[1] < 0.85 * w1[0] && w1[2] < 0.8 * w1[0]);
+        CHECK(w5[1] < w5[0] && w5[2] < w5[0]);
+    }
 }
 
 static void cbc_leaves_a_clean_pair_alone(void)
@@ -141,12 +145,14 @@ static void cbc_same_bits_for_any_thread_count(void)
     if (!frames_new(512, &a, &b))
         return;
     weak_pair(5, 0.01, 0.2, 1, a, b);
-    for (int m = 1; m <= 2; m++) {
+    /* under valgrind the sum with 1 and 2 threads (the weak-peaks case runs the product there) */
+    int quick = check_memcheck();
+    for (int m = 1 + quick; m <= 2; m++) {
         rpiv_piv_params prm = rpiv_piv_params_default();
         prm.cbc = m;
         prm.threads = 1;
         rpiv_field *f1 = run(&prm, a, b, 512, 512);
-        for (int t = 2; t <= 3 && f1; t++) {
+        for (int t = 2; t <= (quick ? 2 : 3) && f1; t++) {
             prm.threads = t;
             rpiv_field *ft = run(&prm, a, b, 512, 512);
             CHECK(ft && same_field(f1, ft));
