@@ -373,8 +373,9 @@ void piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double 
                 }
             }
             memcpy(c, tmp, nb * sizeof *c);
-            /* a stencil reaches 2 sub-line steps from its sample, 4 at a mirrored end */
-            const int reach = 4 * step, len_b = axis ? bh : bw;
+            /* a stencil reaches at most 2 sub-line steps from its sample (stencil(): i - 2 ..
+             * i + 2, the ends' one-sided and mirrored stencils included) */
+            const int reach = 2 * step, len_b = axis ? bh : bw;
             lo[axis] = lo[axis] - reach < 0 ? 0 : lo[axis] - reach;
             hi[axis] = hi[axis] + reach > len_b - 1 ? len_b - 1 : hi[axis] + reach;
         }
