@@ -417,12 +417,16 @@ _PAIRING = {"ab": 0, "consecutive": 1, "time-resolved": 2}
 _BACKGROUND = {"none": 0, "min": 1, "mean": 2}
 
 
-def ensemble(pairs, windows=(64, 32, 32), overlap=0.5, progress=None, pairing="ab", **options):
+def ensemble(pairs, windows=(64, 32, 32), overlap=0.5, progress=None, pairing="ab",
+             sheet_bias=False, **options):
     """Ensemble (sum-of-correlation) PIV over a series streamed from files (the numbers of
     `rpiv piv --ensemble`): pairs is a list of (A, B) file pairs (or double-frame files), a
     .txt/.lst list file, a glob, or the words `rpiv piv` takes. progress(done, total) is
     called between pairs (counting over all passes); returning True stops the run
-    (rpiv.Error, status EINTR). Options as for piv(), plus background = none/min/mean."""
+    (rpiv.Error, status EINTR). Options as for piv(), plus background = none/min/mean.
+    sheet_bias=True adds the refracted sheet's bias of every vector by the CCM (`rpiv piv
+    --sheet-bias`, docs/bias.md: bias_u, bias_v, their _std, u_corrected, v_corrected, z_ref)
+    with the experiment of config= and set= ([sheet], [camera], [bias], ...)."""
     if pairing not in _PAIRING:
         raise InputError("ensemble: pairing must be ab, consecutive or time-resolved, got %r"
                          % (pairing,))
@@ -461,6 +465,15 @@ def ensemble(pairs, windows=(64, 32, 32), overlap=0.5, progress=None, pairing="a
         if hook:
             hook.reraise()
         _check(st)
+        if sheet_bias:
+            st = lib.rpiv_experiment_check(exp.ptr)
+            if not st:
+                st = lib.rpiv_config_sheet_bias(exp.ptr, f, lib.rpiv_piv_threads(pv), prog)
+            if hook:
+                hook.reraise()
+            if st:
+                lib.rpiv_field_free(f)
+                _check(st)
         files = []
         for k in range(n):
             src = pl.contents.pair[k]

@@ -3,6 +3,8 @@
 dims (y, x, t) for every per-vector variable, coordinates x(x), y(y), t(t); u, v (float32),
 chc (int8: 1 valid, 0 replaced or masked), flag (rpiv's: 0 valid, 1 replaced, 2 masked),
 peak_ratio, correlation; units pix, pix/dt, frame, or mm, m/s, s with a scale and a dt."""
+import ctypes
+
 import numpy as np
 import xarray as xr
 
@@ -59,8 +61,15 @@ def make_dataset(x_px, y_px, t, u_px, v_px, flag, peak_ratio, corr, scale, dt, a
     return xr.Dataset(data, coords=coords, attrs=a)
 
 
+UNIT_ODD_Y, UNIT_ONE = 0x100, 0  # RPIV_UNIT_ODD_Y, RPIV_UNIT_ONE
+
+
 def field_to_dataset(f, attrs, physical=True):
-    """A Dataset (t of length 1, t = 0) from a librpiv rpiv_field (ctypes structure)."""
+    """A Dataset (t of length 1, t = 0) from a librpiv rpiv_field (ctypes structure), with
+    the field's extra quantities (sigma_u, sigma_v, bias_u, u_corrected, ...) as variables of
+    the same dims, in the units the NetCDF writer gives them (the library's rpiv_unit_name and
+    rpiv_unit_factor: pixels, or with a scale and a dt physical units)."""
+    from ._lib import lib  # the library is loaded by the package before any field exists
     nx, ny = f.nx, f.ny
 
     def grab(ptr, dtype):
@@ -68,9 +77,21 @@ def field_to_dataset(f, attrs, physical=True):
 
     x = f.x0 + f.dx * np.arange(nx)
     y = f.y0 + f.dy * np.arange(ny)
-    return make_dataset(x, y, [0.0], grab(f.u, np.float32), grab(f.v, np.float32),
-                        grab(f.flag, np.int8), grab(f.peak_ratio, np.float32),
-                        grab(f.corr, np.float32), f.scale_mm_per_px, f.dt_s, attrs, physical)
+    ds = make_dataset(x, y, [0.0], grab(f.u, np.float32), grab(f.v, np.float32),
+                      grab(f.flag, np.int8), grab(f.peak_ratio, np.float32),
+                      grab(f.corr, np.float32), f.scale_mm_per_px, f.dt_s, attrs, physical)
+    phys = physical and f.scale_mm_per_px > 0 and f.dt_s > 0
+    for k in range(f.nq):
+        q = f.q[k]
+        name = q.name.decode("utf-8", "replace")
+        scaled = phys and (q.unit & ~UNIT_ODD_Y) != UNIT_ONE
+        factor = lib.rpiv_unit_factor(ctypes.byref(f), q.unit) if scaled else 1.0
+        units = lib.rpiv_unit_name(q.unit, 1 if scaled else 0).decode()
+        data = (grab(q.data, np.float64) * factor).astype(np.float32)
+        ds[name] = (("y", "x", "t"), data,
+                    {"units": units, "long_name": name,
+                     "y_parity": "odd" if q.unit & UNIT_ODD_Y else "even"})
+    return ds
 
 
 def load_nc(path):

@@ -20,12 +20,21 @@ class Image(ctypes.Structure):
     _fields_ = [("w", c_int), ("h", c_int), ("bits", c_int), ("px", P(ctypes.c_float))]
 
 
+QUANTITY_NAME_MAX = 32  # RPIV_QUANTITY_NAME_MAX
+
+
+class Quantity(ctypes.Structure):  # rpiv_quantity: an extra per-vector quantity
+    _fields_ = [("name", ctypes.c_char * QUANTITY_NAME_MAX), ("unit", c_int),
+                ("data", P(ctypes.c_float))]
+
+
 class Field(ctypes.Structure):
     _fields_ = [("nx", c_int), ("ny", c_int), ("x0", c_double), ("y0", c_double),
                 ("dx", c_double), ("dy", c_double), ("u", P(ctypes.c_float)),
                 ("v", P(ctypes.c_float)), ("flag", P(ctypes.c_ubyte)),
                 ("peak_ratio", P(ctypes.c_float)), ("corr", P(ctypes.c_float)),
-                ("scale_mm_per_px", c_double), ("dt_s", c_double)]
+                ("scale_mm_per_px", c_double), ("dt_s", c_double),
+                ("nq", c_size_t), ("q", P(Quantity)), ("y_up", c_int)]
 
 
 class PairSrc(ctypes.Structure):
@@ -118,6 +127,8 @@ _SIGS = {
     "rpiv_image_count_pages": (c_int, [c_char_p, P(c_int)]),
     "rpiv_field_free": (None, [P(Field)]),
     "rpiv_field_load_txt": (c_int, [c_char_p, P(P(Field))]),
+    "rpiv_unit_name": (c_char_p, [c_int, c_int]),
+    "rpiv_unit_factor": (c_double, [P(Field), c_int]),
     "rpiv_experiment_new": (c_int, [P(c_void_p)]),
     "rpiv_experiment_free": (None, [c_void_p]),
     "rpiv_experiment_piv": (c_void_p, [c_void_p]),
@@ -146,6 +157,7 @@ _SIGS = {
     "rpiv_config_raytrace": (c_int, [c_void_p, P(c_double), c_size_t, P(OpticsOpts),
                                      P(Progress), P(P(OpticsResult))]),
     "rpiv_optics_result_free": (None, [P(OpticsResult)]),
+    "rpiv_config_sheet_bias": (c_int, [c_void_p, P(Field), c_int, P(Progress)]),
     "rpiv_config_ccm_predict": (c_int, [c_void_p, c_double, c_double, c_double, c_double,
                                         P(CcmPeak), P(c_double)]),
 }

@@ -33,6 +33,25 @@ def test_piv_matches_cli(series, tmp_path, ext):
     assert (py.flag == 1).sum() > 0 or (py.flag == 0).all()
 
 
+def test_piv_uncertainty_matches_cli(series, tmp_path):
+    """--uncertainty's sigma_u, sigma_v reach the Dataset as the CLI writes them, in its units."""
+    a, b = pair(series)
+    out = tmp_path / "unc.nc"
+    run_cli("piv", "-q", "--uncertainty", a, b, "-o", out)
+    cli = rpiv.load(out)
+    py = rpiv.piv(a, b, uncertainty=1)
+    valid = py.flag.values == 0
+    for name in ("sigma_u", "sigma_v"):
+        assert py[name].dims == ("y", "x", "t") and py[name].attrs["units"] == "pix/dt"
+        assert float(abs(py[name] - cli[name]).max()) <= 1e-6
+        assert (py[name].values[valid] > 0).all()
+    phys = rpiv.piv(a, b, uncertainty=1, scale_mm_per_px=0.05, dt_s=0.002)
+    assert phys.sigma_u.attrs["units"] == "m/s"
+    np.testing.assert_allclose(phys.sigma_u.values, py.sigma_u.values * 0.05e-3 / 0.002,
+                               rtol=1e-6)
+    assert "sigma_u" not in rpiv.piv(a, b)
+
+
 def test_ensemble_matches_cli(series, tmp_path):
     out = tmp_path / "ens.txt"
     run_cli("piv", "-q", "--ensemble", "--window", "48,32", str(series / "*.tif"), "-o", out)
@@ -47,6 +66,26 @@ def test_ensemble_matches_cli(series, tmp_path):
     # the glob form gives the same field
     glob = rpiv.ensemble(str(series / "*.tif"), windows="48,32")
     assert np.array_equal(glob.u.values, ens.u.values)
+
+
+def test_ensemble_sheet_bias_matches_cli(tmp_path):
+    """sheet_bias=True: the CCM's bias of every vector, as `rpiv piv --sheet-bias` writes it,
+    on a duct flow (its velocity varies across the sheet's depth: a bias that is not 0)."""
+    d = tmp_path / "duct"
+    run_cli("synth", "-q", "--size", "256x192", "--flow", "duct", "--pairs", "2", "--seed", "3",
+            "--out", d)
+    out = tmp_path / "sb.nc"
+    ini = d / "synth.ini"  # the experiment the images were made with
+    run_cli("piv", "-q", "--config", ini, "--ensemble", "--window", "48,32", "--sheet-bias",
+            str(d / "*.tif"), "-o", out)
+    cli = rpiv.load(out)
+    py = rpiv.ensemble(str(d / "*.tif"), windows=(48, 32), sheet_bias=True, config=str(ini))
+    for name in ("bias_u", "bias_v", "u_corrected", "v_corrected", "z_ref"):
+        assert float(abs(py[name] - cli[name]).max()) <= 1e-6, name
+    assert float(abs(py.bias_u).max()) > 1e-3  # the duct's shear across the depth
+    np.testing.assert_allclose(py.u_corrected.values, py.u.values - py.bias_u.values,
+                               atol=1e-5)
+    assert "bias_u" not in rpiv.ensemble(str(d / "*.tif"), windows=(48, 32), config=str(ini))
 
 
 def test_ensemble_progress_stops_and_raises(series):
