@@ -398,6 +398,73 @@ static void unc_off_by_default(void)
     free(b);
 }
 
+/* rpiv_piv_passes computes the uncertainty once, for the iterate the refinement returns (a
+ * run without it finds which, a second makes the same steps; src/piv/refine.c): the same
+ * numbers as the passes made one by one with rpiv_piv_step, where every repeat of the final
+ * size gets its own sigma. Four repeats without a stop (refine_tol_px 0, no noise-floor
+ * stop, validation at every step), on a vortex (the repeats change the field). */
+static void unc_once_for_the_returned_iterate(void)
+{
+    enum { N = 256, REP = 4 };
+    ti_params tp = {N, N, 0.05, 2.0, 1000, 0.05, 0, 91};
+    float *a = malloc(N * N * sizeof *a), *b = malloc(N * N * sizeof *b);
+    if (!a || !b) {
+        CHECK(0);
+        free(a);
+        free(b);
+        return;
+    }
+    ti_pair(&tp, vortex, NULL, a, b);
+    rpiv_image ia = {N, N, 16, a}, ib = {N, N, 16, b};
+    rpiv_piv_params p = rpiv_piv_params_default();
+    p.uncertainty = 1;
+    p.refine_max = REP;
+    p.refine_tol_px = 0;
+    p.refine_stop = 0;
+    p.refine_defer = 0;
+    rpiv_piv *pv = NULL;
+    rpiv_field *run = NULL, *f = NULL;
+    int nrefine = -1;
+    CHECK_OK(rpiv_piv_new(&p, N, N, NULL, &pv));
+    if (pv) {
+        CHECK_OK(rpiv_piv_load(pv, &ia, &ib));
+        CHECK_OK(rpiv_piv_passes(pv, &run, &nrefine));
+        CHECK_OK(rpiv_piv_load(pv, &ia, &ib));
+        const int last = rpiv_piv_npass(pv) - 1;
+        for (int k = 0; k <= last + REP; k++) {
+            rpiv_field *g = NULL;
+            CHECK_OK(rpiv_piv_step(pv, k < last ? k : last, f, &g));
+            rpiv_field_free(f);
+            f = g;
+        }
+    }
+    CHECK(nrefine == REP);
+    const rpiv_quantity *r[2] = {run ? rpiv_field_quantity(run, "sigma_u") : NULL,
+                                 run ? rpiv_field_quantity(run, "sigma_v") : NULL};
+    const rpiv_quantity *s2[2] = {f ? rpiv_field_quantity(f, "sigma_u") : NULL,
+                                  f ? rpiv_field_quantity(f, "sigma_v") : NULL};
+    CHECK(r[0] && r[1] && s2[0] && s2[1] && run->nx == f->nx && run->ny == f->ny);
+    if (r[0] && r[1] && s2[0] && s2[1] && run->nx == f->nx && run->ny == f->ny) {
+        size_t n = (size_t)f->nx * (size_t)f->ny, valid = 0;
+        for (size_t k = 0; k < n; k++)
+            valid += f->flag[k] == RPIV_FLAG_VALID && r[0]->data[k] > 0;
+        printf("    %zu vectors (%zu valid with sigma > 0): sigma as step by step: %s\n", n, valid,
+               !memcmp(r[0]->data, s2[0]->data, n * sizeof *r[0]->data) &&
+                       !memcmp(r[1]->data, s2[1]->data, n * sizeof *r[1]->data)
+                   ? "the same bits"
+                   : "different");
+        CHECK(valid > n / 2);
+        CHECK(!memcmp(run->u, f->u, n * sizeof *f->u) && !memcmp(run->v, f->v, n * sizeof *f->v));
+        CHECK(!memcmp(r[0]->data, s2[0]->data, n * sizeof *r[0]->data));
+        CHECK(!memcmp(r[1]->data, s2[1]->data, n * sizeof *r[1]->data));
+    }
+    rpiv_field_free(run);
+    rpiv_field_free(f);
+    rpiv_piv_free(pv);
+    free(a);
+    free(b);
+}
+
 /* The final pass deformed by the exact displacement: what correlation statistics models (the
  * windows' own noise). Coverage 0.68 +- 0.08 and RMS sigma within 1.5 of the RMS error. */
 static void unc_exact_predictor_is_calibrated(void)
@@ -1048,6 +1115,7 @@ int main(void)
         return check_summary();
     }
     RUN_TEST(unc_off_by_default);
+    RUN_TEST(unc_once_for_the_returned_iterate);
     RUN_TEST(unc_exact_predictor_is_calibrated);
     RUN_TEST(unc_tracks_the_error);
     RUN_TEST(unc_spline_sensitivity);

@@ -39,6 +39,8 @@ struct rpiv_piv {
     size_t bytes;          /* memory held                                          */
     rpiv_progress cancel;  /* asked between passes and rows of windows (fn NULL: never) */
     struct unc_chain *unc; /* the passes' uncertainty (uncertainty_impl.h), or NULL */
+    int unc_no_total;      /* 1: the final pass's step leaves its field's sigma out (a
+                              refinement iterate that is not the one returned, refine.c) */
 };
 
 /* What a pass correlates: frames (stride w) whose first row is image row row0, and the

@@ -35,9 +35,55 @@ static int iterates(const rpiv_piv *pv, int k)
     return 1;
 }
 
+/* The passes from k0 on (prev: pass k0 - 1's field, taken over; NULL for k0 = 0), and the
+ * refinement until it stops (stop < 0), or exactly stop repeats of the final size (stop >= 0;
+ * the listed passes' last field for 0): the steps of the field a run with stop < 0 returned,
+ * so the same field (rpiv_piv_passes). */
+static rpiv_status passes(rpiv_piv *pv, int k0, rpiv_field *prev, rpiv_field **out, int *nrefine,
+                          int stop);
+
 rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
 {
-    rpiv_field *prev = NULL, *f = NULL;
+    *out = NULL;
+    if (!pv->p.uncertainty || !pv->deforms || pv->p.refine_max == 0 || pv->npass < 2)
+        return passes(pv, 0, NULL, out, nrefine, -1);
+    /* The uncertainty of the field the refinement returns, computed once: each repeat of the
+     * final size is a last pass whose field would get its sigma (the whole chain, the most
+     * costly part of the uncertainty), while only one of the iterates is returned, possibly
+     * one two repeats back (the noise-floor stop). After the first pass (the only one that
+     * reads the frames as loaded; the deforming passes prefilter them), a run without the
+     * uncertainty finds which (the vectors do not depend on it); a second run from the same
+     * first field makes the same steps up to it with the uncertainty, its total at that step
+     * only (docs/uncertainty.md, "Cost"). */
+    rpiv_field *f0 = NULL, *f0b = NULL, *probe = NULL;
+    int nr = 0;
+    pv->unc_no_total = 0;
+    rpiv_status st = piv_step(pv, 0, NULL, pv->p.refine_defer && iterates(pv, 0), &f0);
+    if (!st)
+        st = rpiv_field_copy(f0, &f0b);
+    if (st) {
+        rpiv_field_free(f0);
+        return st;
+    }
+    pv->p.uncertainty = 0;
+    st = passes(pv, 1, f0, &probe, &nr, -1);
+    pv->p.uncertainty = 1;
+    rpiv_field_free(probe);
+    if (st) {
+        rpiv_field_free(f0b);
+        return st;
+    }
+    st = passes(pv, 1, f0b, out, NULL, nr);
+    pv->unc_no_total = 0;
+    if (nrefine && !st)
+        *nrefine = nr;
+    return st;
+}
+
+static rpiv_status passes(rpiv_piv *pv, int k0, rpiv_field *prev, rpiv_field **out, int *nrefine,
+                          int stop)
+{
+    rpiv_field *f = NULL;
     rpiv_status st = RPIV_OK;
     const int last = pv->npass - 1;
     double change = (double)INFINITY;
@@ -47,8 +93,9 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
     *out = NULL;
     if (nrefine)
         *nrefine = 0;
-    for (int k = 0; k < pv->npass; k++) {
+    for (int k = k0; k < pv->npass; k++) {
         deferred = pv->p.refine_defer && iterates(pv, k);
+        pv->unc_no_total = k == last && stop > 0;
         if ((st = piv_step(pv, k, prev, deferred, &f)))
             goto out_free;
         /* the listed passes may already end with a repeat of the final size */
@@ -59,7 +106,18 @@ rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine)
         f = NULL;
     }
     if (!pv->deforms)
-        it = pv->p.refine_max; /* window offsets do not iterate */
+        it = pv->p.refine_max;             /* window offsets do not iterate */
+    for (; stop >= 0 && it < stop; it++) { /* the steps of the field to return, known */
+        pv->unc_no_total = it + 1 < stop;
+        if ((st = piv_step(pv, last, prev, pv->p.refine_defer, &f)))
+            goto out_free;
+        deferred = pv->p.refine_defer;
+        rpiv_field_free(prev);
+        prev = f;
+        f = NULL;
+    }
+    if (stop >= 0)
+        it = pv->p.refine_max; /* no other repeat */
     /* the listed passes' own repeat is the first candidate of the noise-floor stop */
     if (pv->p.refine_stop && it < pv->p.refine_max && isfinite(change) &&
         !(change < pv->p.refine_tol_px)) {

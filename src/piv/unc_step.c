@@ -118,7 +118,7 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
     if (linked && g.denoise && pass == pv->npass - 1 && !(refines && pv->p.refine_filter > 0) &&
         (st = unc_shrink(pv, predictor, &g)))
         return st;
-    if (pass == pv->npass - 1) {
+    if (pass == pv->npass - 1 && !pv->unc_no_total) {
         float *su, *sv;
         if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(pv->unc, f, su, sv, pv->nthreads)))
             return st;
