@@ -651,13 +651,18 @@ rpiv_status cmd_piv(int argc, char **argv)
     return st;
 }
 
-/* --sheet-bias: the CCM's bias of every vector of f, added as quantities (docs/bias.md). */
-static rpiv_status sheet_bias(const cli_ctx *c, rpiv_field *f)
+/* --sheet-bias: the CCM's bias of every vector of f, added as quantities (docs/bias.md);
+ * npairs: the pairs of f's planes (an ensemble's; 1 for a mean of instantaneous fields), the
+ * noise of [bias] window_interp's plane unless [bias] window_pairs gives it. */
+static rpiv_status sheet_bias(const cli_ctx *c, rpiv_field *f, size_t npairs)
 {
     cli_progress prog;
     rpiv_progress pr = cli_progress_of(&prog);
     cli_progress_init(&prog, "sheet bias", c->quiet);
-    return rpiv_config_sheet_bias(&c->exp, f, c->threads, &pr);
+    rpiv_experiment e = c->exp;
+    if (!(e.bias.window_pairs > 0))
+        e.bias.window_pairs = (double)npairs;
+    return rpiv_config_sheet_bias(&e, f, c->threads, &pr);
 }
 
 static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi)
@@ -764,7 +769,7 @@ out_agree:
     if (p->ensemble) {
         if ((st = rpiv_batch_ensemble(batch, pv, &pr, &field)))
             goto out_free;
-        if (root && o->sheet_bias && (st = sheet_bias(c, field)))
+        if (root && o->sheet_bias && (st = sheet_bias(c, field, r.npairs)))
             goto out_free;
         if (root && ((st = add_skipped(&meta, batch, pairs)) || (st = save(&r, field, &meta, out))))
             goto out_free;
@@ -788,7 +793,7 @@ out_agree:
             char path[RPIV_PATH_MAX + 32];
             if ((st = add_skipped(&meta, batch, pairs)) ||
                 (st = rpiv_series_stats_finish(r.stats, &mean, &rms)) ||
-                (o->sheet_bias && (st = sheet_bias(c, mean))) ||
+                (o->sheet_bias && (st = sheet_bias(c, mean, 1))) ||
                 (st = out_name(out, "_mean", path, sizeof path)) ||
                 (st = save(&r, mean, &meta, path)) ||
                 (st = out_name(out, "_rms", path, sizeof path)) ||

@@ -499,6 +499,57 @@ static void window_interp_matches_closed_form(void)
     rpiv_ccm_corr_free(c);
 }
 
+/* window_pairs ([bias] window_pairs): the estimator's paths weighted by their probability
+ * under the noise of an ensemble of N pairs (docs/ccm.md, "Session 10"), on the thin sheet's
+ * narrow peak where the noise-free plane's 5 x 5 corners are 1.5e-3 of the peak: a huge N is
+ * the noise-free plane's own path, N = 1 is nearly the 3-point Gaussian's estimate (every
+ * far sample's sign is a coin's), and N between moves monotonically from one to the other. */
+static void window_pairs_weigh_the_paths(void)
+{
+    rpiv_sheet *s = make_selfsim();
+    rpiv_ccm_sheet_at at = {s, 4.666};
+    const double u0 = 4.37;
+    rpiv_ccm_model m = rpiv_ccm_model_default();
+    m.camera.zop_star = 0.45;
+    m.illum = (rpiv_ccm_func){rpiv_ccm_sheet_fn, &at};
+    double us = u0 / m.scale_px;
+    m.u = (rpiv_ccm_func){rpiv_ccm_const_fn, &us};
+    m.window_w = m.window_h = 32;
+    m.window_deform = 2;
+    rpiv_ccm_work *w = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&P, &w));
+    const double np[5] = {0, 1e9, 3200, 200, 1};
+    double e[5] = {0};
+    for (int k = 0; k < 5 && w; k++) {
+        rpiv_ccm_peak pk;
+        m.window_pairs = np[k];
+        CHECK_OK(rpiv_ccm_predict(&m, w, &pk));
+        e[k] = pk.dx_sub - u0;
+    }
+    rpiv_ccm_params pg = P;
+    pg.subpixel = RPIV_SUBPIXEL_GAUSS;
+    rpiv_ccm_work *wg = NULL;
+    CHECK_OK(rpiv_ccm_work_new(&pg, &wg));
+    rpiv_ccm_peak pk;
+    m.window_pairs = 0;
+    double eg = (double)NAN;
+    if (wg && rpiv_ccm_predict(&m, wg, &pk) == RPIV_OK)
+        eg = pk.dx_sub - u0;
+    printf("  uniform %.2f px at x* 4.666: noise-free %+.5f, N = 1e9 %+.5f, 3200 %+.5f, 200 "
+           "%+.5f, 1 %+.5f px; 3-point Gaussian %+.5f px\n",
+           u0, e[0], e[1], e[2], e[3], e[4], eg);
+    CHECK_NEAR(e[1], e[0], 1e-5);
+    CHECK(e[0] < e[2] && e[2] < e[3] && e[3] < e[4]);
+    CHECK_NEAR(e[4], eg, 3e-3);
+    m.window_pairs = -1;
+    CHECK_FAILS(rpiv_ccm_model_check(&m), RPIV_EINVAL);
+    m.window_pairs = (double)NAN;
+    CHECK_FAILS(rpiv_ccm_model_check(&m), RPIV_EINVAL);
+    rpiv_ccm_work_free(wg);
+    rpiv_ccm_work_free(w);
+    rpiv_sheet_free(s);
+}
+
 static void window_model_matches_closed_form(void)
 {
     const rpiv_ccm_gauss *g = WIN_TERMS;
@@ -1826,6 +1877,7 @@ int main(void)
     RUN_TEST(peak_errors);
     RUN_TEST(window_model_matches_closed_form);
     RUN_TEST(window_interp_matches_closed_form);
+    RUN_TEST(window_pairs_weigh_the_paths);
     RUN_TEST(window_area_average);
     RUN_TEST(window_area_follows);
     RUN_TEST(config_area_average);

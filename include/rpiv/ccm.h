@@ -105,9 +105,11 @@ RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak(const rpiv_ccm_corr *c, const rpiv
  * through the cubic-spline interpolation kernel of its frames' sampling offsets, its pairs lost
  * per shift of the plane (docs/ccm.md, "The planes' skew"). The predictor starts at the infinite
  * window's estimate and is the estimate itself at convergence (the passes repeated to 1e-5 px;
- * passes that alternate between two estimates: the 20th pass's). dx, dy, value, mx, my: the
- * infinite window's, as rpiv_ccm_corr_peak. win_w = win_h = 0: rpiv_ccm_corr_peak. RPIV_EINVAL for
- * a window outside 4..4096 px. */
+ * passes that alternate between two estimates: the 20th pass's; with deform = 2 after 8
+ * passes the predictor moves by 1/2, 1/3, ... of each pass's change, at most 40 passes). This
+ * entry point models a noise-free plane (rpiv_ccm_model.window_pairs = 0). dx, dy, value, mx, my:
+ * the infinite window's, as rpiv_ccm_corr_peak. win_w = win_h = 0: rpiv_ccm_corr_peak. RPIV_EINVAL
+ * for a window outside 4..4096 px. */
 RPIV_NODISCARD rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c,
                                                      const rpiv_ccm_params *p, int win_w, int win_h,
                                                      int deform, rpiv_ccm_peak *out);
@@ -154,6 +156,12 @@ typedef struct rpiv_ccm_model {
                              * 2: deformed, the plane through the deformation's cubic-spline
                              * interpolation kernel, its pairs lost per shift of the plane
                              * ([bias] window_interp; docs/ccm.md, "The planes' skew") */
+    double window_pairs;    /* with window_deform = 2: the ensemble's pairs N whose noise the
+                             * plane's samples carry (the random pairs': sigma^2 = |baseline| /
+                             * (2 N) of the peak), so that the estimator's path (7 x 7, 5 x 5,
+                             * 3-point) is weighted by its probability ([bias] window_pairs;
+                             * docs/ccm.md, "Session 10"); 0: the expected plane's own path,
+                             * noise-free */
 } rpiv_ccm_model;
 
 /* The paper's channel defaults: the camera of imaging.h, h = 8 mm, d_p = 10 um, scale_px of
@@ -513,8 +521,14 @@ typedef struct rpiv_ccm_bias_params {
     int window_interp;           /* [bias] window_interp: 1 = with window_model and a deformed
                                     final pass, the window's plane through the deformation's
                                     interpolation kernel and its pairs lost per shift of the
-                                    plane (rpiv_ccm_model.window_deform = 2); 0 (default):
-                                    per term, no interpolation (docs/ccm.md)               */
+                                    plane (rpiv_ccm_model.window_deform = 2; the default since
+                                    session 10); 0: per term, no interpolation (docs/ccm.md) */
+    double window_pairs;         /* [bias] window_pairs: with window_interp, the ensemble's
+                                    pairs N whose noise the modelled plane carries
+                                    (rpiv_ccm_model.window_pairs); 0 (default): the run's
+                                    own where the caller knows it (rpiv piv --sheet-bias: the
+                                    pairs summed, 1 for a mean of instantaneous fields; the
+                                    demo: its R-PIV pairs), else the noise-free plane       */
     int window_area;             /* [bias] window_area: with window_model, N >= 2 makes
                                     rpiv_config_ccm_predict average the model over N x N
                                     sub-positions of the final window (rpiv_ccm_predict_area,

@@ -120,6 +120,8 @@ rpiv_status rpiv_ccm_model_check(const rpiv_ccm_model *m)
         !(m->window_w >= 4 && m->window_h >= 4 && m->window_w <= 4096 && m->window_h <= 4096))
         return rpiv_fail(RPIV_EINVAL, "ccm: window %d x %d px outside 4..4096 px (0 x 0: infinite)",
                          m->window_w, m->window_h);
+    if (!(m->window_pairs >= 0 && m->window_pairs <= 1e9))
+        return rpiv_fail(RPIV_EINVAL, "ccm: window_pairs %g outside 0..1e9", m->window_pairs);
     if (m->nbreaks > RPIV_CCM_MAX_BREAKS)
         return rpiv_fail(RPIV_EINVAL, "ccm: %zu breakpoints, at most %d", m->nbreaks,
                          RPIV_CCM_MAX_BREAKS);

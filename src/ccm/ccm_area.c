@@ -104,7 +104,8 @@ rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox
     const rpiv_ccm_model *m0 = &models[0];
     for (size_t k = 0; k < n; k++)
         if (models[k].window_w != m0->window_w || models[k].window_h != m0->window_h ||
-            models[k].window_deform != m0->window_deform || !isfinite(ox[k]) || !isfinite(oy[k]))
+            models[k].window_deform != m0->window_deform ||
+            models[k].window_pairs != m0->window_pairs || !isfinite(ox[k]) || !isfinite(oy[k]))
             return rpiv_fail(RPIV_EINVAL,
                              "ccm: sub-position %zu has another window or a "
                              "non-finite offset",
@@ -197,7 +198,7 @@ rpiv_status rpiv_ccm_predict_area(const rpiv_ccm_model *models, const double *ox
     }
     if (!st)
         st = ccm_corr_peak_window_sig(sum, sub, n, &w->p, m0->window_w, m0->window_h,
-                                      m0->window_deform, out, NULL);
+                                      m0->window_deform, m0->window_pairs, out, NULL);
     free(sub);
     rpiv_deform_pred_free(pred);
     rpiv_ccm_corr_free(sum);

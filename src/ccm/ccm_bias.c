@@ -27,6 +27,7 @@ rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void)
     bp.dz = 0.01;
     bp.pixel_box = 1;
     bp.window_model = 1;
+    bp.window_interp = 1;
     bp.measured = 0;
     bp.measured_step = 8;
     bp.threads = 0;
@@ -335,6 +336,43 @@ static void interp(nrow *r, int v, int t, int ll, int l, int h, int hh, double *
     }
 }
 
+/* With the deformation's interpolation the paths' weights blend the estimates continuously
+ * (ccm_window.c), and the offset can bend within one signature where they change: between two
+ * exact vectors of the same signature whose weights differ by more than NODE_DW, the one in
+ * the middle is computed exactly, and where the interpolation missed it by more than NODE_TOL
+ * px both halves are refined again. */
+#define NODE_TOL 5e-5
+#define NODE_DW  (1.0 / 256)
+
+static rpiv_status refine_smooth(nrow *r, int v, int a, int b)
+{
+    const ccm_wsig *sa = &NPT(r, a, v)->sig, *sb = &NPT(r, b, v)->sig;
+    if (b - a < 2 || !sig_same(sa, sb) ||
+        !(fabs(sa->w7 - sb->w7) > NODE_DW || fabs(sa->w3 - sb->w3) > NODE_DW))
+        return RPIV_OK;
+    int mid = a + (b - a) / 2, ll, hh;
+    for (ll = a - 1; ll >= 0 && !NPT(r, ll, v)->exact; ll--)
+        ;
+    for (hh = b + 1; hh < r->n && !NPT(r, hh, v)->exact; hh++)
+        ;
+    double ox, oy;
+    interp(r, v, mid, ll, a, b, hh < r->n ? hh : -1, &ox, &oy);
+    rpiv_status st = npredict(r, mid, v, 1);
+    if (st)
+        return st;
+    const npt *q = NPT(r, mid, v);
+    if (!(fabs(q->sx - q->dx - ox) > NODE_TOL || fabs(q->sy - q->dy - oy) > NODE_TOL))
+        return RPIV_OK;
+    if ((st = refine(r, v, a, mid)) || (st = refine(r, v, mid, b)))
+        return st;
+    for (int t = a + 1, l = a; t <= b && !st; t++)
+        if (NPT(r, t, v)->exact) {
+            st = refine_smooth(r, v, l, t);
+            l = t;
+        }
+    return st;
+}
+
 /* Row j by nodes (measured, duct or profile): m the row's model, uref its untabulated U*. */
 static rpiv_status row_nodes(const bias_job *jb, rpiv_ccm_work *w, const rpiv_ccm_model *m,
                              const rpiv_ccm_func *uref, int j)
@@ -387,6 +425,12 @@ static rpiv_status row_nodes(const bias_job *jb, rpiv_ccm_work *w, const rpiv_cc
         for (int t = 1; t < r.n && !st; t++)
             if (NPT(&r, t, v)->exact) {
                 st = refine(&r, v, a, t);
+                a = t;
+            }
+        a = 0;
+        for (int t = 1; t < r.n && !st && m->window_deform == 2; t++)
+            if (NPT(&r, t, v)->exact) {
+                st = refine_smooth(&r, v, a, t);
                 a = t;
             }
     }

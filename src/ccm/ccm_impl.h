@@ -91,6 +91,7 @@ void ccm_subpixel(double rows[7][7], const rpiv_ccm_params *p, double base, int 
 typedef struct ccm_wsig {
     int conv, mx, my;
     uint64_t sig;
+    double w7, w3; /* with the ensemble's noise: the 7 x 7 and 3-point paths' weights */
 } ccm_wsig;
 
 /* A part of a window (the area average, ccm_area.c): its terms c->g[t0 .. t1) of the summed
@@ -105,7 +106,7 @@ typedef struct ccm_sub {
  * part, not moved), each deformed by its own predictor. */
 RPIV_NODISCARD rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub,
                                                     size_t nsub, const rpiv_ccm_params *p,
-                                                    int win_w, int win_h, int deform,
+                                                    int win_w, int win_h, int deform, double npairs,
                                                     rpiv_ccm_peak *out, ccm_wsig *sig);
 /* rpiv_ccm_predict with the signature (NULL: none). */
 RPIV_NODISCARD rpiv_status ccm_predict_sig(const rpiv_ccm_model *m, rpiv_ccm_work *w,

@@ -100,6 +100,7 @@ typedef struct inv {
     size_t max_iter;
     int stop;
     int win_w, win_h, win_deform; /* the engine's window (measured = 1) */
+    double win_pairs;
 } inv;
 
 static void expand(inv *v, const gsl_vector *x)
@@ -238,8 +239,8 @@ static int offsets(inv *v, const gsl_vector *x, double *change)
     for (long j = 0; j < (long)v->nm; j++) {
         meas *m = &v->m[j];
         rpiv_ccm_peak pk;
-        v->sts[j] =
-            rpiv_ccm_corr_peak_window(m->corr, &v->p, v->win_w, v->win_h, v->win_deform, &pk);
+        v->sts[j] = ccm_corr_peak_window_sig(m->corr, NULL, 0, &v->p, v->win_w, v->win_h,
+                                             v->win_deform, v->win_pairs, &pk, NULL);
         if (v->sts[j])
             snprintf(v->msg[j], sizeof v->msg[j], "%s", rpiv_errmsg());
         else if (!isfinite(pk.dx_sub)) {
@@ -390,6 +391,7 @@ rpiv_status rpiv_ccm_invert(const rpiv_ccm_model *base, const rpiv_sheet *sheet,
     v.win_w = base->window_w;
     v.win_h = base->window_h;
     v.win_deform = base->window_deform;
+    v.win_pairs = base->window_pairs;
     rpiv_ccm_invert_result *res = NULL;
     rpiv_ccm_work *w = NULL;
     gsl_bspline_workspace *bw = gsl_bspline_alloc(ORDER, ip->ncoef - ORDER + 2);

@@ -346,7 +346,7 @@ rpiv_status ccm_predict_sig(const rpiv_ccm_model *m, rpiv_ccm_work *w, rpiv_ccm_
     if (st)
         return st;
     return ccm_corr_peak_window_sig(w->corr, NULL, 0, &w->p, m->window_w, m->window_h,
-                                    m->window_deform, out, sig);
+                                    m->window_deform, m->window_pairs, out, sig);
 }
 
 /* ---- the tabulated velocity profile ----------------------------------------------------- */

@@ -17,6 +17,11 @@
  *    where the estimator's path changes between two predictors (the spline's fall to the
  *    3-point Gaussian) there may be none, and the passes alternate between two estimates: the
  *    estimate is then the last of WINDOW_ITER passes', found once the alternation repeats.
+ *    With the interpolation (deform 2, docs/ccm.md "Session 10") the estimator's path is
+ *    weighted by its probability under the ensemble's noise (noisy_subpixel), which makes the
+ *    passes' map continuous; after PLAIN passes without a fixed point the predictor moves by a
+ *    decreasing share of each pass's change (Mann's iteration), which converges to the fixed
+ *    point of a continuous map (noise-free: to the predictor where the map jumps across it).
  * The baseline's lattice sum: a term's lattice sum is its
  *    volume amp pi / c (the box keeps the volume) to the aliasing of a sampled Gaussian,
  *    exp(-pi^2 / c) relative (Poisson's summation): below 1e-3 for a term narrower than
@@ -25,10 +30,13 @@
 
 #include "rpiv/deform.h"
 
+#include <gsl/gsl_sf_erf.h>
 #include <math.h>
 #include <stdlib.h>
 
-#define WINDOW_ITER 20
+#define WINDOW_ITER  20
+#define WINDOW_ITER2 40
+#define PLAIN        8
 
 /* ---- the deformed pass: the interpolation's kernel and the window's overlap ------------- */
 
@@ -89,8 +97,16 @@ static void kappa_table(double ta, double tb, int m0, double k[NP][NM])
  * sub-positions (sub, nsub; NULL: the whole list, not deformed), each one's terms c->g[t0..t1)
  * (moved by minus its deformation s) are put back and sampled about its own predictor p + s:
  * the window's plane is the sum of its parts' planes, each deformed by its own predictor. */
+/* The lattice S of the whole list at its last origin (m0x, m0y): the passes' predictors
+ * usually keep their whole pixel, and then only the kernels change. */
+typedef struct lat_cache {
+    int valid, m0x, m0y;
+    double S[NM * NM];
+} lat_cache;
+
 static rpiv_status deformed_plane(const rpiv_ccm_corr *c, const ccm_sub *sub, size_t nsub,
-                                  int win_w, int win_h, double px, double py, double P[NP][NP])
+                                  int win_w, int win_h, double px, double py, lat_cache *lc,
+                                  double P[NP][NP])
 {
     const double sh = RPIV_DEFORM_SHIFT;
     const ccm_sub whole = {0, c->n, 0, 0};
@@ -132,14 +148,24 @@ static rpiv_status deformed_plane(const rpiv_ccm_corr *c, const ccm_sub *sub, si
         }
         const double qx = px + sub[o].sx, qy = py + sub[o].sy;
         const int m0x = (int)floor(qx) - NR - KR, m0y = (int)floor(qy) - NR - KR;
-        ccm_lattice(co, m0x, NM, m0y, NM, S, fx, fy);
+        const double *So = S;
+        if (lc && !one) { /* the whole list: its lattice kept between passes */
+            if (!(lc->valid && lc->m0x == m0x && lc->m0y == m0y))
+                ccm_lattice(co, m0x, NM, m0y, NM, lc->S, fx, fy);
+            lc->valid = 1;
+            lc->m0x = m0x;
+            lc->m0y = m0y;
+            So = lc->S;
+        } else {
+            ccm_lattice(co, m0x, NM, m0y, NM, S, fx, fy);
+        }
         kappa_table(sh - 0.5 * qx, sh + 0.5 * qx, m0x, kxa);
         kappa_table(sh - 0.5 * qy, sh + 0.5 * qy, m0y, kya);
         for (int b = 0; b < NM; b++) /* along x, every row of the lattice */
             for (int n = 0; n < NP; n++) {
                 double acc = 0;
                 for (int a = 0; a < NM; a++)
-                    acc += kxa[n][a] * S[(size_t)b * NM + (size_t)a];
+                    acc += kxa[n][a] * So[(size_t)b * NM + (size_t)a];
                 Ta[b][n] = acc;
             }
         for (int m = 0; m < NP; m++) /* then along y */
@@ -162,6 +188,75 @@ out_free:
     return st;
 }
 
+/* E[v + e | v + e > 0] for e ~ N(0, s^2): a sample's mean over the planes on which the
+ * estimator reads it as positive (phi(z) / Phi(z) = the hazard of -z). */
+static double cond_pos(double v, double s)
+{
+    const double z = v / s;
+    if (z > -5)
+        return v + s * exp(-0.5 * z * z) / sqrt(2 * M_PI) / (0.5 * erfc(-z / M_SQRT2));
+    return v + s * gsl_sf_hazard(-z); /* (its asymptotic form, without cancellation) */
+}
+
+/* The engine's estimator on the modelled plane rows (+ base) when each sample the estimator
+ * reads carries the ensemble's noise, relative sigma: its path is the 7 x 7 spline when all
+ * 48 samples are positive, the 5 x 5 when only the inner 24 are, else the 3-point Gaussian
+ * (peak_fit.c); with independent Gaussian noise each path's probability is a product of
+ * Phi(v / sigma), and on each path the samples it reads are their means given positive. The
+ * estimate is the paths' expected estimate. sigma = 0: the expected plane's own path. */
+static void noisy_subpixel(double rows[7][7], const rpiv_ccm_params *p, double base, double sigma,
+                           int mx, int my, double *ex, double *ey, ccm_wsig *sig)
+{
+    if (!(sigma > 0) || ccm_subpixel_rad(p) != 3) {
+        ccm_subpixel(rows, p, base, mx, my, ex, ey, sig ? &sig->sig : NULL);
+        return;
+    }
+    const double r0 = rows[3][3] + base;
+    double v[7][7], p5 = 1, pring = 1;
+    for (int j = 0; j < 7; j++)
+        for (int i = 0; i < 7; i++) {
+            v[j][i] = (rows[j][i] + base) / r0;
+            if (i == 3 && j == 3)
+                continue;
+            double q = 0.5 * erfc(-v[j][i] / sigma / M_SQRT2);
+            if (abs(i - 3) <= 2 && abs(j - 3) <= 2)
+                p5 *= q;
+            else
+                pring *= q;
+        }
+    const double w[3] = {p5 * pring, p5 * (1 - pring), 1 - p5};
+    double sx = 0, sy = 0;
+    for (int b = 0; b < 3; b++) {
+        if (!(w[b] > 1e-9))
+            continue;
+        double r[7][7] = {{0}}, bx, by;
+        rpiv_ccm_params q = *p;
+        if (b < 2) { /* the spline on the block's samples given positive (the ring: 0 on 5 x 5) */
+            int lim = b == 0 ? 3 : 2;
+            for (int j = 0; j < 7; j++)
+                for (int i = 0; i < 7; i++)
+                    r[j][i] = abs(i - 3) <= lim && abs(j - 3) <= lim
+                                  ? (i == 3 && j == 3 ? 1 : cond_pos(v[j][i], sigma))
+                                  : 0;
+        } else { /* the 3-point Gaussian on the row and column through the centre */
+            q.subpixel = RPIV_SUBPIXEL_GAUSS;
+            for (int j = 0; j < 3; j++)
+                for (int i = 0; i < 3; i++)
+                    r[j][i] = v[j + 2][i + 2];
+        }
+        ccm_subpixel(r, &q, 0, mx, my, &bx, &by, NULL);
+        sx += w[b] * bx;
+        sy += w[b] * by;
+    }
+    *ex = sx;
+    *ey = sy;
+    if (sig) { /* the paths blend continuously: one signature (ccm_bias.c checks the bends) */
+        sig->sig = (uint64_t)1 << 63;
+        sig->w7 = w[0];
+        sig->w3 = w[2];
+    }
+}
+
 /* The estimate on the plane of the window about the predictor (px, py), lowered by the mean
  * removal's baseline -V / (W H), V the volume of the pairs kept (every term weighted by the
  * share of its pairs that stay in the window at its residual shift). deform 0: the weighted
@@ -171,8 +266,8 @@ out_free:
  * deform). */
 static rpiv_status window_estimate(const rpiv_ccm_corr *c, const ccm_sub *sub, size_t nsub,
                                    const rpiv_ccm_params *p, int win_w, int win_h, int deform,
-                                   double px, double py, rpiv_ccm_corr *cw, double *ex, double *ey,
-                                   ccm_wsig *sig)
+                                   double npairs, double px, double py, rpiv_ccm_corr *cw,
+                                   lat_cache *lc, double *ex, double *ey, ccm_wsig *sig)
 {
     double vol = 0;
     rpiv_status st;
@@ -199,7 +294,7 @@ static rpiv_status window_estimate(const rpiv_ccm_corr *c, const ccm_sub *sub, s
     int mx = 0, my = 0;
     if (deform == 2) {
         double P[NP][NP];
-        if ((st = deformed_plane(c, sub, nsub, win_w, win_h, px, py, P)))
+        if ((st = deformed_plane(c, sub, nsub, win_w, win_h, px, py, lc, P)))
             return st;
         /* the highest sample within NR - rad of the predictor (first of equal values, y outer)
          * and the samples the estimator reads around it */
@@ -218,8 +313,12 @@ static rpiv_status window_estimate(const rpiv_ccm_corr *c, const ccm_sub *sub, s
     } else if ((st = ccm_sampled_rows(cw, p, rows, &mx, &my))) {
         return st;
     }
-    ccm_subpixel(rows, p, -vol / ((double)win_w * (double)win_h), mx, my, ex, ey,
-                 sig ? &sig->sig : NULL);
+    const double base = -vol / ((double)win_w * (double)win_h);
+    double sigma = 0;
+    if (deform == 2 && npairs > 0) /* the random pairs' noise of an ensemble of npairs pairs */
+        sigma =
+            sqrt(-base / (rows[ccm_subpixel_rad(p)][ccm_subpixel_rad(p)] + base) / (2 * npairs));
+    noisy_subpixel(rows, p, base, sigma, mx, my, ex, ey, sig);
     if (sig) {
         sig->mx = mx;
         sig->my = my;
@@ -234,12 +333,12 @@ static rpiv_status window_estimate(const rpiv_ccm_corr *c, const ccm_sub *sub, s
 rpiv_status rpiv_ccm_corr_peak_window(const rpiv_ccm_corr *c, const rpiv_ccm_params *p, int win_w,
                                       int win_h, int deform, rpiv_ccm_peak *out)
 {
-    return ccm_corr_peak_window_sig(c, NULL, 0, p, win_w, win_h, deform, out, NULL);
+    return ccm_corr_peak_window_sig(c, NULL, 0, p, win_w, win_h, deform, 0, out, NULL);
 }
 
 rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub, size_t nsub,
                                      const rpiv_ccm_params *p, int win_w, int win_h, int deform,
-                                     rpiv_ccm_peak *out, ccm_wsig *sig)
+                                     double npairs, rpiv_ccm_peak *out, ccm_wsig *sig)
 {
     if (!(win_w == 0 && win_h == 0) && (win_w < 4 || win_h < 4 || win_w > 4096 || win_h > 4096))
         return rpiv_fail(RPIV_EINVAL, "ccm: window %d x %d px outside 4..4096 px", win_w, win_h);
@@ -247,7 +346,7 @@ rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub,
     if (st)
         return st;
     if (sig)
-        *sig = (ccm_wsig){1, 0, 0, 0};
+        *sig = (ccm_wsig){1, 0, 0, 0, 0, 0};
     if (win_w == 0 && win_h == 0)
         return RPIV_OK;
     /* the predictor: from the infinite window's estimate, the engine's passes repeated until
@@ -257,13 +356,26 @@ rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub,
     rpiv_ccm_corr *cw = NULL;
     if ((st = rpiv_ccm_corr_new(c->n, &cw)))
         return st;
+    lat_cache *lc = deform == 2 && !sub ? malloc(sizeof *lc) : NULL;
+    if (lc)
+        lc->valid = 0;
     int done = 0;
     double qx = (double)NAN, qy = (double)NAN; /* the predictor of the previous pass */
-    for (int it = 0; it < WINDOW_ITER && !done; it++) {
-        if ((st =
-                 window_estimate(c, sub, nsub, p, win_w, win_h, deform, px, py, cw, &ex, &ey, sig)))
+    const int niter = deform == 2 ? WINDOW_ITER2 : WINDOW_ITER;
+    for (int it = 0; it < niter && !done; it++) {
+        if ((st = window_estimate(c, sub, nsub, p, win_w, win_h, deform, npairs, px, py, cw, lc,
+                                  &ex, &ey, sig)))
             break;
         done = fabs(ex - px) < 1e-5 && fabs(ey - py) < 1e-5;
+        if (deform == 2 && !done) {
+            /* no fixed point within PLAIN passes: the predictor moves by a decreasing share
+             * of the passes' change (Mann's iteration), to the fixed point of a continuous
+             * map, or to where a discontinuous one jumps across it */
+            const double a = it < PLAIN ? 1 : 1.0 / (it - PLAIN + 2);
+            px += a * (ex - px);
+            py += a * (ey - py);
+            continue;
+        }
         if (!done && fabs(ex - qx) < 1e-5 && fabs(ey - qy) < 1e-5) {
             /* the passes alternate between two estimates (no fixed point: the estimator's
              * path changes between them): the last pass's is the one of this parity */
@@ -278,12 +390,17 @@ rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub,
         px = ex;
         py = ey;
     }
+    if (!st && deform == 2 && !done) { /* the averaged passes' predictor */
+        ex = px;
+        ey = py;
+    }
     if (!st) {
         out->dx_sub = ex;
         out->dy_sub = ey;
         if (sig)
             sig->conv = done;
     }
+    free(lc);
     rpiv_ccm_corr_free(cw);
     return st;
 }

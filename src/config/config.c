@@ -290,6 +290,11 @@ static const key_spec keys[] = {
      "cubic-spline interpolation kernel, the pairs lost per shift of the plane (docs/ccm.md, "
      "\"The planes' skew\"; off: per term, no interpolation)",
      0},
+    {"bias", "window_pairs", KEY_DOUBLE, OFF(bias.window_pairs), 0, 1e9, 1, "-",
+     "with window_interp, the ensemble's pairs whose noise the modelled plane carries (the "
+     "estimator's 7 x 7 / 5 x 5 / 3-point paths weighted by their probability); 0 = the run's "
+     "own (rpiv piv --sheet-bias, the demo), else the noise-free plane (docs/ccm.md)",
+     0},
     {"bias", "window_area", KEY_INT, OFF(bias.window_area), 0, 64, 1, "-",
      "with window_model, rpiv_config_ccm_predict (python rpiv.ccm.predict) averages the "
      "model over N x N sub-positions of the final window (the flow across it, followed by the "

@@ -39,6 +39,7 @@ rpiv_ccm_model rpiv_config_ccm_model(const rpiv_experiment *e, double dt_s)
         m.window_w = e->piv.win_w[e->piv.npass - 1];
         m.window_h = e->piv.win_h[e->piv.npass - 1];
         m.window_deform = e->piv.deform ? (e->bias.window_interp ? 2 : 1) : 0;
+        m.window_pairs = e->bias.window_pairs;
     }
     return m;
 }

@@ -306,6 +306,8 @@ static rpiv_status invert(demo_ctx *c)
             n++;
         }
     rpiv_ccm_model base = rpiv_config_ccm_model(&c->e, c->e.synth.dt_s);
+    if (!(base.window_pairs > 0)) /* the noise of the R-PIV ensemble's planes */
+        base.window_pairs = c->p.rpiv_pairs;
     rpiv_ccm_invert_params ip = rpiv_ccm_invert_params_default();
     ip.symmetric = 1; /* the duct is symmetric about z* = 0.5, as the paper extends it */
     ip.measured = 1;  /* the row is what the engine measured: fit the engine's estimate */
@@ -420,6 +422,8 @@ static rpiv_status sheet_bias(demo_ctx *c)
     if (st)
         return st;
     rpiv_ccm_model base = rpiv_config_ccm_model(&c->e, c->e.synth.dt_s);
+    if (!(base.window_pairs > 0)) /* the noise of the R-PIV ensemble's planes */
+        base.window_pairs = c->p.rpiv_pairs;
     rpiv_ccm_geometry g = {c->x0s, c->y0s, c->spp};
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
     bp.rel_thickness = bp.dz = 0; /* the report does not use the bias's uncertainty */
