@@ -809,7 +809,7 @@ static void map_row(const float *gain, int nx, int ny, int q, int m, double *row
     double tmp[64 * 64];
     memset(row, 0, (size_t)nx * (size_t)ny * sizeof *row);
     row[m] = 1;
-    piv_pred_denoise_map_t(gain, nx, ny, q, row, 0, nx, 0, ny, tmp);
+    CHECK(piv_pred_denoise_map_t(gain, nx, ny, q, row, 0, nx, 0, ny, tmp) == 0);
 }
 
 /* The noise field c of the denoiser tests (grid nx x ny, generator seeded with c): the

@@ -116,9 +116,10 @@ RPIV_NODISCARD rpiv_status piv_pred_denoise_weights(const rpiv_piv *pv, rpiv_fie
                                                     float **gain);
 /* c := A^T c for component comp (0 u, 1 v) with the weights of piv_pred_denoise_weights on an
  * nx x ny grid: c holds the nodes bx0.. (bw) x by0.. (bh), row after row, and is taken as 0
- * outside them (what A^T would carry out of the block is dropped). tmp: bw bh doubles. */
-void piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c, int bx0, int bw,
-                            int by0, int bh, double *tmp);
+ * outside them (what A^T would carry out of the block is dropped). tmp: bw bh doubles.
+ * Returns 0, or -1 when out of memory (c then partly mapped). */
+RPIV_NODISCARD int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c,
+                                          int bx0, int bw, int by0, int bh, double *tmp);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

@@ -318,8 +318,8 @@ static int stencil(int n, int order, int i, int *idx, double *w)
     return c;
 }
 
-void piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c, int bx0, int bw,
-                            int by0, int bh, double *tmp)
+int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c, int bx0, int bw,
+                           int by0, int bh, double *tmp)
 {
     const size_t n = (size_t)nx * (size_t)ny, nb = (size_t)bw * (size_t)bh;
     /* the box of c's non-zero samples (lo[axis] .. hi[axis]): the samples outside it have no
@@ -332,54 +332,69 @@ void piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double 
                 lo[1] = j < lo[1] ? j : lo[1], hi[1] = j > hi[1] ? j : hi[1];
             }
     if (hi[0] < 0)
-        return; /* A^T 0 = 0 */
+        return 0; /* A^T 0 = 0 */
+    /* each place along the axis: its stencil's targets inside the block and their weights */
+    const int nmax = bw > bh ? bw : bh;
+    int *cnt = malloc((size_t)nmax * 6 * sizeof *cnt);
+    double *wt = malloc((size_t)nmax * 5 * sizeof *wt);
+    if (!cnt || !wt) {
+        free(cnt);
+        free(wt);
+        return -1;
+    }
+    int *idx = cnt + nmax;
     for (int lev = LEVELS - 1; lev >= 0; lev--) {
         const int step = 1 << lev, order = ORDER[lev];
         for (int axis = 1; axis >= 0; axis--) {
             const float *gs = gain + ((size_t)(comp * LEVELS + lev) * 2 + (size_t)axis) * n;
-            const int len = axis ? ny : nx;
+            const int len = axis ? ny : nx, b0 = axis ? by0 : bx0, blen = axis ? bh : bw;
+            for (int r = lo[axis]; r <= hi[axis]; r++) {
+                const int p = b0 + r, o = p % step, m = (len - o + step - 1) / step;
+                int at[5];
+                double w[5];
+                const int all = stencil(m, order, p / step, at, w);
+                cnt[r] = 0;
+                for (int q = 0; q < all; q++) {
+                    const int t = o + at[q] * step - b0;
+                    if (t >= 0 && t < blen) {
+                        idx[r * 5 + cnt[r]] = t;
+                        wt[r * 5 + cnt[r]++] = w[q];
+                    }
+                }
+            }
             memcpy(tmp, c, nb * sizeof *tmp);
             /* S^T c = c + D^T ((g - 1) c): the detail of each sample scattered back over the
-             * samples of its stencil, along its sub-line. The stencil depends on the sample's
-             * place along the axis only: made once per column (x) or row (y), when a sample
-             * there has a detail; each target still receives its terms in the same order. */
-            for (int r = lo[axis]; r <= hi[axis]; r++) {
-                const int p = axis ? by0 + r : bx0 + r, o = p % step;
-                const int m = (len - o + step - 1) / step;
-                int idx[5], cnt = -1;
-                double w[5];
-                for (int s2 = lo[!axis]; s2 <= hi[!axis]; s2++) {
-                    const int i = axis ? s2 : r, j = axis ? r : s2;
-                    const double a =
-                        ((double)gs[(size_t)(by0 + j) * (size_t)nx + (size_t)(bx0 + i)] - 1) *
-                        c[(size_t)j * (size_t)bw + (size_t)i];
+             * samples of its stencil, along its sub-line; row after row, each target receives
+             * its terms in the order of its sources along the axis */
+            for (int j = lo[1]; j <= hi[1]; j++) {
+                const float *gr = gs + (size_t)(by0 + j) * (size_t)nx + (size_t)bx0;
+                const double *cr = c + (size_t)j * (size_t)bw;
+                for (int i = lo[0]; i <= hi[0]; i++) {
+                    const double a = ((double)gr[i] - 1) * cr[i];
                     if (a == 0)
                         continue;
-                    if (cnt < 0) { /* the stencil's targets inside the block, their places */
-                        int at[5];
-                        double wt[5];
-                        const int all = stencil(m, order, p / step, at, wt);
-                        cnt = 0;
-                        for (int q = 0; q < all; q++) {
-                            const int t = o + at[q] * step - (axis ? by0 : bx0);
-                            if (t >= 0 && t < (axis ? bh : bw))
-                                idx[cnt] = t, w[cnt++] = wt[q];
-                        }
-                    }
-                    for (int q = 0; q < cnt; q++) {
-                        const int ti = axis ? i : idx[q], tj = axis ? idx[q] : j;
-                        tmp[(size_t)tj * (size_t)bw + (size_t)ti] += w[q] * a;
-                    }
+                    const int r = axis ? j : i;
+                    const int *ir = idx + r * 5;
+                    const double *wr = wt + r * 5;
+                    if (axis)
+                        for (int q = 0; q < cnt[r]; q++)
+                            tmp[(size_t)ir[q] * (size_t)bw + (size_t)i] += wr[q] * a;
+                    else
+                        for (int q = 0; q < cnt[r]; q++)
+                            tmp[(size_t)j * (size_t)bw + (size_t)ir[q]] += wr[q] * a;
                 }
             }
             memcpy(c, tmp, nb * sizeof *c);
             /* a stencil reaches at most 2 sub-line steps from its sample (stencil(): i - 2 ..
              * i + 2, the ends' one-sided and mirrored stencils included) */
-            const int reach = 2 * step, len_b = axis ? bh : bw;
+            const int reach = 2 * step;
             lo[axis] = lo[axis] - reach < 0 ? 0 : lo[axis] - reach;
-            hi[axis] = hi[axis] + reach > len_b - 1 ? len_b - 1 : hi[axis] + reach;
+            hi[axis] = hi[axis] + reach > blen - 1 ? blen - 1 : hi[axis] + reach;
         }
     }
+    free(cnt);
+    free(wt);
+    return 0;
 }
 
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)

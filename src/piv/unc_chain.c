@@ -537,7 +537,10 @@ static int level_back(const unc_level *l, double *const cf[2], int bx0, int bw, 
             }
         }
         memcpy(e, b, ne * sizeof *e);
-        piv_pred_denoise_map_t(l->dw, l->pnx, l->pny, q, e, ex0, ew, ey0, eh, tmp);
+        if (piv_pred_denoise_map_t(l->dw, l->pnx, l->pny, q, e, ex0, ew, ey0, eh, tmp)) {
+            free(e);
+            return -1;
+        }
         if (l->fa > 0)
             piv_pred_filter_t(e, l->fa, l->pnx, l->pny, ex0, ew, ey0, eh, tmp);
         for (int m = 0; m < kh; m++)
