@@ -202,7 +202,10 @@ RPIV_NODISCARD rpiv_status rpiv_piv_step(rpiv_piv *pv, int pass, const rpiv_fiel
  * field between two passes of the final size is below refine_tol_px or, with refine_stop, has
  * not fallen below its smallest for two repeats (the field of the smallest change is kept), at
  * most refine_max times (none with deformation off). *out is the last field; *nrefine (may be
- * NULL) the repeats of the field returned. */
+ * NULL) the repeats of the field returned. With the uncertainty and a refinement, the passes
+ * after the first run twice: without it, to find the field returned, then with it up to that
+ * field, whose sigma alone is computed (the same numbers as computing it after every repeat,
+ * at a fraction of the cost; docs/uncertainty.md, "Cost"). */
 RPIV_NODISCARD rpiv_status rpiv_piv_passes(rpiv_piv *pv, rpiv_field **out, int *nrefine);
 
 /* The whole run on one pair: rpiv_piv_load, then rpiv_piv_passes. */
