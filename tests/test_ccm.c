@@ -342,6 +342,18 @@ static void peak_errors(void)
     rpiv_ccm_corr_free(NULL);
 }
 
+/* The 3-point Gaussian on a closed form's plane r[i + 4] at the shifts o + i (i = -4..4):
+ * about its highest sample among i = -3..3. */
+static double gauss3_peak(const double r[9], double o)
+{
+    int m = 0;
+    for (int i = -3; i <= 3; i++)
+        if (r[i + 4] > r[m + 4])
+            m = i;
+    double a = log(r[m + 3]), b = log(r[m + 4]), c = log(r[m + 5]);
+    return o + m + 0.5 * (a - c) / (a - 2 * b + c);
+}
+
 /* The engine's window (rpiv_ccm_corr_peak_window) against the closed form computed here in
  * double: two Gaussian terms along x, the 3-point Gaussian estimator, a 16 px window; every
  * term weighted by its pairs kept, (1 - |DX - p|/W), the plane lowered by the baseline
@@ -356,7 +368,6 @@ static double win_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int w, 
         double vol = 0, r[9], o = deform ? p : 0;
         for (int k = 0; k < n; k++)
             vol += fmax(0, 1 - fabs(g[k].dx - p) / w) * g[k].amp * M_PI / g[k].c;
-        int m = 0;
         for (int i = -4; i <= 4; i++) {
             r[i + 4] = -vol / ((double)w * w);
             for (int k = 0; k < n; k++) {
@@ -364,11 +375,7 @@ static double win_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int w, 
                 r[i + 4] += fmax(0, 1 - fabs(g[k].dx - p) / w) * g[k].amp * exp(-g[k].c * e * e);
             }
         }
-        for (int i = -3; i <= 3; i++)
-            if (r[i + 4] > r[m + 4])
-                m = i;
-        double a = log(r[m + 3]), b = log(r[m + 4]), c = log(r[m + 5]);
-        est = o + m + 0.5 * (a - c) / (a - 2 * b + c);
+        est = gauss3_peak(r, o);
         if (fabs(est - p) < 1e-9)
             break;
         p = est;
@@ -432,7 +439,6 @@ static double interp_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int 
         double vol = 0, r[9];
         for (int k = 0; k < n; k++)
             vol += fmax(0, 1 - fabs(g[k].dx - p) / w) * g[k].amp * M_PI / g[k].c;
-        int m = 0;
         for (int i = -4; i <= 4; i++) {
             double acc = 0;
             for (int mm = (int)floor(p) - 25; mm <= (int)floor(p) + 25; mm++) {
@@ -442,11 +448,7 @@ static double interp_closed_form(const rpiv_ccm_gauss *g, int n, double p0, int 
             }
             r[i + 4] = acc * (1 - fabs((double)i) / w) - vol / ((double)w * w);
         }
-        for (int i = -3; i <= 3; i++)
-            if (r[i + 4] > r[m + 4])
-                m = i;
-        double a = log(r[m + 3]), b = log(r[m + 4]), c = log(r[m + 5]);
-        est = p + m + 0.5 * (a - c) / (a - 2 * b + c);
+        est = gauss3_peak(r, p);
         if (fabs(est - p) < 1e-9)
             break;
         p = est;

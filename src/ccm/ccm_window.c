@@ -356,9 +356,9 @@ rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub,
     rpiv_ccm_corr *cw = NULL;
     if ((st = rpiv_ccm_corr_new(c->n, &cw)))
         return st;
-    lat_cache *lc = deform == 2 && !sub ? malloc(sizeof *lc) : NULL;
-    if (lc)
-        lc->valid = 0;
+    lat_cache cache; /* the whole list's lattice, kept between the passes (deform 2) */
+    cache.valid = 0;
+    lat_cache *lc = deform == 2 && !sub ? &cache : NULL;
     int done = 0;
     double qx = (double)NAN, qy = (double)NAN; /* the predictor of the previous pass */
     const int niter = deform == 2 ? WINDOW_ITER2 : WINDOW_ITER;
@@ -400,7 +400,6 @@ rpiv_status ccm_corr_peak_window_sig(const rpiv_ccm_corr *c, const ccm_sub *sub,
         if (sig)
             sig->conv = done;
     }
-    free(lc);
     rpiv_ccm_corr_free(cw);
     return st;
 }

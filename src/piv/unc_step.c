@@ -107,7 +107,10 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
         }
         rpiv_field_free(q);
     }
-    if (pass == pv->npass - 1 && linked) { /* the first level's error, measured */
+    /* the final field's own terms (the first level's measured error, the denoiser's
+     * shrinkage, the total): only for the field whose sigma is wanted (refine.c) */
+    const int total = pass == pv->npass - 1 && !pv->unc_no_total;
+    if (total && linked) { /* the first level's error, measured */
         rpiv_field *q = NULL;
         if ((st = unc_prepared(f, &q)) || (st = unc_chain_first_error(pv->unc, q, pv->w, pv->h))) {
             rpiv_field_free(q);
@@ -115,10 +118,10 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
         }
         rpiv_field_free(q);
     }
-    if (linked && g.denoise && pass == pv->npass - 1 && !(refines && pv->p.refine_filter > 0) &&
+    if (total && linked && g.denoise && !(refines && pv->p.refine_filter > 0) &&
         (st = unc_shrink(pv, predictor, &g)))
         return st;
-    if (pass == pv->npass - 1 && !pv->unc_no_total) {
+    if (total) {
         float *su, *sv;
         if ((st = unc_add(f, &su, &sv)) || (st = unc_chain_total(pv->unc, f, su, sv, pv->nthreads)))
             return st;

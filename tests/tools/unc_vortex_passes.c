@@ -258,8 +258,9 @@ int main(int argc, char **argv)
                 for (int w = 0; w < 2; w++) {
                     memset(row, 0, nn * sizeof *row);
                     row[k] = 1;
-                    piv_pred_denoise_map_t(w ? wq : w0, f1->nx, f1->ny, 0, row, 0, f1->nx, 0,
-                                           f1->ny, row + nn);
+                    if (piv_pred_denoise_map_t(w ? wq : w0, f1->nx, f1->ny, 0, row, 0, f1->nx, 0,
+                                               f1->ny, row + nn))
+                        return 5;
                     double a = 0;
                     for (size_t m = 0; m < nn; m++)
                         a += row[m] * ((double)f1->u[m] - (double)t1->u[m]);
@@ -282,7 +283,7 @@ int main(int argc, char **argv)
             /* the nodes at den_r0 <= r < den_r1 px (env DEN_R0, DEN_R1; the core by default) */
             const double den_r0 = getenv("DEN_R0") ? atof(getenv("DEN_R0")) : 0,
                          den_r1 = getenv("DEN_R1") ? atof(getenv("DEN_R1")) : 64;
-            static double S2[3], S3[2];
+            static double S2[3], S3[2], S[5], nS;
             for (int j = 0; j < f1->ny; j++)
                 for (int i = 0; i < f1->nx; i++) {
                     size_t k = (size_t)j * f1->nx + i;
@@ -293,30 +294,10 @@ int main(int argc, char **argv)
                     const double dd = q1->u[k] - dt->u[k];
                     S3[0] += (double)ae->u[k] * ae->u[k];
                     S3[1] += (ae->u[k] - dd) * (ae->u[k] - dd);
-                }
-            rpiv_field_free(ae);
-            for (int j = 0; j < f1->ny; j++)
-                for (int i = 0; i < f1->nx; i++) {
-                    size_t k = (size_t)j * f1->nx + i;
-                    double x = f1->x0 + i * f1->dx, y = f1->y0 + j * f1->dy;
-                    const double rr = hypot(x - 128.37, y - 127.81);
-                    if (rr < den_r0 || rr >= den_r1)
-                        continue;
-                    double je = (q2->u[k] - qe->u[k]) / eps, dd = q1->u[k] - dt->u[k];
+                    double je = (q2->u[k] - qe->u[k]) / eps;
                     S2[0] += je * je;
                     S2[1] += dd * dd;
                     S2[2] += (je - dd) * (je - dd);
-                }
-            rpiv_field_free(qe);
-            rpiv_field_free(q2);
-            static double S[5], nS;
-            for (int j = 0; j < f1->ny; j++)
-                for (int i = 0; i < f1->nx; i++) {
-                    size_t k = (size_t)j * f1->nx + i;
-                    double x = f1->x0 + i * f1->dx, y = f1->y0 + j * f1->dy;
-                    const double rr = hypot(x - 128.37, y - 127.81);
-                    if (rr < den_r0 || rr >= den_r1)
-                        continue;
                     double A = q1->u[k] - t1->u[k], B = lq->u[k] - (t1->u[k] - dt->u[k]),
                            E = f1->u[k] - t1->u[k];
                     S[0] += A * A;
@@ -325,6 +306,9 @@ int main(int argc, char **argv)
                     S[3] += E * E;
                     nS++;
                 }
+            rpiv_field_free(ae);
+            rpiv_field_free(qe);
+            rpiv_field_free(q2);
             (void)nn;
             if (q == nseed - 1)
                 printf("nodes at r %g-%g px, u: pass-1 error %.4f; denoised predictor error: "
