@@ -5,7 +5,8 @@
  * gives a sane size and finite levels within the bit depth (fuzz_check_image); a failure
  * leaves *out NULL and a message naming the file; for multi-page TIFF the last page loads or
  * fails the same way, and a page past the end fails with RPIV_EINVAL; page 0 read as a
- * double frame gives the whole image's halves (fuzz_check_halves). */
+ * double frame gives the whole image's halves (fuzz_check_halves); each call takes under
+ * 100 MB of heap over what was live before it (fuzz_heap_begin). */
 #ifndef RPIV_FUZZ_IMAGE_H
 #define RPIV_FUZZ_IMAGE_H
 
@@ -19,7 +20,9 @@
 static inline void fuzz_check_halves(const char *path, const rpiv_image *im, rpiv_status st)
 {
     rpiv_image *a = (rpiv_image *)&a, *b = (rpiv_image *)&b;
+    size_t h0 = fuzz_heap_begin();
     rpiv_status sh = rpiv_image_load_halves(path, &a, &b, NULL);
+    fuzz_heap_end(h0, path, "rpiv_image_load_halves");
     if (!im || im->h % 2) {
         FUZZ_CHECK(sh == (im ? RPIV_ESIZE : st), "%s: halves status %d, whole %d", path, (int)sh,
                    (int)st);
@@ -43,7 +46,9 @@ static inline void fuzz_load_page(const char *path, int page)
 {
     rpiv_image *im = (rpiv_image *)&im; /* must be reset to NULL on failure */
     int warned = -1;
+    size_t h0 = fuzz_heap_begin();
     rpiv_status st = rpiv_image_load(path, page, &im, &warned);
+    fuzz_heap_end(h0, path, "rpiv_image_load");
     if (st == RPIV_OK) {
         fuzz_check_image(im, path);
         FUZZ_CHECK(warned == 0 || warned == 1, "%s: warned = %d", path, warned);
@@ -78,7 +83,9 @@ static inline int fuzz_image_input(const uint8_t *data, size_t size, rpiv_image_
     fuzz_load_page(path, 0);
     if (want == RPIV_IMAGE_TIFF) {
         int np = -1;
+        size_t h0 = fuzz_heap_begin();
         rpiv_status st = rpiv_image_count_pages(path, &np);
+        fuzz_heap_end(h0, path, "rpiv_image_count_pages");
         if (st != RPIV_OK) {
             fuzz_check_failure(st, path);
             return 0;
@@ -87,7 +94,9 @@ static inline int fuzz_image_input(const uint8_t *data, size_t size, rpiv_image_
         if (np > 1)
             fuzz_load_page(path, np - 1);
         rpiv_image *im = NULL;
+        h0 = fuzz_heap_begin();
         st = rpiv_image_load(path, np, &im, NULL);
+        fuzz_heap_end(h0, path, "rpiv_image_load past the last page");
         FUZZ_CHECK(st == RPIV_EINVAL && im == NULL, "%s: page %d of %d: status %d", path, np, np,
                    (int)st);
         fuzz_check_failure(st, path);

@@ -5,8 +5,8 @@
  * touch 2 GB). The files: every seed of fuzz/corpus/ and every regression file of
  * tests/data/fuzz-regressions/ (each is read as an image, whatever its kind: a text file
  * must fail as cheaply). Each is read in a child process whose ru_maxrss (wait4) is compared
- * with that of a child that reads nothing. `make fuzz` runs the image targets with libFuzzer's
- * -rss_limit_mb=100 for the same rule on the inputs it makes (docs/fuzzing.md). */
+ * with that of a child that reads nothing. `make fuzz` checks the same rule on the inputs it
+ * makes, call by call, over the heap (fuzz_heap_begin in fuzz/fuzz.h; docs/fuzzing.md). */
 #include "check.h"
 #include "child_rss.h"
 

@@ -187,8 +187,10 @@ static stats run_case(const flow *fl, double noise, double d_tau, uint64_t seed,
     rpiv_piv *pv = NULL;
     rpiv_piv_params prm = rpiv_piv_params_default();
     prm.uncertainty = 1;
-    prm.refine_max = refine;
-    prm.refine_tol_px = 0;
+    if (refine >= 0) { /* else the default refinement: its repeats, tolerance and stop */
+        prm.refine_max = refine;
+        prm.refine_tol_px = 0;
+    }
     CHECK(a && b);
     CHECK_OK(rpiv_piv_new(&prm, size, size, NULL, &pv));
     for (int q = 0; a && b && pv && q < nseed; q++) {
@@ -217,13 +219,18 @@ static void print_case(const char *name, double noise, double d_tau, const stats
 
 /* ---- tests ---------------------------------------------------------------------------------- */
 
+static int g_sweep_refine; /* the sweep's refine argument: 0, or -1 the defaults */
+
 static void unc_sweep(void)
 {
     const double noises[] = {0, 0.02, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
+    const char *only = getenv("RPIV_UNC_FLOW"); /* one flow: 0 uniform, 1 shear, 2 vortex */
     for (size_t q = 0; q < sizeof flows / sizeof *flows; q++)
+        if (!only || (size_t)atoi(only) == q)
         for (size_t t = 0; t < sizeof taus / sizeof *taus; t++)
             for (size_t k = 0; k < sizeof noises / sizeof *noises; k++) {
-                stats s = run_case(&flows[q], noises[k], taus[t], 1000 + 17 * k + 3 * t, 256, 0, 4);
+                stats s = run_case(&flows[q], noises[k], taus[t], 1000 + 17 * k + 3 * t, 256,
+                                   g_sweep_refine, 4);
                 print_case(flows[q].name, noises[k], taus[t], &s);
             }
 }
@@ -1128,6 +1135,10 @@ int main(void)
     const char *slow = getenv("RPIV_SLOW_TESTS");
     if (slow && slow[0] == '1')
         RUN_TEST(unc_sweep);
+    if (slow && slow[0] == 'd') { /* the instantaneous sweep with the default refinement */
+        g_sweep_refine = -1;
+        RUN_TEST(unc_sweep);
+    }
     if (slow && slow[0] == 'v')
         RUN_TEST(unc_vortex_where);
     if (slow && slow[0] == 's')
