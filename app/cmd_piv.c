@@ -433,10 +433,7 @@ static rpiv_status sheet_bias(const cli_ctx *c, rpiv_field *f, size_t npairs)
     cli_progress prog;
     rpiv_progress pr = cli_progress_of(&prog);
     cli_progress_init(&prog, "sheet bias", c->quiet);
-    rpiv_experiment e = c->exp;
-    if (!(e.bias.window_pairs > 0))
-        e.bias.window_pairs = (double)npairs;
-    return rpiv_config_sheet_bias(&e, f, c->threads, &pr);
+    return rpiv_config_sheet_bias(&c->exp, f, npairs, c->threads, &pr);
 }
 
 static rpiv_status run(cli_ctx *c, const run_opts *o, int nargs, char **args, rpiv_mpi *mpi)

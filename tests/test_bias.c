@@ -84,6 +84,7 @@ static void uniform_velocity_gives_zero_bias(void)
     m.camera.zop_star = 0.45;
     rpiv_ccm_geometry g = {3.0, 0.2, 0.002};
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.measured = 0; /* the continuous peak's analytic property (measured = 1: the tests below) */
     bp.vary = RPIV_CCM_VARY_PROFILE;
     snprintf(bp.profile, sizeof bp.profile, "%s", path);
     for (int depth = 0; depth < 2; depth++) {
@@ -123,6 +124,7 @@ static void linear_profile_through_a_symmetric_sheet(void)
     rpiv_ccm_model m = rpiv_ccm_model_default();
     rpiv_ccm_geometry g = {3.0, 0.2, 0.002};
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.measured = 0; /* the continuous peak's analytic property */
     bp.vary = RPIV_CCM_VARY_PROFILE;
     snprintf(bp.profile, sizeof bp.profile, "%s", path);
     m.camera.zop_star = zb;
@@ -178,6 +180,7 @@ static void field_gradient_is_a_linear_profile(void)
     /* the slope in z*: (du/dx*) / (dz*_max/dx*) / scale_px, U* per unit z* */
     double b = gx / g.star_per_px / sp.zm1 / m.scale_px;
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.measured = 0; /* the continuous peak's analytic property */
     bp.vary = RPIV_CCM_VARY_FIELD;
     rpiv_field *f = make_field(3, 1, 2.0, gx);
     CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
@@ -251,6 +254,8 @@ static void duct_vector_matches_predict(void)
     m.camera.zop_star = 0.45;
     rpiv_ccm_geometry g = {2.0, 0.1, 0.004};
     rpiv_ccm_bias_params bp = rpiv_ccm_bias_params_default();
+    bp.measured = 0; /* against rpiv_ccm_predict's continuous peak (dx); measured = 1's dx_sub:
+                        measured_vector_matches_window_estimate */
     rpiv_field *f = make_field(4, 3, 3.0, 0);
     f->flag[5] = RPIV_FLAG_MASKED;
     CHECK_OK(rpiv_ccm_bias_field(f, &m, s, &g, &bp, &P, NULL));
@@ -490,7 +495,6 @@ static void correction_pays_on_images(void)
     ex.synth.width_px = W;
     ex.synth.height_px = H;
     ex.synth.pairs = NP;
-    ex.bias.window_pairs = NP; /* the noise of the ensemble's planes (measured = 1) */
     CHECK_OK(rpiv_config_set(&ex, "camera", "fnumber", "11", "test"));
     rpiv_synth *s = NULL;
     CHECK_OK(rpiv_config_synth_new(&ex, NULL, &s));
@@ -534,13 +538,13 @@ static void correction_pays_on_images(void)
     if (!truth || !f0 || !f1)
         goto out_free;
     rpiv_synth_truth(s, truth);
-    CHECK_OK(rpiv_config_sheet_bias(&ex, pred, 1, NULL));
+    CHECK_OK(rpiv_config_sheet_bias(&ex, pred, NP, 1, NULL));
     rpiv_experiment e0 = ex;
     e0.bias.pixel_box = 0;
-    CHECK_OK(rpiv_config_sheet_bias(&e0, f0, 1, NULL));
+    CHECK_OK(rpiv_config_sheet_bias(&e0, f0, NP, 1, NULL));
     rpiv_experiment e1 = ex;
     e1.bias.measured = 1 - ex.bias.measured;
-    CHECK_OK(rpiv_config_sheet_bias(&e1, f1, 1, NULL));
+    CHECK_OK(rpiv_config_sheet_bias(&e1, f1, NP, 1, NULL));
     double m_raw, m_c1, m_c0, m_o;
     double raw = e1_vs_truth(pred, truth, NULL, &m_raw);
     double c1 = e1_vs_truth(pred, truth, "u_corrected", &m_c1);

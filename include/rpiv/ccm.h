@@ -541,7 +541,8 @@ typedef struct rpiv_ccm_bias_params {
                                     the estimator p->subpixel on the plane of base's window
                                     (rpiv_ccm_peak.dx_sub, dy_sub of rpiv_ccm_predict: the
                                     forward model of rpiv_ccm_invert_params.measured = 1);
-                                    0 = the continuous peak of <R_D> (dx, dy)              */
+                                    0 = the continuous peak of <R_D> (dx, dy). Default 1
+                                    (session 11; 0 before)                                  */
     int measured_step;           /* [bias] measured_step: with measured, the window's estimate
                                     is computed exactly at every measured_step-th unmasked
                                     vector of a row (and between two of them whose estimator

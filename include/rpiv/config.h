@@ -91,10 +91,13 @@ RPIV_NODISCARD rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e
 /* The sheet's bias for every vector of f (rpiv_ccm_bias_field, docs/bias.md), with the
  * experiment's camera, particles, channel, [sheet] and [bias], f placed in the channel as
  * rpiv synth places its images, P(z*) from [synth] pz_profile, the displacement scale of
- * [piv] dt_s (unset: [synth] dt_s). f in image coordinates. Errors: those of the checks, the
- * file readers and rpiv_ccm_bias_field. */
+ * [piv] dt_s (unset: [synth] dt_s). f in image coordinates. npairs: the image pairs of f's
+ * correlation planes (an ensemble's count; 1 for a single pair or a mean of instantaneous
+ * fields), the noise of the modelled window's plane where [bias] window_pairs is 0. Errors:
+ * those of the checks, the file readers and rpiv_ccm_bias_field. */
 RPIV_NODISCARD rpiv_status rpiv_config_sheet_bias(const rpiv_experiment *e, rpiv_field *f,
-                                                  int threads, const rpiv_progress *progress);
+                                                  size_t npairs, int threads,
+                                                  const rpiv_progress *progress);
 
 /* ---- flat entry points for bindings (the Python package, ctypes) --------------------------- */
 

@@ -468,7 +468,7 @@ def ensemble(pairs, windows=(64, 32, 32), overlap=0.5, progress=None, pairing="a
         if sheet_bias:
             st = lib.rpiv_experiment_check(exp.ptr)
             if not st:
-                st = lib.rpiv_config_sheet_bias(exp.ptr, f, lib.rpiv_piv_threads(pv), prog)
+                st = lib.rpiv_config_sheet_bias(exp.ptr, f, n, lib.rpiv_piv_threads(pv), prog)
             if hook:
                 hook.reraise()
             if st:

@@ -157,7 +157,7 @@ _SIGS = {
     "rpiv_config_raytrace": (c_int, [c_void_p, P(c_double), c_size_t, P(OpticsOpts),
                                      P(Progress), P(P(OpticsResult))]),
     "rpiv_optics_result_free": (None, [P(OpticsResult)]),
-    "rpiv_config_sheet_bias": (c_int, [c_void_p, P(Field), c_int, P(Progress)]),
+    "rpiv_config_sheet_bias": (c_int, [c_void_p, P(Field), c_size_t, c_int, P(Progress)]),
     "rpiv_config_ccm_predict": (c_int, [c_void_p, c_double, c_double, c_double, c_double,
                                         P(CcmPeak), P(c_double)]),
 }

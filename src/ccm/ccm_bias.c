@@ -28,7 +28,7 @@ rpiv_ccm_bias_params rpiv_ccm_bias_params_default(void)
     bp.pixel_box = 1;
     bp.window_model = 1;
     bp.window_interp = 1;
-    bp.measured = 0;
+    bp.measured = 1; /* session 11: better than the continuous peak in every band measured */
     bp.measured_step = 8;
     bp.threads = 0;
     return bp;

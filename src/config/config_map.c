@@ -110,8 +110,8 @@ rpiv_status rpiv_config_ccm_measurements(const rpiv_experiment *e, const char *p
     return st;
 }
 
-rpiv_status rpiv_config_sheet_bias(const rpiv_experiment *e, rpiv_field *f, int threads,
-                                   const rpiv_progress *progress)
+rpiv_status rpiv_config_sheet_bias(const rpiv_experiment *e, rpiv_field *f, size_t npairs,
+                                   int threads, const rpiv_progress *progress)
 {
     rpiv_sheet *sheet = NULL;
     rpiv_ccm_curve *presence = NULL;
@@ -120,6 +120,8 @@ rpiv_status rpiv_config_sheet_bias(const rpiv_experiment *e, rpiv_field *f, int 
     if (st)
         return st;
     rpiv_ccm_model m = rpiv_config_ccm_model(e, e->piv.dt_s > 0 ? e->piv.dt_s : e->synth.dt_s);
+    if (m.window_w > 0 && !(m.window_pairs > 0)) /* [bias] window_pairs 0: the field's own */
+        m.window_pairs = (double)npairs;
     rpiv_ccm_params p = rpiv_ccm_params_default();
     p.subpixel = e->piv.subpixel;
     rpiv_ccm_bias_params bp = e->bias;
