@@ -201,9 +201,13 @@ static void sheet_bias_section(rep *r, const demo_ctx *c)
         "--sheet-bias` computes) predicts by the CCM the bias of the measured displacement "
         "against the velocity at `z*_max(x*)`: the synthesised sheet at the vector's `x*`, the "
         "object plane, the duct's `U*(y*, z*)` at the vector's `y*`, pixel-integrated particle "
-        "images (`[bias] pixel_box` = %g). `u_corrected = u - bias_u`. E1 against the analytic "
-        "`U` at `z*_max(x*)` over the compared vectors: raw %s, corrected %s.",
-        c->e.bias.pixel_box, pct(a, 32, s->bias_e1_raw), pct(b, 32, s->bias_e1_corr));
+        "images (`[bias] pixel_box` = %g), %s. `u_corrected = u - bias_u`. E1 against the "
+        "analytic `U` at `z*_max(x*)` over the compared vectors: raw %s, corrected %s.",
+        c->e.bias.pixel_box,
+        c->e.bias.measured ? "the displacement the engine measures (`[bias] measured` = 1: its "
+                             "estimator on its final window's plane, with the ensemble's noise)"
+                           : "the correlation's continuous peak (`[bias] measured` = 0)",
+        pct(a, 32, s->bias_e1_raw), pct(b, 32, s->bias_e1_corr));
     r_img(r, c, "bias_map.png", "The predicted sheet bias per vector, U*");
     fputs("<table>\n", r->html);
     r_row(r, 1, "band of `x*` (sheet width `z*_sup - z*_inf`)",
