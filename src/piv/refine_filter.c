@@ -333,67 +333,115 @@ int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *
             }
     if (hi[0] < 0)
         return 0; /* A^T 0 = 0 */
-    /* each place along the axis: its stencil's targets inside the block and their weights */
+    /* a: the details' factors (g - 1) c of the samples whose stencil is the interior one, the
+     * same at every such sample and symmetric, so that D^T of them is a convolution along the
+     * axis (rows: vectorised); the few samples at a sub-line's ends scatter their own stencil.
+     * Each row of a has PAD zeros either side (the widest reach, 2 sub-line steps at dilation
+     * 4). */
+    enum { PAD = 8 };
+    const size_t as = (size_t)bw + 2 * PAD;
     const int nmax = bw > bh ? bw : bh;
-    int *cnt = malloc((size_t)nmax * 6 * sizeof *cnt);
-    double *wt = malloc((size_t)nmax * 5 * sizeof *wt);
-    if (!cnt || !wt) {
-        free(cnt);
-        free(wt);
+    double *a = calloc(as * (size_t)bh, sizeof *a);
+    int *kind = malloc(2 * (size_t)nmax * sizeof *kind);
+    if (!a || !kind) {
+        free(a);
+        free(kind);
         return -1;
     }
-    int *idx = cnt + nmax;
     for (int lev = LEVELS - 1; lev >= 0; lev--) {
-        const int step = 1 << lev, order = ORDER[lev];
+        const int step = 1 << lev, order = ORDER[lev], rad = order == 4 ? 2 : 1;
+        const double k0 = order == 4 ? 6.0 / 16 : 0.5, k1 = order == 4 ? -4.0 / 16 : -0.25,
+                     k2 = order == 4 ? 1.0 / 16 : 0;
         for (int axis = 1; axis >= 0; axis--) {
             const float *gs = gain + ((size_t)(comp * LEVELS + lev) * 2 + (size_t)axis) * n;
             const int len = axis ? ny : nx, b0 = axis ? by0 : bx0, blen = axis ? bh : bw;
-            for (int r = lo[axis]; r <= hi[axis]; r++) {
-                const int p = b0 + r, o = p % step, m = (len - o + step - 1) / step;
-                int at[5];
-                double w[5];
-                const int all = stencil(m, order, p / step, at, w);
-                cnt[r] = 0;
-                for (int q = 0; q < all; q++) {
-                    const int t = o + at[q] * step - b0;
-                    if (t >= 0 && t < blen) {
-                        idx[r * 5 + cnt[r]] = t;
-                        wt[r * 5 + cnt[r]++] = w[q];
-                    }
-                }
-            }
+            int *const ends = kind + nmax;
             memcpy(tmp, c, nb * sizeof *tmp);
-            /* S^T c = c + D^T ((g - 1) c): the detail of each sample scattered back over the
-             * samples of its stencil, along its sub-line; row after row, each target receives
-             * its terms in the order of its sources along the axis */
+            /* each place along the axis: 1 if its stencil is the interior one (step a power
+             * of 2: the sub-line o = p mod step, k = p / step, of m samples); the others (a
+             * sub-line's ends) listed in ends[] */
+            int nend = 0;
+            for (int r = lo[axis]; r <= hi[axis]; r++) {
+                const int p = b0 + r, o = p & (step - 1), k = p >> lev;
+                const int m = (len - o + step - 1) >> lev;
+                kind[r] = k >= rad && k <= m - 1 - rad;
+                if (!kind[r])
+                    ends[nend++] = r;
+            }
+            /* a = (g - 1) c at the interior places, 0 at the ends */
             for (int j = lo[1]; j <= hi[1]; j++) {
                 const float *gr = gs + (size_t)(by0 + j) * (size_t)nx + (size_t)bx0;
                 const double *cr = c + (size_t)j * (size_t)bw;
-                for (int i = lo[0]; i <= hi[0]; i++) {
-                    const double a = ((double)gr[i] - 1) * cr[i];
-                    if (a == 0)
-                        continue;
-                    const int r = axis ? j : i;
-                    const int *ir = idx + r * 5;
-                    const double *wr = wt + r * 5;
-                    if (axis)
-                        for (int q = 0; q < cnt[r]; q++)
-                            tmp[(size_t)ir[q] * (size_t)bw + (size_t)i] += wr[q] * a;
-                    else
-                        for (int q = 0; q < cnt[r]; q++)
-                            tmp[(size_t)j * (size_t)bw + (size_t)ir[q]] += wr[q] * a;
+                double *ar = a + (size_t)j * as + PAD;
+                if (axis && !kind[j]) {
+                    for (int i = lo[0]; i <= hi[0]; i++)
+                        ar[i] = 0;
+                    continue;
+                }
+                for (int i = lo[0]; i <= hi[0]; i++)
+                    ar[i] = ((double)gr[i] - 1) * cr[i];
+                if (!axis)
+                    for (int e = 0; e < nend; e++)
+                        ar[ends[e]] = 0;
+            }
+            /* the ends: each scatters its own stencil */
+            for (int e = 0; e < nend; e++) {
+                const int r = ends[e], p = b0 + r, o = p & (step - 1), k = p >> lev;
+                const int m = (len - o + step - 1) >> lev;
+                int at[5];
+                double w[5];
+                const int cnt = stencil(m, order, k, at, w);
+                const int j0 = axis ? r : lo[1], j1 = axis ? r : hi[1];
+                const int i0 = axis ? lo[0] : r, i1 = axis ? hi[0] : r;
+                for (int j = j0; j <= j1; j++)
+                    for (int i = i0; i <= i1; i++) {
+                        const size_t at0 = (size_t)j * (size_t)bw + (size_t)i;
+                        const double v =
+                            ((double)gs[(size_t)(by0 + j) * (size_t)nx + (size_t)(bx0 + i)] - 1) *
+                            c[at0];
+                        if (v == 0)
+                            continue;
+                        for (int q = 0; q < cnt; q++) {
+                            const int t = o + at[q] * step - b0;
+                            if (t >= 0 && t < blen)
+                                tmp[axis ? (size_t)t * (size_t)bw + (size_t)i
+                                         : (size_t)j * (size_t)bw + (size_t)t] += w[q] * v;
+                        }
+                    }
+            }
+            /* the interior stencils' part: targets within 2 sub-line steps of the box */
+            const int reach = 2 * step;
+            const int tlo = lo[axis] - reach < 0 ? 0 : lo[axis] - reach;
+            const int thi = hi[axis] + reach > blen - 1 ? blen - 1 : hi[axis] + reach;
+            if (axis == 0) {
+                for (int j = lo[1]; j <= hi[1]; j++) {
+                    const double *ar = a + (size_t)j * as + PAD;
+                    double *tr = tmp + (size_t)j * (size_t)bw;
+                    for (int t = tlo; t <= thi; t++)
+                        tr[t] += k0 * ar[t] + k1 * (ar[t - step] + ar[t + step]) +
+                                 k2 * (ar[t - 2 * step] + ar[t + 2 * step]);
+                }
+            } else {
+                for (int t = tlo; t <= thi; t++) {
+                    double *tr = tmp + (size_t)t * (size_t)bw;
+                    for (int d = -rad; d <= rad; d++) {
+                        const int src = t + d * step;
+                        if (src < lo[1] || src > hi[1])
+                            continue;
+                        const double kd = d == 0 ? k0 : (d == 1 || d == -1) ? k1 : k2;
+                        const double *ar = a + (size_t)src * as + PAD;
+                        for (int i = lo[0]; i <= hi[0]; i++)
+                            tr[i] += kd * ar[i];
+                    }
                 }
             }
             memcpy(c, tmp, nb * sizeof *c);
-            /* a stencil reaches at most 2 sub-line steps from its sample (stencil(): i - 2 ..
-             * i + 2, the ends' one-sided and mirrored stencils included) */
-            const int reach = 2 * step;
-            lo[axis] = lo[axis] - reach < 0 ? 0 : lo[axis] - reach;
-            hi[axis] = hi[axis] + reach > blen - 1 ? blen - 1 : hi[axis] + reach;
+            lo[axis] = tlo;
+            hi[axis] = thi;
         }
     }
-    free(cnt);
-    free(wt);
+    free(a);
+    free(kind);
     return 0;
 }
 
