@@ -254,14 +254,15 @@ static void refine_is_stable_at_the_window_size(void)
 
 /* ---- smooth flows ------------------------------------------------------------------------- */
 
-/* Shifts 0..8.3 px in both components, 256 x 256: clean images (the issue's RMS <= 0.006
- * px, |bias| <= 0.002 px) and noisy 8-bit ones (not worse than the 3 passes of session 4:
- * worst RMS 0.0080 px a component measured with them). */
+/* Shifts 0..8.3 px in both components, 512 x 512 (the issue's size; 256 x 256 until session
+ * 11): clean images and noisy 8-bit ones, the issue's RMS <= 0.006 px and |bias| <= 0.002 px
+ * for both (at 256 x 256 the noisy sweep's worst of 17 RMS figures scatters more: 0.0061 px,
+ * asserted there at the 3 passes of session 4, 0.0080 px measured with them, less 0.001). */
 static void refine_keeps_uniform_shifts(void)
 {
     const rpiv_piv_params d = rpiv_piv_params_default();
-    /* RPIV_SWEEP_SIZE=512: the image size (docs/piv.md; 4 x the time) */
-    const int size = getenv("RPIV_SWEEP_SIZE") ? atoi(getenv("RPIV_SWEEP_SIZE")) : 256;
+    /* RPIV_SWEEP_SIZE: another image size (docs/piv.md) */
+    const int size = getenv("RPIV_SWEEP_SIZE") ? atoi(getenv("RPIV_SWEEP_SIZE")) : 512;
     CHECK(size >= 128 && size <= 2048);
     for (int clean = 1; clean >= 0 && size >= 128 && size <= 2048; clean--) {
         double worst_rms = 0, worst_mean = 0;
@@ -279,7 +280,7 @@ static void refine_keeps_uniform_shifts(void)
         printf("    uniform shifts 0..8.3 px, %d x %d, %s: worst RMS %.4f px a component, worst "
                "|bias| %.4f px, %d repeats in all\n",
                size, size, clean ? "clean" : "1 % noise, 8 bit", worst_rms, worst_mean, repeats);
-        CHECK(worst_rms <= (clean ? 0.006 : 0.0070));
+        CHECK(worst_rms <= (clean || size >= 512 ? 0.006 : 0.0070));
         CHECK(worst_mean <= 0.002);
         CHECK(repeats == 0); /* smooth flows stop at once */
     }
