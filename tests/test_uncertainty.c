@@ -225,14 +225,16 @@ static void unc_sweep(void)
 {
     const double noises[] = {0, 0.02, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
     const char *only = getenv("RPIV_UNC_FLOW"); /* one flow: 0 uniform, 1 shear, 2 vortex */
-    for (size_t q = 0; q < sizeof flows / sizeof *flows; q++)
-        if (!only || (size_t)atoi(only) == q)
+    for (size_t q = 0; q < sizeof flows / sizeof *flows; q++) {
+        if (only && (size_t)atoi(only) != q)
+            continue;
         for (size_t t = 0; t < sizeof taus / sizeof *taus; t++)
             for (size_t k = 0; k < sizeof noises / sizeof *noises; k++) {
                 stats s = run_case(&flows[q], noises[k], taus[t], 1000 + 17 * k + 3 * t, 256,
                                    g_sweep_refine, 4);
                 print_case(flows[q].name, noises[k], taus[t], &s);
             }
+    }
 }
 
 /* The systematic term on instantaneous fields (not applied by the engine): the whole run's

@@ -88,6 +88,13 @@ static void kappa_table(double ta, double tb, int m0, double k[NP][NM])
             k[n + NR][a] = kap[n - (m0 + a) - jlo];
 }
 
+/* The lattice S of the whole list at its last origin (m0x, m0y): the passes' predictors
+ * usually keep their whole pixel, and then only the kernels change. */
+typedef struct lat_cache {
+    int valid, m0x, m0y;
+    double S[NM * NM];
+} lat_cache;
+
 /* The expected plane of the engine's final, deformed pass about the predictor (px, py), at
  * its shifts n, m = -NR..NR (P[m + NR][n + NR]), before the mean removal's baseline: the
  * infinite window's R at the integer lattice, through the interpolation's kernel of the frames'
@@ -96,14 +103,8 @@ static void kappa_table(double ta, double tb, int m0, double k[NP][NM])
  * plane's shift, not at each term's own displacement: docs/ccm.md, "The planes' skew"). With
  * sub-positions (sub, nsub; NULL: the whole list, not deformed), each one's terms c->g[t0..t1)
  * (moved by minus its deformation s) are put back and sampled about its own predictor p + s:
- * the window's plane is the sum of its parts' planes, each deformed by its own predictor. */
-/* The lattice S of the whole list at its last origin (m0x, m0y): the passes' predictors
- * usually keep their whole pixel, and then only the kernels change. */
-typedef struct lat_cache {
-    int valid, m0x, m0y;
-    double S[NM * NM];
-} lat_cache;
-
+ * the window's plane is the sum of its parts' planes, each deformed by its own predictor.
+ * lc (NULL: none): the whole list's lattice kept between calls. */
 static rpiv_status deformed_plane(const rpiv_ccm_corr *c, const ccm_sub *sub, size_t nsub,
                                   int win_w, int win_h, double px, double py, lat_cache *lc,
                                   double P[NP][NP])
@@ -314,10 +315,10 @@ static rpiv_status window_estimate(const rpiv_ccm_corr *c, const ccm_sub *sub, s
         return st;
     }
     const double base = -vol / ((double)win_w * (double)win_h);
+    const int rad = ccm_subpixel_rad(p);
     double sigma = 0;
     if (deform == 2 && npairs > 0) /* the random pairs' noise of an ensemble of npairs pairs */
-        sigma =
-            sqrt(-base / (rows[ccm_subpixel_rad(p)][ccm_subpixel_rad(p)] + base) / (2 * npairs));
+        sigma = sqrt(-base / (rows[rad][rad] + base) / (2 * npairs));
     noisy_subpixel(rows, p, base, sigma, mx, my, ex, ey, sig);
     if (sig) {
         sig->mx = mx;

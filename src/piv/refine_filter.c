@@ -318,6 +318,15 @@ static int stencil(int n, int order, int i, int *idx, double *w)
     return c;
 }
 
+/* Place p of a line of len samples at dilation 2^lev: its sub-line o = p mod 2^lev, its index
+ * k on it, the sub-line's sample count m. */
+static void subline(int p, int lev, int len, int *o, int *k, int *m)
+{
+    *o = p & ((1 << lev) - 1);
+    *k = p >> lev;
+    *m = (len - *o + (1 << lev) - 1) >> lev;
+}
+
 int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c, int bx0, int bw,
                            int by0, int bh, double *tmp)
 {
@@ -350,8 +359,13 @@ int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *
     }
     for (int lev = LEVELS - 1; lev >= 0; lev--) {
         const int step = 1 << lev, order = ORDER[lev], rad = order == 4 ? 2 : 1;
-        const double k0 = order == 4 ? 6.0 / 16 : 0.5, k1 = order == 4 ? -4.0 / 16 : -0.25,
-                     k2 = order == 4 ? 1.0 / 16 : 0;
+        /* the interior stencil, kw[|d|] at d sub-line steps (stencil() of a line just long
+         * enough for one interior sample) */
+        int kat[5];
+        double kw5[5], kw[3] = {0, 0, 0};
+        const int kc = stencil(2 * rad + 1, order, rad, kat, kw5);
+        for (int q = 0; q < kc; q++)
+            kw[abs(kat[q] - rad)] = kw5[q];
         for (int axis = 1; axis >= 0; axis--) {
             const float *gs = gain + ((size_t)(comp * LEVELS + lev) * 2 + (size_t)axis) * n;
             const int len = axis ? ny : nx, b0 = axis ? by0 : bx0, blen = axis ? bh : bw;
@@ -362,8 +376,8 @@ int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *
              * sub-line's ends) listed in ends[] */
             int nend = 0;
             for (int r = lo[axis]; r <= hi[axis]; r++) {
-                const int p = b0 + r, o = p & (step - 1), k = p >> lev;
-                const int m = (len - o + step - 1) >> lev;
+                int o, k, m;
+                subline(b0 + r, lev, len, &o, &k, &m);
                 kind[r] = k >= rad && k <= m - 1 - rad;
                 if (!kind[r])
                     ends[nend++] = r;
@@ -386,9 +400,9 @@ int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *
             }
             /* the ends: each scatters its own stencil */
             for (int e = 0; e < nend; e++) {
-                const int r = ends[e], p = b0 + r, o = p & (step - 1), k = p >> lev;
-                const int m = (len - o + step - 1) >> lev;
-                int at[5];
+                const int r = ends[e];
+                int o, k, m, at[5];
+                subline(b0 + r, lev, len, &o, &k, &m);
                 double w[5];
                 const int cnt = stencil(m, order, k, at, w);
                 const int j0 = axis ? r : lo[1], j1 = axis ? r : hi[1];
@@ -418,8 +432,8 @@ int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *
                     const double *ar = a + (size_t)j * as + PAD;
                     double *tr = tmp + (size_t)j * (size_t)bw;
                     for (int t = tlo; t <= thi; t++)
-                        tr[t] += k0 * ar[t] + k1 * (ar[t - step] + ar[t + step]) +
-                                 k2 * (ar[t - 2 * step] + ar[t + 2 * step]);
+                        tr[t] += kw[0] * ar[t] + kw[1] * (ar[t - step] + ar[t + step]) +
+                                 kw[2] * (ar[t - 2 * step] + ar[t + 2 * step]);
                 }
             } else {
                 for (int t = tlo; t <= thi; t++) {
@@ -428,8 +442,7 @@ int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *
                         const int src = t + d * step;
                         if (src < lo[1] || src > hi[1])
                             continue;
-                        const double kd = d == 0 ? k0 : (d == 1 || d == -1) ? k1 : k2;
-                        const double *ar = a + (size_t)src * as + PAD;
+                        const double kd = kw[abs(d)], *ar = a + (size_t)src * as + PAD;
                         for (int i = lo[0]; i <= hi[0]; i++)
                             tr[i] += kd * ar[i];
                     }
