@@ -239,6 +239,70 @@ out:
     free(b);
 }
 
+/* Ensembles of a few pairs of narrow particle images (2 px, 128 x 128 px, uniform 3.27, -1.61
+ * px, 5 % noise): the default estimator (the spline, its correction checked against the
+ * neighbours', docs/piv.md) against the 3-point Gaussian, RMS error over 6 ensembles of 20
+ * pairs each. Without the check the spline's tail samples gave isolated errors of several
+ * hundredths of a px: RMS 0.0074 / 0.0085 px against the Gaussian's 0.0042 / 0.0041 (session
+ * 12); with it 0.0042 / 0.0039. */
+static double narrow_ensemble_rms(rpiv_subpixel method, double *worst)
+{
+    enum { S = 128, NP = 20, NE = 6 };
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.ensemble = 1;
+    prm.subpixel = method;
+    rpiv_piv *pv = NULL;
+    float *a = malloc(sizeof(float) * S * S), *b = malloc(sizeof(float) * S * S);
+    rpiv_image ia = {S, S, 16, a}, ib = {S, S, 16, b};
+    double se = 0;
+    long n = 0;
+    *worst = 0;
+    CHECK_OK(rpiv_piv_new(&prm, S, S, NULL, &pv));
+    for (int q = 0; pv && a && b && q < NE; q++) {
+        rpiv_field *pred = NULL;
+        for (int k = 0; k < rpiv_piv_npass(pv); k++) {
+            rpiv_ensemble *e = NULL;
+            rpiv_field *f = NULL;
+            CHECK_OK(rpiv_ensemble_new(pv, k, pred, &e));
+            for (int i = 0; e && i < NP; i++) {
+                ti_params tp = {S, S, 0.05, 2.0, 1000, 0.05, 0, 7000 + 100 * (uint64_t)q + i};
+                ti_pair(&tp, ti_uniform, (double[2]){3.27, -1.61}, a, b);
+                CHECK_OK(rpiv_ensemble_add(e, &ia, &ib));
+            }
+            if (e)
+                CHECK_OK(rpiv_ensemble_finish(e, &f));
+            rpiv_ensemble_free(e);
+            rpiv_field_free(pred);
+            pred = f;
+        }
+        for (size_t k = 0; pred && k < (size_t)pred->nx * (size_t)pred->ny; k++) {
+            if (pred->flag[k] != RPIV_FLAG_VALID)
+                continue;
+            const double eu = (double)pred->u[k] - 3.27, ev = (double)pred->v[k] + 1.61;
+            se += eu * eu + ev * ev;
+            n += 2;
+            *worst = fmax(*worst, fmax(fabs(eu), fabs(ev)));
+        }
+        rpiv_field_free(pred);
+    }
+    rpiv_piv_free(pv);
+    free(a);
+    free(b);
+    return n ? sqrt(se / (double)n) : (double)INFINITY;
+}
+
+static void ensemble_spline_on_narrow_images(void)
+{
+    double ws, wg;
+    const double rs = narrow_ensemble_rms(RPIV_SUBPIXEL_AUTO, &ws),
+                 rg = narrow_ensemble_rms(RPIV_SUBPIXEL_GAUSS, &wg);
+    printf("    2 px images, 6 ensembles of 20 pairs: RMS error %.4f px (largest %.4f) with the "
+           "default estimator, %.4f (%.4f) with the 3-point Gaussian\n",
+           rs, ws, rg, wg);
+    CHECK(rs <= 1.15 * rg);
+    CHECK(ws <= 0.03);
+}
+
 static void ensemble_merge_save_and_load(void)
 {
     rpiv_piv_params prm = rpiv_piv_params_default();
@@ -523,6 +587,7 @@ int main(void)
     RUN_TEST(ensemble_recovers_parabolic_profile_from_sparse_pairs);
     RUN_TEST(ensemble_sums_identical_for_1_and_2_threads);
     RUN_TEST(ensemble_of_one_pair_is_the_instantaneous_field);
+    RUN_TEST(ensemble_spline_on_narrow_images);
     RUN_TEST(ensemble_merge_save_and_load);
     RUN_TEST(checkpoint_block_predictor_and_older_formats);
     RUN_TEST(ensemble_run_over_a_file_series);

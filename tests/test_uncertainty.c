@@ -1096,7 +1096,8 @@ int main(void)
         return check_summary();
     }
     /* every valid vector of one case: RPIV_UNC_DUMP="kind flow noise d_tau [count]" (kind 0:
-     * the instantaneous sweep's seeds, count pairs, 4 by default; kind 1: the ensemble sweep's,
+     * the instantaneous sweep's seeds, count pairs, 4 by default, the listed passes alone or with
+     * RPIV_UNC_DEFAULTS set the default refinement; kind 1: the ensemble sweep's,
      * count ensembles of 20 pairs, 40 by default); RPIV_UNC_SUBPIXEL the ensembles' estimator.
      * tests/tools/unc_where.py reads it (docs/uncertainty.md, "Where the error is"). */
     const char *dump = getenv("RPIV_UNC_DUMP");
@@ -1114,7 +1115,7 @@ int main(void)
         g_dump = stdout;
         stats s = kind ? ens_case(&flows[q], nz, tau, count > 0 ? count : 40, 20, 128)
                        : run_case(&flows[q], nz, tau, 1000 + 17 * (uint64_t)k + 3 * (uint64_t)t,
-                                  256, 0, count > 0 ? count : 4);
+                                  256, getenv("RPIV_UNC_DEFAULTS") ? -1 : 0, count > 0 ? count : 4);
         g_dump = NULL;
         print_case(flows[q].name, nz, tau, &s);
         return check_summary();

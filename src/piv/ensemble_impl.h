@@ -47,7 +47,9 @@ void ens_unc_pair(const rpiv_ensemble *e, const float *plane, const rpiv_xcorr_s
  * near zero shift, in the order of the pairs. */
 void ens_unc_add(rpiv_ensemble *e, size_t win, const double sums[ENS_UNC_SUMS], const float *plane);
 
-/* sigma_u, sigma_v of the finished field f of e (validated). */
-RPIV_NODISCARD rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f);
+/* sigma_u, sigma_v of the finished field f of e (validated); fell[win] 1 where the spline's
+ * check (ensemble.c) put the 3-point fit plus the neighbours' correction in its place. */
+RPIV_NODISCARD rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f,
+                                          const unsigned char *fell);
 
 #endif /* RPIV_SRC_ENSEMBLE_IMPL_H */

@@ -165,7 +165,7 @@ static rpiv_status ens_systematic(const rpiv_ensemble *e, const rpiv_field *f, f
     return RPIV_OK;
 }
 
-rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
+rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned char *fell)
 {
     const rpiv_piv *pv = e->pv;
     const piv_pass *ps = &pv->pass[e->pass];
@@ -179,7 +179,7 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f)
     for (size_t w = 0; w < e->nwin; w++) {
         const float *s = d + w * ENS_UNC_STRIDE;
         double vx, vy;
-        if (spline_var(e, w, &vx, &vy)) {
+        if (!fell[w] && spline_var(e, w, &vx, &vy)) {
             /* the spline estimator's sensitivity and the spread of the pairs' planes */
             const double ux = sqrt(vx > 0 ? vx : 0), uy = sqrt(vy > 0 ? vy : 0);
             cs[w] = (float)(ux < UNC_SIGMA_MAX ? ux : UNC_SIGMA_MAX);
