@@ -72,6 +72,61 @@ static rpiv_field *grid_field(int nx, int ny, double x0, double y0, double d, li
     return f;
 }
 
+/* The curvature continued beyond the grid (piv.edge_curvature): a field quadratic in y, u =
+ * 2 + 0.004 (y - 40)^2 on a 9 x 7 grid (nodes y = 15.5 ... 111.5, step 16): half a step
+ * beyond the last row (y = 119.5) the linear continuation is off by the curvature's share,
+ * 0.004 * 8^2 = 0.256 px; with the curvature continued it is within 1 % of that. A line
+ * whose end nodes are not all measured (trust 0) keeps the linear continuation; noise, whose
+ * second differences change sign, is not continued (deform_edge_curv 0). */
+static double quad_y(double y)
+{
+    return 2 + 0.004 * (y - 40) * (y - 40);
+}
+
+static void deform_predictor_continues_the_curvature(void)
+{
+    enum { NX = 9, NY = 7 };
+    rpiv_field *f = NULL;
+    CHECK_OK(rpiv_field_new(NX, NY, 15.5, 15.5, 16, 16, &f));
+    if (!f)
+        return;
+    unsigned char trust[NX * NY];
+    for (int j = 0; j < NY; j++)
+        for (int i = 0; i < NX; i++) {
+            f->u[j * NX + i] = (float)quad_y(15.5 + 16 * j);
+            f->v[j * NX + i] = 0;
+            trust[j * NX + i] = 1;
+        }
+    rpiv_deform_pred *pl = NULL, *cur = NULL, *part = NULL;
+    CHECK_OK(rpiv_deform_pred_new(f, 160, 128, 0, &pl));
+    CHECK_OK(deform_pred_new_ext(f, 160, 128, 0, trust, &cur));
+    trust[(NY - 2) * NX + 4] = 0; /* column 4: a replaced vector among its last 4 nodes */
+    CHECK_OK(deform_pred_new_ext(f, 160, 128, 0, trust, &part));
+    if (pl && cur && part) {
+        double ul, uc, up, v;
+        rpiv_deform_pred_eval(pl, 79.5, 119.5, &ul, &v);
+        rpiv_deform_pred_eval(cur, 79.5, 119.5, &uc, &v);
+        rpiv_deform_pred_eval(part, 79.5, 119.5, &up, &v);
+        const double t = quad_y(119.5);
+        printf("    y = 119.5: linear continuation %+.4f px, curvature continued %+.4f px, one "
+               "node untrusted %+.4f px\n",
+               ul - t, uc - t, up - t);
+        CHECK(fabs(ul - t) > 0.2);
+        CHECK(fabs(uc - t) < 0.01 * fabs(ul - t));
+        CHECK_NEAR(up, ul, 1e-3 * fabs(ul - t));
+        /* inside the grid the three agree to the spline's accuracy on a quadratic */
+        rpiv_deform_pred_eval(cur, 79.5, 63.5, &uc, &v);
+        CHECK_NEAR(uc, quad_y(63.5), 1e-4);
+    }
+    const float noisy[5] = {1.0f, 1.2f, 0.9f, 1.15f, 1.05f}, bent[5] = {4, 2, 1, 0.5f, 0.3f};
+    CHECK(deform_edge_curv(noisy, 5, 1) == 0);
+    CHECK_NEAR(deform_edge_curv(bent, 5, 1), 0.5, 1e-9); /* minmod(1.0, 0.5) */
+    rpiv_deform_pred_free(pl);
+    rpiv_deform_pred_free(cur);
+    rpiv_deform_pred_free(part);
+    rpiv_field_free(f);
+}
+
 /* The predictor reproduces a linear field everywhere, also beyond the outermost grid
  * points (point-symmetric ghosts), through both the point and the row evaluation. */
 static void deform_predictor_keeps_linear_fields_linear(void)
@@ -438,6 +493,7 @@ int main(void)
     RUN_TEST(deform_bspline_interpolates_pixels_and_reproduces_cubics);
     RUN_TEST(deform_prefilter_small_images);
     RUN_TEST(deform_predictor_keeps_linear_fields_linear);
+    RUN_TEST(deform_predictor_continues_the_curvature);
     RUN_TEST(deform_predictor_interpolates_nodes);
     RUN_TEST(deform_shifts_a_bspline_interpolated_image);
     RUN_TEST(deform_is_thread_count_independent);

@@ -203,6 +203,7 @@ static void ensemble_of_one_pair_is_the_instantaneous_field(void)
     rpiv_piv_params prm = rpiv_piv_params_default();
     prm.refine_max = 0; /* the ensemble runs the listed passes, without the repeats */
     prm.subpixel = RPIV_SUBPIXEL_GAUSS;
+    prm.edge_curvature = 0; /* the same continuation of the predictor (-1: by the kind) */
     rpiv_piv *pv = NULL;
     float *a = malloc(sizeof(float) * W * H), *b = malloc(sizeof(float) * W * H);
     rpiv_image ia = {W, H, 16, a}, ib = {W, H, 16, b};

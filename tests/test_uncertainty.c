@@ -187,6 +187,8 @@ static stats run_case(const flow *fl, double noise, double d_tau, uint64_t seed,
     rpiv_piv *pv = NULL;
     rpiv_piv_params prm = rpiv_piv_params_default();
     prm.uncertainty = 1;
+    if (getenv("RPIV_UNC_EDGE")) /* diagnostics: piv.edge_curvature */
+        prm.edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));
     if (refine >= 0) { /* else the default refinement: its repeats, tolerance and stop */
         prm.refine_max = refine;
         prm.refine_tol_px = 0;
@@ -604,6 +606,8 @@ static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const ch
     prm.threads = threads;
     if (g_ens_subpixel >= 0) /* diagnostics: RPIV_UNC_SUBPIXEL */
         prm.subpixel = (rpiv_subpixel)g_ens_subpixel;
+    if (getenv("RPIV_UNC_EDGE")) /* diagnostics: piv.edge_curvature */
+        prm.edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));
     rpiv_piv *pv = NULL;
     rpiv_field *pred = NULL;
     CHECK_OK(rpiv_piv_new(&prm, src->size, src->size, NULL, &pv));

@@ -69,6 +69,11 @@ typedef struct rpiv_piv_params {
                              repeats; end with the iterate of the smallest change (1) */
     int refine_defer;     /* 1: no median test between repeats of the final size, only on the
                              field they converge to (0; experimental, docs/piv.md) */
+    /* The predictor beyond the grid's edge (docs/piv.md, "The grid's edge"): 0 continued
+     * linearly, 1 with its curvature (limited, where the 4 end nodes of a grid line are
+     * measured), -1 the curvature for ensembles only (0; experimental: better on synthetic
+     * ensembles, slightly worse on the demo's). */
+    int edge_curvature;
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;

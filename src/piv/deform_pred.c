@@ -36,13 +36,30 @@ static double ext(const float *g, int n, size_t stride, int k)
     return e + (k - (n - 1)) * d;
 }
 
-/* Fill the G ghosts on both sides of a line whose n real samples start at g (stride). */
-static void ghosts(float *g, int n, size_t stride)
+double deform_edge_curv(const float *g, int n, ptrdiff_t stride)
+{
+    if (n < 4)
+        return 0;
+    const double c0 = (double)g[0] - 2.0 * (double)g[stride] + (double)g[2 * stride],
+                 c1 = (double)g[stride] - 2.0 * (double)g[2 * stride] + (double)g[3 * stride];
+    if (!(c0 * c1 > 0)) /* a change of sign, or none: no curvature to continue */
+        return 0;
+    return fabs(c0) < fabs(c1) ? c0 : c1;
+}
+
+/* Fill the G ghosts on both sides of a line whose n real samples start at g (stride):
+ * point-symmetric, plus at an end with curve_lo / curve_hi k^2 times its limited second
+ * difference (up to 2 RPIV_DEFORM_GHOST steps, then held: the prefilter reads that far with a
+ * weight below 1e-5 of the edge's). */
+static void ghosts(float *g, int n, size_t stride, int curve_lo, int curve_hi)
 {
     const int G = PAD;
     float *rev = g + (size_t)(n - 1) * stride;
+    const double clo = curve_lo ? deform_edge_curv(g, n, (ptrdiff_t)stride) : 0,
+                 chi = curve_hi ? deform_edge_curv(rev, n, -(ptrdiff_t)stride) : 0;
     for (int k = 1; k <= G; k++) {
-        double lo = 2.0 * (double)g[0] - ext(g, n, stride, k);
+        const int kk = k < 2 * RPIV_DEFORM_GHOST ? k : 2 * RPIV_DEFORM_GHOST;
+        double lo = 2.0 * (double)g[0] - ext(g, n, stride, k) + (double)(kk * kk) * clo;
         /* the far end: the same rule on the reversed line */
         double hi;
         if (k <= n - 1)
@@ -53,6 +70,7 @@ static void ghosts(float *g, int n, size_t stride)
             double e = (double)g[0], d = e - (double)g[stride];
             hi = 2.0 * (double)rev[0] - (e + (k - (n - 1)) * d);
         }
+        hi += (double)(kk * kk) * chi;
         g[-(ptrdiff_t)((size_t)k * stride)] = (float)lo;
         rev[(size_t)k * stride] = (float)hi;
     }
@@ -72,6 +90,23 @@ static void tap(double t, int n, int *i0, float wt[4])
 
 rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift,
                                  rpiv_deform_pred **out)
+{
+    return deform_pred_new_ext(f, w, h, shift, NULL, out);
+}
+
+/* Are the 4 nodes of a line from its end at k0 (inward stride st) all measured? */
+static int trusted(const unsigned char *trust, size_t k0, ptrdiff_t st, int n)
+{
+    if (!trust || n < 4)
+        return 0;
+    for (int q = 0; q < 4; q++)
+        if (!trust[(ptrdiff_t)k0 + q * st])
+            return 0;
+    return 1;
+}
+
+rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
+                                const unsigned char *trust, rpiv_deform_pred **out)
 {
     const int G = PAD;
     *out = NULL;
@@ -108,10 +143,19 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift
         for (int j = 0; j < f->ny; j++) {
             float *row = g + (size_t)(j + G) * snx + G;
             memcpy(row, src + (size_t)j * (size_t)f->nx, (size_t)f->nx * sizeof *row);
-            ghosts(row, f->nx, 1);
+            const size_t r = (size_t)j * (size_t)f->nx;
+            ghosts(row, f->nx, 1, trusted(trust, r, 1, f->nx),
+                   trusted(trust, r + (size_t)f->nx - 1, -1, f->nx));
         }
-        for (int i = 0; i < p->nx; i++)
-            ghosts(g + (size_t)G * snx + (size_t)i, f->ny, snx);
+        for (int i = 0; i < p->nx; i++) {
+            /* the ghost columns (the grid's corners beyond it) continued linearly */
+            const int ic = i - G, real = ic >= 0 && ic < f->nx;
+            const ptrdiff_t st = (ptrdiff_t)f->nx;
+            ghosts(g + (size_t)G * snx + (size_t)i, f->ny, snx,
+                   real && trusted(trust, (size_t)ic, st, f->ny),
+                   real && trusted(trust, (size_t)(f->ny - 1) * (size_t)f->nx + (size_t)ic, -st,
+                                   f->ny));
+        }
         rpiv_deform_prefilter(g, p->nx, p->ny, 1);
         for (size_t k = 0; k < n; k++) {
             float a = fabsf(g[k]);

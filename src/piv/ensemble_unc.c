@@ -235,7 +235,7 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned
     if (e->pass == pv->npass - 1 && (st = ens_systematic(e, f, su, sv)))
         goto out_free;
     if (g.shift != 0)
-        unc_edge_bias(f, ps->ww, ps->wh, su, sv);
+        unc_edge_bias(f, ps->ww, ps->wh, piv_edge_curved(pv, 1), su, sv);
     unc_replaced(f);
 out_free:
     unc_chain_free(c);

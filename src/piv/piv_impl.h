@@ -83,9 +83,13 @@ double piv_shift(const rpiv_piv *pv, int k);
 
 /* Build the interpolant of a predictor field (copied; masked vectors filled with neighbour
  * medians first, rejected ones taken with the values their replacement gave them, then
- * low-pass filtered with weight `filter`, 0 = none), rows evaluated at pixel + shift. */
+ * low-pass filtered with weight `filter`, 0 = none), rows evaluated at pixel + shift; beyond
+ * the grid continued as piv_edge_curved says for an ensemble's pass or a single pair's. */
 RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
-                                        double shift, double filter, rpiv_deform_pred **out);
+                                        double shift, double filter, int ensemble,
+                                        rpiv_deform_pred **out);
+/* 1 when the predictor continues its curvature beyond the grid (params edge_curvature). */
+int piv_edge_curved(const rpiv_piv *pv, int ensemble);
 /* The predictor's low-pass filter [a/2, 1 - a, a/2] along x, then along y, edge nodes kept
  * (src/piv/piv.c; refine_filter). */
 RPIV_NODISCARD rpiv_status piv_pred_filter(rpiv_field *f, double a);

@@ -35,6 +35,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_denoise = 1,
                              .refine_stop = 1,
                              .refine_defer = 0,
+                             .edge_curvature = 0,
                              .prep = rpiv_preprocess_params_default()};
 }
 
@@ -85,6 +86,9 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_stop: %d is not 0 or 1", p->refine_stop);
     if (p->refine_defer != 0 && p->refine_defer != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
+    if (p->edge_curvature < -1 || p->edge_curvature > 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.edge_curvature: %d is not -1, 0 or 1",
+                         p->edge_curvature);
     if (!(p->refine_filter >= 0 && p->refine_filter <= 0.5))
         return rpiv_fail(RPIV_EINVAL, "piv.refine_filter: %g outside 0..0.5", p->refine_filter);
     if (!(p->peak_ratio_min >= 0 && p->peak_ratio_min <= 100))

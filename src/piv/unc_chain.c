@@ -11,6 +11,7 @@
  * level) sharing pixels share noise: cov(n_a, n_b) = s_a s_b |W_a & W_b| / sqrt(|W_a| |W_b|),
  * s the windows' correlation-statistics sigmas. The error of a vector is expanded back through
  * the levels into the window noises and its variance summed with these covariances. */
+#include "deform_impl.h"
 #include "piv_impl.h"
 #include "uncertainty_impl.h"
 
@@ -750,14 +751,20 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
     return bad ? rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty") : RPIV_OK;
 }
 
-/* |second difference| of g along a line at the edge node k0 (inward step dk, stride st). */
-static double edge_curv(const float *g, size_t k0, ptrdiff_t st)
+/* |second difference| of g along a line of n nodes at the edge node k0 (inward stride st),
+ * less what the predictor continued beyond the edge with curved (where its 4 end nodes are
+ * valid, as deform_pred_new_ext). */
+static double edge_curv(const rpiv_field *f, const float *g, int n, size_t k0, ptrdiff_t st,
+                        int curved)
 {
-    return fabs((double)g[k0] - 2 * (double)g[(ptrdiff_t)k0 + st] +
-                (double)g[(ptrdiff_t)k0 + 2 * st]);
+    const double c =
+        (double)g[k0] - 2 * (double)g[(ptrdiff_t)k0 + st] + (double)g[(ptrdiff_t)k0 + 2 * st];
+    for (int q = 0; curved && q < 4 && q < n; q++)
+        curved = f->flag[(ptrdiff_t)k0 + q * st] == RPIV_FLAG_VALID;
+    return fabs(c - (curved ? deform_edge_curv(g + k0, n, st) : 0));
 }
 
-void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv)
+void unc_edge_bias(const rpiv_field *f, int ww, int wh, int curved, float *su, float *sv)
 {
     const int nx = f->nx, ny = f->ny;
     const float *g[2] = {f->u, f->v};
@@ -773,10 +780,10 @@ void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv)
                 double b = 0;
                 if (ex)
                     b += (double)ww * ww / 24 / (f->dx * f->dx) *
-                         edge_curv(g[c], k, i == 0 ? 1 : -1);
+                         edge_curv(f, g[c], nx, k, i == 0 ? 1 : -1, curved);
                 if (ey)
                     b += (double)wh * wh / 24 / (f->dy * f->dy) *
-                         edge_curv(g[c], k, j == 0 ? (ptrdiff_t)nx : -(ptrdiff_t)nx);
+                         edge_curv(f, g[c], ny, k, j == 0 ? (ptrdiff_t)nx : -(ptrdiff_t)nx, curved);
                 const double t = sqrt((double)s[c][k] * (double)s[c][k] + b * b);
                 s[c][k] = (float)(t < UNC_SIGMA_MAX ? t : UNC_SIGMA_MAX);
             }

@@ -130,7 +130,7 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
             unc_systematic(f, ps->ww, ps->wh, cs + 2 * ps->nwin, cs + 3 * ps->nwin, NULL, NULL, 1,
                            shift, frame, su, sv, pv->nthreads);
         if (pv->deforms)
-            unc_edge_bias(f, ps->ww, ps->wh, su, sv);
+            unc_edge_bias(f, ps->ww, ps->wh, piv_edge_curved(pv, 0), su, sv);
         unc_replaced(f);
     }
     unc_chain_set_hash(pv->unc, f);

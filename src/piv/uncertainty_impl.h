@@ -131,8 +131,9 @@ RPIV_NODISCARD rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field 
  * quadrature): a top-hat window of ww x wh px measures the window mean, u + ww^2/24 u_xx +
  * wh^2/24 u_yy + ..., which the deformation compensates inside the grid, but not across its
  * edge, where the predictor is continued linearly; u_xx, u_yy from the field's second
- * differences inward. f: the final field (grid steps dx, dy px). */
-void unc_edge_bias(const rpiv_field *f, int ww, int wh, float *su, float *sv);
+ * differences inward. f: the final field (grid steps dx, dy px). curved: the predictor
+ * continued its limited curvature (deform_edge_curv): what the limiter left out instead. */
+void unc_edge_bias(const rpiv_field *f, int ww, int wh, int curved, float *su, float *sv);
 
 /* ---- the systematic error of the engine's chain on a model particle (unc_bias.c) ---- */
 
