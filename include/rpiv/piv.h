@@ -74,6 +74,10 @@ typedef struct rpiv_piv_params {
      * measured), -1 the curvature for ensembles only (0; experimental: better on synthetic
      * ensembles, slightly worse on the demo's). */
     int edge_curvature;
+    /* 1: where an ensemble's estimator is the spline, its correction of the 3-point Gaussian is
+     * tested against the neighbours' and a vector that fails takes the Gaussian plus their
+     * median correction (docs/piv.md, "The spline's correction checked") (1). */
+    int spline_check;
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;

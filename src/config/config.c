@@ -188,6 +188,8 @@ static const key_spec keys[] = {
      "refinement: median test on the converged field only, not between repeats", 0},
     {"piv", "edge_curvature", KEY_INT, OFF(piv.edge_curvature), -1, 1, 1, "-",
      "predictor beyond the grid's edge: 0 linear, 1 with its curvature, -1 ensembles only", 0},
+    {"piv", "spline_check", KEY_BOOL, OFF(piv.spline_check), 0, 1, 1, "-",
+     "ensembles: spline corrections unlike the neighbours' replaced by the Gaussian's + theirs", 0},
     {"piv", "uncertainty", KEY_BOOL, OFF(piv.uncertainty), 0, 1, 1, "-",
      "add sigma_u, sigma_v per vector (correlation statistics; docs/uncertainty.md)", 0},
     {"piv", "background", KEY_ENUM, OFF(piv.background), 0, 0, 1, "-",

@@ -173,7 +173,8 @@ const rpiv_field *rpiv_ensemble_predictor(const rpiv_ensemble *e)
  * errors of several hundredths of a px, while its correction where it pays (skewed peaks) varies
  * slowly across the field. A vector whose d fails the engine's normalised median test
  * (threshold SPLINE_CHECK_THR, floor SPLINE_CHECK_EPS px) gets the Gaussian's estimate plus the
- * median of its neighbours' d (fell[win] = 1 there, the uncertainty's 3-point branch). */
+ * median of its neighbours' d (fell[win] = 1 there, the uncertainty's 3-point branch).
+ * params spline_check 0: not done. */
 #define SPLINE_CHECK_THR 2.0
 #define SPLINE_CHECK_EPS 0.002
 static rpiv_status spline_check(const rpiv_ensemble *e, const piv_source *src, rpiv_field *f,
@@ -181,7 +182,7 @@ static rpiv_status spline_check(const rpiv_ensemble *e, const piv_source *src, r
 {
     const rpiv_piv *pv = e->pv;
     const piv_pass *ps = &pv->pass[e->pass];
-    if (rpiv_subpixel_resolve(pv->p.subpixel, 1) != RPIV_SUBPIXEL_SPLINE)
+    if (!pv->p.spline_check || rpiv_subpixel_resolve(pv->p.subpixel, 1) != RPIV_SUBPIXEL_SPLINE)
         return RPIV_OK;
     rpiv_field *d = NULL;
     rpiv_status st = rpiv_field_copy(f, &d);

@@ -36,6 +36,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_stop = 1,
                              .refine_defer = 0,
                              .edge_curvature = 0,
+                             .spline_check = 1,
                              .prep = rpiv_preprocess_params_default()};
 }
 
@@ -86,6 +87,8 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_stop: %d is not 0 or 1", p->refine_stop);
     if (p->refine_defer != 0 && p->refine_defer != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
+    if (p->spline_check != 0 && p->spline_check != 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.spline_check: %d is not 0 or 1", p->spline_check);
     if (p->edge_curvature < -1 || p->edge_curvature > 1)
         return rpiv_fail(RPIV_EINVAL, "piv.edge_curvature: %d is not -1, 0 or 1",
                          p->edge_curvature);

@@ -55,6 +55,11 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
              w, h_px, win, p->overlap, p->step_px, rpiv_subpixel_names[p->subpixel], p->median_thr,
              p->median_eps, p->deform, rpiv_background_names[p->background], p->roi[0], p->roi[1],
              p->roi[2], p->roi[3], p->mask[0] ? p->mask : "none");
+    /* the predictor's continuation beyond the grid shapes the sums (named only when not the
+     * default, so that the checkpoints of earlier versions still resume) */
+    if (p->edge_curvature)
+        snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
+                 ", edge curvature %d", p->edge_curvature);
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
     h = hash_bytes(HASH0, id->plan, strlen(id->plan));
     h = hash_bytes(h, exact, sizeof exact);
