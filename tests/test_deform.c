@@ -76,7 +76,7 @@ static rpiv_field *grid_field(int nx, int ny, double x0, double y0, double d, li
  * 2 + 0.004 (y - 40)^2 on a 9 x 7 grid (nodes y = 15.5 ... 111.5, step 16): half a step
  * beyond the last row (y = 119.5) the linear continuation is off by the curvature's share,
  * 0.004 * 8^2 = 0.256 px; with the curvature continued it is within 1 % of that. A line
- * whose end nodes are not all measured (trust 0) keeps the linear continuation; noise, whose
+ * whose end nodes are not all measured (a replaced one) keeps the linear continuation; noise, whose
  * second differences change sign, is not continued (deform_edge_curv 0). */
 static double quad_y(double y)
 {
@@ -90,18 +90,18 @@ static void deform_predictor_continues_the_curvature(void)
     CHECK_OK(rpiv_field_new(NX, NY, 15.5, 15.5, 16, 16, &f));
     if (!f)
         return;
-    unsigned char trust[NX * NY];
+    unsigned char flag[NX * NY];
     for (int j = 0; j < NY; j++)
         for (int i = 0; i < NX; i++) {
             f->u[j * NX + i] = (float)quad_y(15.5 + 16 * j);
             f->v[j * NX + i] = 0;
-            trust[j * NX + i] = 1;
+            flag[j * NX + i] = RPIV_FLAG_VALID;
         }
     rpiv_deform_pred *pl = NULL, *cur = NULL, *part = NULL;
     CHECK_OK(rpiv_deform_pred_new(f, 160, 128, 0, &pl));
-    CHECK_OK(deform_pred_new_ext(f, 160, 128, 0, trust, &cur));
-    trust[(NY - 2) * NX + 4] = 0; /* column 4: a replaced vector among its last 4 nodes */
-    CHECK_OK(deform_pred_new_ext(f, 160, 128, 0, trust, &part));
+    CHECK_OK(deform_pred_new_ext(f, 160, 128, 0, flag, &cur));
+    flag[(NY - 2) * NX + 4] = RPIV_FLAG_REPLACED; /* column 4: among its last 4 nodes */
+    CHECK_OK(deform_pred_new_ext(f, 160, 128, 0, flag, &part));
     if (pl && cur && part) {
         double ul, uc, up, v;
         rpiv_deform_pred_eval(pl, 79.5, 119.5, &ul, &v);
@@ -109,7 +109,7 @@ static void deform_predictor_continues_the_curvature(void)
         rpiv_deform_pred_eval(part, 79.5, 119.5, &up, &v);
         const double t = quad_y(119.5);
         printf("    y = 119.5: linear continuation %+.4f px, curvature continued %+.4f px, one "
-               "node untrusted %+.4f px\n",
+               "node replaced %+.4f px\n",
                ul - t, uc - t, up - t);
         CHECK(fabs(ul - t) > 0.2);
         CHECK(fabs(uc - t) < 0.01 * fabs(ul - t));

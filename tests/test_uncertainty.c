@@ -178,6 +178,13 @@ static stats acc_end(acc *c)
 
 /* nseed runs of the default passes (plus `refine` repeats of the final size) on size x size
  * pairs of flow fl (seeds seed, seed + 1, ...); the statistics over their valid vectors. */
+/* Diagnostics: RPIV_UNC_EDGE sets piv.edge_curvature for every run of the cases. */
+static void unc_params_env(rpiv_piv_params *prm)
+{
+    if (getenv("RPIV_UNC_EDGE"))
+        prm->edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));
+}
+
 static stats run_case(const flow *fl, double noise, double d_tau, uint64_t seed, int size,
                       int refine, int nseed)
 {
@@ -187,8 +194,7 @@ static stats run_case(const flow *fl, double noise, double d_tau, uint64_t seed,
     rpiv_piv *pv = NULL;
     rpiv_piv_params prm = rpiv_piv_params_default();
     prm.uncertainty = 1;
-    if (getenv("RPIV_UNC_EDGE")) /* diagnostics: piv.edge_curvature */
-        prm.edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));
+    unc_params_env(&prm);
     if (refine >= 0) { /* else the default refinement: its repeats, tolerance and stop */
         prm.refine_max = refine;
         prm.refine_tol_px = 0;
@@ -606,8 +612,7 @@ static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const ch
     prm.threads = threads;
     if (g_ens_subpixel >= 0) /* diagnostics: RPIV_UNC_SUBPIXEL */
         prm.subpixel = (rpiv_subpixel)g_ens_subpixel;
-    if (getenv("RPIV_UNC_EDGE")) /* diagnostics: piv.edge_curvature */
-        prm.edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));
+    unc_params_env(&prm);
     rpiv_piv *pv = NULL;
     rpiv_field *pred = NULL;
     CHECK_OK(rpiv_piv_new(&prm, src->size, src->size, NULL, &pv));

@@ -14,16 +14,21 @@
  * where its effect on the evaluated range (RPIV_DEFORM_GHOST steps) is below 1e-6. */
 #define PAD 16
 
-/* rpiv_deform_pred_new; with trust (nx x ny bytes, 1: a measured vector), the ghost nodes
- * also continue the field's curvature at each end of each grid line whose 4 end nodes are
- * measured, k^2 times deform_edge_curv (docs/piv.md, "The grid's edge"); NULL: linearly. */
+/* rpiv_deform_pred_new; with flag (f's nx x ny node flags, or those of the field it was
+ * prepared from), the ghost nodes also continue the field's curvature at each end of each grid
+ * line whose 4 end nodes are RPIV_FLAG_VALID (measured), k^2 times deform_edge_curv
+ * (docs/piv.md, "Deformation"); NULL: linearly. */
 RPIV_NODISCARD rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
-                                               const unsigned char *trust, rpiv_deform_pred **out);
+                                               const unsigned char *flag, rpiv_deform_pred **out);
 
 /* The limited second difference at the end g[0] of a line of n nodes (stride, inward): the
  * smaller in magnitude of the first two second differences when they have the same sign, else
  * 0 (minmod: noise, whose second differences alternate, is not continued); 0 for n < 4. */
 double deform_edge_curv(const float *g, int n, ptrdiff_t stride);
+
+/* Are the 4 end nodes of a line of n nodes, from flag[k0] inward by st, all RPIV_FLAG_VALID
+ * (0 for n < 4): where deform_pred_new_ext continues the curvature. */
+int deform_edge_valid(const unsigned char *flag, size_t k0, ptrdiff_t st, int n);
 
 /* The thread count: n, or OpenMP's default for n <= 0. */
 static inline int nthr(int n)

@@ -94,19 +94,18 @@ rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift
     return deform_pred_new_ext(f, w, h, shift, NULL, out);
 }
 
-/* Are the 4 nodes of a line from its end at k0 (inward stride st) all measured? */
-static int trusted(const unsigned char *trust, size_t k0, ptrdiff_t st, int n)
+int deform_edge_valid(const unsigned char *flag, size_t k0, ptrdiff_t st, int n)
 {
-    if (!trust || n < 4)
+    if (!flag || n < 4)
         return 0;
     for (int q = 0; q < 4; q++)
-        if (!trust[(ptrdiff_t)k0 + q * st])
+        if (flag[(ptrdiff_t)k0 + q * st] != RPIV_FLAG_VALID)
             return 0;
     return 1;
 }
 
 rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
-                                const unsigned char *trust, rpiv_deform_pred **out)
+                                const unsigned char *flag, rpiv_deform_pred **out)
 {
     const int G = PAD;
     *out = NULL;
@@ -144,17 +143,17 @@ rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
             float *row = g + (size_t)(j + G) * snx + G;
             memcpy(row, src + (size_t)j * (size_t)f->nx, (size_t)f->nx * sizeof *row);
             const size_t r = (size_t)j * (size_t)f->nx;
-            ghosts(row, f->nx, 1, trusted(trust, r, 1, f->nx),
-                   trusted(trust, r + (size_t)f->nx - 1, -1, f->nx));
+            ghosts(row, f->nx, 1, deform_edge_valid(flag, r, 1, f->nx),
+                   deform_edge_valid(flag, r + (size_t)f->nx - 1, -1, f->nx));
         }
         for (int i = 0; i < p->nx; i++) {
             /* the ghost columns (the grid's corners beyond it) continued linearly */
             const int ic = i - G, real = ic >= 0 && ic < f->nx;
             const ptrdiff_t st = (ptrdiff_t)f->nx;
             ghosts(g + (size_t)G * snx + (size_t)i, f->ny, snx,
-                   real && trusted(trust, (size_t)ic, st, f->ny),
-                   real && trusted(trust, (size_t)(f->ny - 1) * (size_t)f->nx + (size_t)ic, -st,
-                                   f->ny));
+                   real && deform_edge_valid(flag, (size_t)ic, st, f->ny),
+                   real && deform_edge_valid(flag, (size_t)(f->ny - 1) * (size_t)f->nx + (size_t)ic,
+                                             -st, f->ny));
         }
         rpiv_deform_prefilter(g, p->nx, p->ny, 1);
         for (size_t k = 0; k < n; k++) {

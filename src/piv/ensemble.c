@@ -185,9 +185,14 @@ static rpiv_status spline_check(const rpiv_ensemble *e, const piv_source *src, r
     if (!pv->p.spline_check || rpiv_subpixel_resolve(pv->p.subpixel, 1) != RPIV_SUBPIXEL_SPLINE)
         return RPIV_OK;
     rpiv_field *d = NULL;
-    rpiv_status st = rpiv_field_copy(f, &d);
-    if (st)
+    double *gauss = malloc(2 * ps->nwin * sizeof *gauss); /* the Gaussian's u, v */
+    rpiv_status st = gauss
+                         ? rpiv_field_copy(f, &d)
+                         : rpiv_fail(RPIV_ENOMEM, "ensemble: out of memory for the spline's check");
+    if (st) {
+        free(gauss);
         return st;
+    }
 #pragma omp parallel for schedule(dynamic, 8) num_threads(pv->nthreads)
     for (size_t win = 0; win < ps->nwin; win++) {
         if (f->flag[win] != RPIV_FLAG_VALID)
@@ -198,6 +203,8 @@ static rpiv_status spline_check(const rpiv_ensemble *e, const piv_source *src, r
         rpiv_peak_find(e->data + win * e->plane, ps->ww, ps->wh, 0, RPIV_SUBPIXEL_GAUSS, &g);
         d->u[win] = (float)((double)f->u[win] - pu - g.dx);
         d->v[win] = (float)((double)f->v[win] - pv_ - g.dy);
+        gauss[win] = pu + g.dx;
+        gauss[ps->nwin + win] = pv_ + g.dy;
         if (!g.fit_ok) /* no Gaussian to fall back to: neither tested nor a neighbour */
             d->flag[win] = RPIV_FLAG_MASKED;
     }
@@ -207,16 +214,13 @@ static rpiv_status spline_check(const rpiv_ensemble *e, const piv_source *src, r
         for (size_t win = 0; win < ps->nwin; win++) {
             if (f->flag[win] != RPIV_FLAG_VALID || d->flag[win] != RPIV_FLAG_REPLACED)
                 continue;
-            rpiv_peak g;
-            double pu, pv_;
-            piv_window_shift(ps, src, win, &pu, &pv_);
-            rpiv_peak_find(e->data + win * e->plane, ps->ww, ps->wh, 0, RPIV_SUBPIXEL_GAUSS, &g);
-            f->u[win] = (float)(pu + g.dx + (double)d->u[win]);
-            f->v[win] = (float)(pv_ + g.dy + (double)d->v[win]);
+            f->u[win] = (float)(gauss[win] + (double)d->u[win]);
+            f->v[win] = (float)(gauss[ps->nwin + win] + (double)d->v[win]);
             if (fell)
                 fell[win] = 1;
         }
     }
+    free(gauss);
     rpiv_field_free(d);
     return st;
 }

@@ -388,17 +388,9 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
                          double filter, int ensemble, rpiv_deform_pred **out)
 {
     rpiv_field *f = NULL;
-    const size_t nn = (size_t)predictor->nx * (size_t)predictor->ny;
-    unsigned char *trust = piv_edge_curved(pv, ensemble) ? malloc(nn) : NULL;
-    if (piv_edge_curved(pv, ensemble) && !trust)
-        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor");
-    for (size_t k = 0; trust && k < nn; k++)
-        trust[k] = predictor->flag[k] == RPIV_FLAG_VALID;
     rpiv_status st = rpiv_field_copy(predictor, &f);
-    if (st) {
-        free(trust);
+    if (st)
         return st;
-    }
     /* a rejected vector already holds its replacement (the median, the line's median or the
      * inpainting its validation chose): only masked vectors are filled here. Refilling the
      * rejected ones by 3 x 3 medians put a shear's crests, which the line test replaces by
@@ -412,8 +404,10 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
         !(denoise && (st = piv_pred_denoise(pv, f))))
-        st = deform_pred_new_ext(f, pv->w, pv->h, shift, trust, out);
-    free(trust);
+        /* the curvature where the predictor's end nodes were measured (its own flags: f's
+         * replaced ones are taken as valid above) */
+        st = deform_pred_new_ext(f, pv->w, pv->h, shift,
+                                 piv_edge_curved(pv, ensemble) ? predictor->flag : NULL, out);
     rpiv_field_free(f);
     return st;
 }

@@ -759,8 +759,7 @@ static double edge_curv(const rpiv_field *f, const float *g, int n, size_t k0, p
 {
     const double c =
         (double)g[k0] - 2 * (double)g[(ptrdiff_t)k0 + st] + (double)g[(ptrdiff_t)k0 + 2 * st];
-    for (int q = 0; curved && q < 4 && q < n; q++)
-        curved = f->flag[(ptrdiff_t)k0 + q * st] == RPIV_FLAG_VALID;
+    curved = curved && deform_edge_valid(f->flag, k0, st, n);
     return fabs(c - (curved ? deform_edge_curv(g + k0, n, st) : 0));
 }
 
