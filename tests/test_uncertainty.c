@@ -178,11 +178,16 @@ static stats acc_end(acc *c)
 
 /* nseed runs of the default passes (plus `refine` repeats of the final size) on size x size
  * pairs of flow fl (seeds seed, seed + 1, ...); the statistics over their valid vectors. */
-/* Diagnostics: RPIV_UNC_EDGE sets piv.edge_curvature for every run of the cases. */
+/* Diagnostics: RPIV_UNC_EDGE sets piv.edge_curvature, RPIV_UNC_DENOISE piv.refine_denoise
+ * (0, 1) and RPIV_UNC_ORDER piv.refine_denoise_order (2, 4) for every run of the cases. */
 static void unc_params_env(rpiv_piv_params *prm)
 {
     if (getenv("RPIV_UNC_EDGE"))
         prm->edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));
+    if (getenv("RPIV_UNC_DENOISE"))
+        prm->refine_denoise = atoi(getenv("RPIV_UNC_DENOISE"));
+    if (getenv("RPIV_UNC_ORDER"))
+        prm->refine_denoise_order = atoi(getenv("RPIV_UNC_ORDER"));
 }
 
 static stats run_case(const flow *fl, double noise, double d_tau, uint64_t seed, int size,
@@ -821,13 +826,13 @@ static double lines_vs(const float *g, const float *d, int nx, int ny)
 }
 
 /* Row m of the denoiser's map A for component q (weights of piv_pred_denoise_weights on an
- * nx x ny grid): A^T e_m, into row (n doubles). */
-static void map_row(const float *gain, int nx, int ny, int q, int m, double *row)
+ * nx x ny grid, made with refine_denoise_order fine): A^T e_m, into row (n doubles). */
+static void map_row(const float *gain, int fine, int nx, int ny, int q, int m, double *row)
 {
     double tmp[64 * 64];
     memset(row, 0, (size_t)nx * (size_t)ny * sizeof *row);
     row[m] = 1;
-    CHECK(piv_pred_denoise_map_t(gain, nx, ny, q, row, 0, nx, 0, ny, tmp) == 0);
+    CHECK(piv_pred_denoise_map_t(gain, fine, nx, ny, q, row, 0, nx, 0, ny, tmp) == 0);
 }
 
 /* The noise field c of the denoiser tests (grid nx x ny, generator seeded with c): the
@@ -887,7 +892,7 @@ static void unc_denoiser_operator(void)
             const float *d = q ? f->v : f->u;
             double now = 0;
             for (int m = 0; m < nx * ny; m++) {
-                map_row(gain, nx, ny, q, m, row);
+                map_row(gain, prm.refine_denoise_order, nx, ny, q, m, row);
                 double jq = 0;
                 for (int k = 0; k < nx * ny; k++)
                     jq += row[k] * (double)g[k];
@@ -956,7 +961,7 @@ static void unc_denoiser_operator(void)
         for (int q = 0; gain && q < 2; q++)
             for (int m = 0; m < n; m++)
                 for (int w = 0; w < 2; w++) {
-                    map_row(w ? gain : zero, nx, ny, q, m, row);
+                    map_row(w ? gain : zero, prm.refine_denoise_order, nx, ny, q, m, row);
                     double aq = 0;
                     for (int k = 0; k < n; k++)
                         aq += row[k] * (double)(q ? f->v : f->u)[k];

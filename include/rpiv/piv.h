@@ -65,10 +65,14 @@ typedef struct rpiv_piv_params {
     double refine_filter; /* predictor low-pass weight a of [a/2, 1-a, a/2], 0..0.5 (0; 0.1
                              suggested with refine_defer) */
     int refine_denoise;   /* 1: shrink the predictor's detail, threshold from its noise (1) */
-    int refine_stop;      /* 1: stop when the change has not fallen below its smallest for two
-                             repeats; end with the iterate of the smallest change (1) */
-    int refine_defer;     /* 1: no median test between repeats of the final size, only on the
-                             field they converge to (0; experimental, docs/piv.md) */
+    /* The denoiser's detail at its finest dilation: 4, the fourth difference (its smoothing
+     * exact on cubics: a smooth flow's curvature is not taken for noise), 2 the second
+     * (session 6's) (4; docs/piv.md, "Refinement at the final size"). */
+    int refine_denoise_order;
+    int refine_stop;  /* 1: stop when the change has not fallen below its smallest for two
+                         repeats; end with the iterate of the smallest change (1) */
+    int refine_defer; /* 1: no median test between repeats of the final size, only on the
+                         field they converge to (0; experimental, docs/piv.md) */
     /* The predictor beyond the grid's edge (docs/piv.md, "The grid's edge"): 0 continued
      * linearly, 1 with its curvature (limited, where the 4 end nodes of a grid line are
      * measured), -1 the curvature for ensembles only (0; experimental: better on synthetic

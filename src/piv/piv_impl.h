@@ -103,9 +103,9 @@ void piv_pred_filter_t(double *c, double a, int nx, int ny, int bx0, int bw, int
  * predictors are denoised with refine_denoise (src/piv/refine_filter.c). */
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
 /* Shrink the detail of a grid field above its smoothing, along x then y, at dilations 1, 2
- * and 4 grid steps (second differences at 1 and 4, the fourth at 2), with thresholds from the
- * field's own noise level (pv: the window of the pass the field's grid belongs to;
- * src/piv/refine_filter.c). */
+ * and 4 grid steps (fourth differences at 1 and 2, the second at 4; with refine_denoise_order
+ * 2 the second at 1), with thresholds from the field's own noise level (pv: the window of the pass
+ * the field's grid belongs to; src/piv/refine_filter.c). */
 RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
 /* The denoiser's stages a component: its levels, each along x then along y. */
 #define PIV_DENOISE_STAGES 6
@@ -119,11 +119,11 @@ RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
 RPIV_NODISCARD rpiv_status piv_pred_denoise_weights(const rpiv_piv *pv, rpiv_field *f,
                                                     float **gain);
 /* c := A^T c for component comp (0 u, 1 v) with the weights of piv_pred_denoise_weights on an
- * nx x ny grid: c holds the nodes bx0.. (bw) x by0.. (bh), row after row, and is taken as 0
- * outside them (what A^T would carry out of the block is dropped). tmp: bw bh doubles.
- * Returns 0, or -1 when out of memory (c then partly mapped). */
-RPIV_NODISCARD int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c,
-                                          int bx0, int bw, int by0, int bh, double *tmp);
+ * nx x ny grid (fine: the refine_denoise_order they were made with): c holds the nodes bx0.. (bw) x
+ * by0.. (bh), row after row, and is taken as 0 outside them (what A^T would carry out of the block
+ * is dropped). tmp: bw bh doubles. Returns 0, or -1 when out of memory (c then partly mapped). */
+RPIV_NODISCARD int piv_pred_denoise_map_t(const float *gain, int fine, int nx, int ny, int comp,
+                                          double *c, int bx0, int bw, int by0, int bh, double *tmp);
 
 /* The source of pass k without touching the frames (predictor, shift, offsets mode). */
 void piv_source_of(const rpiv_piv *pv, int k, const rpiv_deform_pred *pred, piv_source *src);

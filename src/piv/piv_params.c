@@ -33,6 +33,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_tol_px = 0.02,
                              .refine_filter = 0,
                              .refine_denoise = 1,
+                             .refine_denoise_order = 4,
                              .refine_stop = 1,
                              .refine_defer = 0,
                              .edge_curvature = 0,
@@ -87,6 +88,9 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_stop: %d is not 0 or 1", p->refine_stop);
     if (p->refine_defer != 0 && p->refine_defer != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
+    if (p->refine_denoise_order != 2 && p->refine_denoise_order != 4)
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_denoise_order: %d is not 2 or 4",
+                         p->refine_denoise_order);
     if (p->spline_check != 0 && p->spline_check != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.spline_check: %d is not 0 or 1", p->spline_check);
     if (p->edge_curvature < -1 || p->edge_curvature > 1)

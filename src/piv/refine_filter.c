@@ -2,7 +2,8 @@
 /* src/piv/refine_filter.c - the denoiser of the refinement's predictor (docs/piv.md,
  * "Refinement at the final size"): at dilations 1, 2 and 4 grid steps in turn (an a-trous
  * split), the field split, line by line along x and then along y, into a smoothing and its
- * detail (the second difference at dilations 1 and 4, the fourth at 2), the detail shrunk
+ * detail (the fourth difference at dilations 1 and 2, the second at 4; refine_denoise_order 2:
+ * the second at dilation 1 too, session 6's), the detail shrunk
  * (non-negative garrote) with a threshold set from the field's own noise level, sigma
  * sqrt(2 ln n) (Donoho and Johnstone's universal threshold), sigma the median absolute detail
  * / 0.6745 along the grid direction where it is smallest, at the coarser dilations at most
@@ -70,12 +71,19 @@ static double median_of(double *v, size_t n)
     return n % 2 ? hi : 0.5 * (gsl_stats_select(v, 1, n, n / 2 - 1) + hi);
 }
 
+/* The details a level can use: the second difference (its line's ends against the
+ * least-squares line through their first three samples), the fourth (the line continued by
+ * odd reflection), and the fourth inside a line with the second difference's at its two end
+ * samples on either side (DET42: the ends of a smooth flow's line are not continued by a
+ * reflection that bends it; docs/piv.md). */
+enum { DET2 = 2, DET4 = 4, DET42 = 42 };
+
 /* Noise level of one component at dilation `step` (grid steps between the samples of a
- * detail) for the detail of the given order (2 or 4): the smallest over the four grid
- * directions (x, y and the diagonals) of the median absolute inner detail / 0.6745. A shear
- * or wave along one direction has no detail across it, so at least one direction sees the
- * noise alone. The details of a dilation are taken every `step` nodes along x and y: closer
- * ones share their samples' noise (and cost the time of 1 + 1/4 + 1/16 of one level instead
+ * detail) for the detail of the given kind (DET2 or DET4; DET42's inner one is DET4): the smallest
+ * over the four grid directions (x, y and the diagonals) of the median absolute inner detail /
+ * 0.6745. A shear or wave along one direction has no detail across it, so at least one direction
+ * sees the noise alone. The details of a dilation are taken every `step` nodes along x and y:
+ * closer ones share their samples' noise (and cost the time of 1 + 1/4 + 1/16 of one level instead
  * of three). */
 static double noise_sigma(const float *g, int nx, int ny, int step, int order, double *buf)
 {
@@ -83,7 +91,7 @@ static double noise_sigma(const float *g, int nx, int ny, int step, int order, d
     const ptrdiff_t dirs[4] = {sx, sy, sy + sx, sy - sx};
     double best = (double)INFINITY;
     for (int d = 0; d < 4; d++) {
-        const int r = order == 4 ? 2 * step : step;         /* the stencil's reach */
+        const int r = order != DET2 ? 2 * step : step;      /* the stencil's reach */
         const int ix = d != 1 ? r : 0, iy = d != 0 ? r : 0; /* inner along x, along y */
         const ptrdiff_t e = dirs[d];
         size_t m = 0;
@@ -92,7 +100,7 @@ static double noise_sigma(const float *g, int nx, int ny, int step, int order, d
                 const float *c = g + (size_t)j * (size_t)nx + (size_t)i;
                 const double c0 = (double)c[0], c1 = (double)c[-e] + (double)c[e];
                 buf[m++] =
-                    order == 4
+                    order != DET2
                         ? fabs(6.0 * c0 - 4.0 * c1 + (double)c[-2 * e] + (double)c[2 * e]) / 16.0
                         : fabs(2.0 * c0 - c1) / 4.0;
             }
@@ -104,22 +112,32 @@ static double noise_sigma(const float *g, int nx, int ny, int step, int order, d
     return best;
 }
 
-/* Shrink the details of the given order (2 or 4) of the lines of g (count lines, n samples
- * each, sample stride s, line stride ls) with threshold t (order 2: t * 2/3 at the ends,
- * whose detail has 2/3 of the noise; order 4: t * sqrt(46/70) next to them). gain (NULL: not
- * wanted; laid out as g): the factor the garrote applied to each sample's detail (its output
- * over its detail: 0 where the detail is dropped, 1 - t^2 / d^2 where kept). */
-static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, int order, double t,
-                         double *line, float *gain)
+/* Is sample i of a line of n a DET42 line's end sample (the second difference's detail)? */
+static int det42_end(int n, int i)
 {
-    const double te = order == 4 ? t * sqrt(46.0 / 70.0) : t * (2.0 / 3.0);
-    const int ie = order == 4; /* the sample with the end threshold: 0 or 1 from either end */
+    return i < 2 || i > n - 3;
+}
+
+/* Shrink the details of the given kind of the lines of g (count lines, n samples each, sample
+ * stride s, line stride ls) with threshold t (DET2: t * 2/3 at the ends, whose detail has 2/3
+ * of the noise; DET4: t * sqrt(46/70) next to them; DET42: t inside, t2 and t2 * 2/3 at its
+ * end samples). gain (NULL: not wanted; laid out as g): the factor the garrote applied to
+ * each sample's detail (its output over its detail: 0 where the detail is dropped,
+ * 1 - t^2 / d^2 where kept). */
+static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, int order, double t,
+                         double t2, double *line, float *gain)
+{
+    const double te = order == DET4 ? t * sqrt(46.0 / 70.0) : t * (2.0 / 3.0);
+    const int ie = order == DET4; /* the sample with the end threshold: 0 or 1 from either end */
     for (int l = 0; l < count; l++) {
         float *r = g + (size_t)l * ls;
         for (int i = 0; i < n; i++)
-            line[i] = order == 4 ? detail4(r, n, s, i) : detail(r, n, s, i);
+            line[i] = order == DET4 || (order == DET42 && !det42_end(n, i)) ? detail4(r, n, s, i)
+                                                                            : detail(r, n, s, i);
         for (int i = 0; i < n; i++) {
             double d = line[i], ti = (i == ie || i == n - 1 - ie) ? te : t;
+            if (order == DET42 && det42_end(n, i))
+                ti = i == 0 || i == n - 1 ? t2 * (2.0 / 3.0) : t2;
             /* non-negative garrote: d - t^2 / d above the threshold, 0 below */
             double kept = fabs(d) > ti ? d - ti * ti / d : 0;
             r[(size_t)i * s] = (float)((double)r[(size_t)i * s] - d + kept);
@@ -131,15 +149,15 @@ static void shrink_lines(float *g, int count, int n, size_t s, size_t ls, int or
 }
 
 /* Shrink, at dilation `step`, the lines along one axis (n samples a line at stride s, count
- * lines at stride ls): each line split into its `step` interleaved sub-lines. gain: as
+ * lines at stride ls): each line split into its `step` interleaved sub-lines. t, t2, gain: as
  * shrink_lines's. */
 static void shrink_axis(float *g, int count, int n, size_t s, size_t ls, int step, int order,
-                        double t, double *line, float *gain)
+                        double t, double t2, double *line, float *gain)
 {
     for (int o = 0; o < step; o++) {
         const int m = (n - o + step - 1) / step;
-        if (m >= (order == 4 ? 5 : 3))
-            shrink_lines(g + (size_t)o * s, count, m, s * (size_t)step, ls, order, t, line,
+        if (m >= (order == DET4 ? 5 : 3))
+            shrink_lines(g + (size_t)o * s, count, m, s * (size_t)step, ls, order, t, t2, line,
                          gain ? gain + (size_t)o * s : NULL);
     }
 }
@@ -156,14 +174,27 @@ static void shrink_axis(float *g, int count, int n, size_t s, size_t ls, int ste
  * 0.078 px instead of 0.082, the response at 1.5 W 0.93 instead of 0.89 over three pairs). */
 enum { LEVELS = 3, NF = 32 };
 _Static_assert(2 * LEVELS == PIV_DENOISE_STAGES, "a stage per level and axis");
-static const int ORDER[LEVELS] = {2, 4, 2};
+
+/* The levels' details for refine_denoise_order `fine`: 2, session 6's (DET2, DET4, DET2);
+ * 4, the fourth difference at dilation 1 too (DET42). With the second difference at dilation 1
+ * a smooth flow's curvature is detail there (h^2 u'' / 4 a node, Lamb-Oseen's core RMS 0.022
+ * px against the fourth's 0.008), which the garrote drops or shrinks by T^2 / d and the
+ * refinement's repeats then keep as a common error (docs/uncertainty.md, Session 11); the
+ * fourth vanishes on cubics. Its largest noise gain of the iteration, max (1 - H) G, is 0.038
+ * instead of 0.022 (docs/piv.md). */
+static void level_orders(int fine, int order[LEVELS])
+{
+    order[0] = fine == 4 ? DET42 : DET2;
+    order[1] = DET4;
+    order[2] = DET2;
+}
 
 /* The noise model of a level: the standard deviation of the detail of the given order at
  * dilation 2^level of a field whose noise has the power spectrum of a top-hat window average,
  * |H|^2, H = sinc(w rx / 2) sinc(w ry / 2) (rx, ry: the window over the grid step), after the
  * smoothings of the levels before it along x and y; the smallest of the four grid directions.
  * Mean over an NF x NF grid of frequencies (radians per grid step). */
-static double model_detail(int level, int order, double rx, double ry)
+static double model_detail(const int *orders, int level, int order, double rx, double ry)
 {
     double px[NF], py[NF], a[NF], c[NF], sn[NF];
     const double st = (double)(1 << level);
@@ -176,7 +207,7 @@ static double model_detail(int level, int order, double rx, double ry)
         a[i] = 1; /* the smoothings of the levels before, one axis */
         for (int l = 0; l < level; l++) {
             const double q = 0.5 * (1 - cos(w * (double)(1 << l))); /* the second's detail */
-            a[i] *= ORDER[l] == 4 ? 1 - q * q : 1 - q;
+            a[i] *= orders[l] != DET2 ? 1 - q * q : 1 - q;
         }
         c[i] = cos(w * st);
         sn[i] = sin(w * st);
@@ -191,7 +222,7 @@ static double model_detail(int level, int order, double rx, double ry)
                                   : d == 1 ? c[j]
                                   : d == 2 ? c[i] * c[j] - sn[i] * sn[j]
                                            : c[i] * c[j] + sn[i] * sn[j];
-                const double q = 0.5 * (1 - cp), k = a[i] * a[j] * (order == 4 ? q * q : q);
+                const double q = 0.5 * (1 - cp), k = a[i] * a[j] * (order != DET2 ? q * q : q);
                 sum += k * k * px[i] * py[j];
             }
         const double sd = sqrt(sum / (NF * NF));
@@ -231,29 +262,44 @@ static rpiv_status denoise(const rpiv_piv *pv, rpiv_field *f, float *gain)
     const int j = pred_pass(pv, f);
     const double rx = j >= 0 ? pv->pass[j].ww / (double)f->dx : 2,
                  ry = j >= 0 ? pv->pass[j].wh / (double)f->dy : 2;
+    int order[LEVELS];
+    level_orders(pv->p.refine_denoise_order, order);
     double ratio[LEVELS], noise[2] = {(double)INFINITY, (double)INFINITY};
     for (int lev = 0; lev < LEVELS; lev++)
-        ratio[lev] = model_detail(lev, ORDER[lev], rx, ry);
-    const double ratio4 = model_detail(0, 4, rx, ry);
+        ratio[lev] = model_detail(order, lev, order[lev], rx, ry);
+    const double ratio2 = model_detail(order, 0, DET2, rx, ry),
+                 ratio4 = model_detail(order, 0, DET4, rx, ry);
     for (int lev = 0, step = 1; lev < LEVELS; lev++, step *= 2)
         for (int comp = 0; comp < 2; comp++) {
             float *g = comp ? f->v : f->u;
-            double sigma = noise_sigma(g, nx, ny, step, ORDER[lev], buf);
+            double sigma = noise_sigma(g, nx, ny, step, order[lev], buf);
+            /* the second differences' threshold (DET42's end samples) */
+            double t2 = sigma * universal;
             if (lev == 0) {
                 /* The noise level the coarser caps scale from: a smooth flow's own detail,
                  * which has no direction free of it in a vortex, raises the second
                  * differences' sigma (Lamb-Oseen: 0.022 px) far more than the fourth's
                  * (0.008 px); on noise alone the fourth's, scaled by the model, is 1.06 times
-                 * the second's (0.95..1.17 on test_noise's fields), so the smaller of the two. */
-                noise[comp] = fmin(sigma, noise_sigma(g, nx, ny, 1, 4, buf) * ratio[0] / ratio4);
+                 * the second's (0.95..1.17 on test_noise's fields), so the smaller of the two,
+                 * in the units of the level's detail. */
+                const double s2 = order[0] == DET2 ? sigma : noise_sigma(g, nx, ny, 1, DET2, buf);
+                const double s4 = order[0] == DET2 ? noise_sigma(g, nx, ny, 1, DET4, buf) : sigma;
+                noise[comp] = order[0] == DET2 ? fmin(s2, s4 * ratio2 / ratio4)
+                                               : fmin(s2 * ratio4 / ratio2, s4);
+                /* The first dilation's threshold stays session 5's, its second differences'
+                 * sigma (a smaller one kept the core's few large errors, docs/piv.md), in the
+                 * units of the fourth difference's detail when that is the level's. */
+                sigma = order[0] == DET2 ? s2 : s2 * ratio4 / ratio2;
+                t2 = s2 * universal;
             } else if (isfinite(noise[comp])) /* a smooth flow's own detail is no noise */
                 sigma = fmin(sigma, noise[comp] * ratio[lev] / ratio[0]);
             if (!isfinite(sigma))
                 continue;
             const double t = sigma * universal;
             float *gx = gain ? gain + ((size_t)(comp * LEVELS + lev) * 2) * n : NULL;
-            shrink_axis(g, ny, nx, 1, (size_t)nx, step, ORDER[lev], t, line, gx);
-            shrink_axis(g, nx, ny, (size_t)nx, 1, step, ORDER[lev], t, line, gx ? gx + n : NULL);
+            shrink_axis(g, ny, nx, 1, (size_t)nx, step, order[lev], t, t2, line, gx);
+            shrink_axis(g, nx, ny, (size_t)nx, 1, step, order[lev], t, t2, line,
+                        gx ? gx + n : NULL);
         }
     free(buf);
     return RPIV_OK;
@@ -286,7 +332,9 @@ rpiv_status piv_pred_denoise_weights(const rpiv_piv *pv, rpiv_field *f, float **
 static int stencil(int n, int order, int i, int *idx, double *w)
 {
     int c = 0;
-    if (order == 2) {
+    if (order == DET42)
+        order = det42_end(n, i) ? DET2 : DET4;
+    if (order == DET2) {
         const int e = i == 0 ? 1 : i == n - 1 ? -1 : 0; /* an end: the inward direction */
         for (int q = 0; q < 3; q++) {
             idx[c] = e ? i + q * e : i - 1 + q;
@@ -327,9 +375,11 @@ static void subline(int p, int lev, int len, int *o, int *k, int *m)
     *m = (len - *o + (1 << lev) - 1) >> lev;
 }
 
-int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *c, int bx0, int bw,
-                           int by0, int bh, double *tmp)
+int piv_pred_denoise_map_t(const float *gain, int fine, int nx, int ny, int comp, double *c,
+                           int bx0, int bw, int by0, int bh, double *tmp)
 {
+    int orders[LEVELS];
+    level_orders(fine, orders);
     const size_t n = (size_t)nx * (size_t)ny, nb = (size_t)bw * (size_t)bh;
     /* the box of c's non-zero samples (lo[axis] .. hi[axis]): the samples outside it have no
      * detail to scatter; each stage widens it along its axis by its stencils' reach */
@@ -358,7 +408,7 @@ int piv_pred_denoise_map_t(const float *gain, int nx, int ny, int comp, double *
         return -1;
     }
     for (int lev = LEVELS - 1; lev >= 0; lev--) {
-        const int step = 1 << lev, order = ORDER[lev], rad = order == 4 ? 2 : 1;
+        const int step = 1 << lev, order = orders[lev], rad = order != DET2 ? 2 : 1;
         /* the interior stencil, kw[|d|] at d sub-line steps (stencil() of a line just long
          * enough for one interior sample) */
         int kat[5];

@@ -55,8 +55,10 @@ typedef struct unc_level {
     /* a denoised predictor (the refinement's repeats): the map above is the spline's and the
      * window's alone (G0), and the predictor's errors reach it through the filter [fa/2, 1 -
      * fa, fa/2] and the denoiser as the linear map A it was on this predictor (dw: its weights
-     * on the level before's grid, piv_pred_denoise_weights): G = G0 A F */
+     * on the level before's grid, piv_pred_denoise_weights; dorder its refine_denoise_order):
+     * G = G0 A F */
     float *dw;
+    int dorder;
     double fa;
 } unc_level;
 
@@ -239,6 +241,7 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
         if (adaptive && (l->dw = malloc(ng * sizeof *l->dw)))
             memcpy(l->dw, weights, ng * sizeof *l->dw);
         l->fa = adaptive ? filter : 0;
+        l->dorder = adaptive ? g->denoise : 0;
         if (!l->hx || !l->ax || !l->hy || !l->ay || (adaptive && !l->dw))
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
         if (!st)
@@ -538,7 +541,7 @@ static int level_back(const unc_level *l, double *const cf[2], int bx0, int bw, 
             }
         }
         memcpy(e, b, ne * sizeof *e);
-        if (piv_pred_denoise_map_t(l->dw, l->pnx, l->pny, q, e, ex0, ew, ey0, eh, tmp)) {
+        if (piv_pred_denoise_map_t(l->dw, l->dorder, l->pnx, l->pny, q, e, ex0, ew, ey0, eh, tmp)) {
             free(e);
             return -1;
         }

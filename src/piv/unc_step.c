@@ -83,12 +83,11 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
                                  int refines, rpiv_field *f, const float *cs)
 {
     const piv_pass *ps = &pv->pass[pass];
-    const unc_geom g = {
-        ps->ox, ps->oy,
-        ps->sx, ps->sy,
-        ps->ww, ps->wh,
-        pv->w,  pv->h,
-        shift,  predictor && pv->p.refine_denoise && piv_pred_repeats(pv, predictor)};
+    const int denoise = predictor && pv->p.refine_denoise && piv_pred_repeats(pv, predictor)
+                            ? pv->p.refine_denoise_order
+                            : 0;
+    const unc_geom g = {ps->ox, ps->oy, ps->sx, ps->sy, ps->ww,
+                        ps->wh, pv->w,  pv->h,  shift,  denoise};
     const int linked = shift != 0 && unc_chain_links(pv->unc, predictor);
     const double filter = refines ? pv->p.refine_filter : 0;
     float *gain = NULL;

@@ -56,9 +56,9 @@ typedef struct unc_chain unc_chain;
 
 /* A pass's windows: window (i, j) covers pixels [wx0 + i sx, + ww) x [wy0 + j sy, + wh); a
  * deforming pass samples its predictor at pixel + shift; the image is img_w x img_h. denoise:
- * its predictor went through the refinement's denoiser (refine_filter.c), whose effect on the
- * predictor's errors is the linear map it was on that predictor, its weights held
- * (unc_pred_weights). */
+ * 0, or its predictor went through the refinement's denoiser (refine_filter.c) with this
+ * refine_denoise_order, whose effect on the predictor's errors is the linear map it was on
+ * that predictor, its weights held (unc_pred_weights). */
 typedef struct unc_geom {
     int wx0, wy0, sx, sy, ww, wh, img_w, img_h;
     double shift;

@@ -60,6 +60,11 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     if (p->edge_curvature)
         snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
                  ", edge curvature %d", p->edge_curvature);
+    /* the refinement denoiser's finest detail: named when it is not that of the versions
+     * before session 13 (the second difference), whose checkpoints then resume only with it */
+    if (p->refine_denoise && p->refine_denoise_order != 2)
+        snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
+                 ", denoise order %d", p->refine_denoise_order);
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
     h = hash_bytes(HASH0, id->plan, strlen(id->plan));
     h = hash_bytes(h, exact, sizeof exact);

@@ -258,8 +258,8 @@ int main(int argc, char **argv)
                 for (int w = 0; w < 2; w++) {
                     memset(row, 0, nn * sizeof *row);
                     row[k] = 1;
-                    if (piv_pred_denoise_map_t(w ? wq : w0, f1->nx, f1->ny, 0, row, 0, f1->nx, 0,
-                                               f1->ny, row + nn))
+                    if (piv_pred_denoise_map_t(w ? wq : w0, pv->p.refine_denoise_order, f1->nx,
+                                               f1->ny, 0, row, 0, f1->nx, 0, f1->ny, row + nn))
                         return 5;
                     double a = 0;
                     for (size_t m = 0; m < nn; m++)
