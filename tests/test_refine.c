@@ -287,12 +287,12 @@ static void refine_keeps_uniform_shifts(void)
 }
 
 /* The response, amplitude against lambda / W (RPIV_SLOW_TESTS=1; docs/piv.md): 3 px waves,
- * 4 pairs a wavelength (their means), the defaults against the second difference at the
+ * 12 pairs a wavelength (their means), the defaults against the second difference at the
  * denoiser's first dilation (refine_denoise_order 2, sessions 6-12) and session 4's (no
  * repeats, no denoiser, the 3 x 3 median test). */
 static void refine_response_table(void)
 {
-    enum { NP = 4 };
+    enum { NP = 12 };
     rpiv_piv_params cfg[3] = {rpiv_piv_params_default(), rpiv_piv_params_default(),
                               rpiv_piv_params_default()};
     cfg[1].refine_denoise_order = 2;
