@@ -16,15 +16,18 @@
 
 /* rpiv_deform_pred_new; with flag (f's nx x ny node flags, or those of the field it was
  * prepared from), the ghost nodes also continue the field's curvature at each end of each grid
- * line whose 4 end nodes are RPIV_FLAG_VALID (measured), k^2 times deform_edge_curv
- * (docs/piv.md, "Deformation"); NULL: linearly. */
+ * line whose 4 end nodes are RPIV_FLAG_VALID (measured), k^2 times deform_edge_curv with the
+ * threshold thr[0] for u, thr[1] for v (docs/piv.md, "Deformation"); NULL: linearly. */
 RPIV_NODISCARD rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
-                                               const unsigned char *flag, rpiv_deform_pred **out);
+                                               const unsigned char *flag, const double thr[2],
+                                               rpiv_deform_pred **out);
 
 /* The limited second difference at the end g[0] of a line of n nodes (stride, inward): the
  * smaller in magnitude of the first two second differences when they have the same sign, else
- * 0 (minmod: noise, whose second differences alternate, is not continued); 0 for n < 4. */
-double deform_edge_curv(const float *g, int n, ptrdiff_t stride);
+ * 0 (minmod: noise, whose second differences alternate, is not continued), then shrunk by the
+ * non-negative garrote with threshold t (c - t^2 / c above t, else 0: a curvature the field's
+ * noise could make is not continued; t = 0: kept); 0 for n < 4. */
+double deform_edge_curv(const float *g, int n, ptrdiff_t stride, double t);
 
 /* Are the 4 end nodes of a line of n nodes, from flag[k0] inward by st, all RPIV_FLAG_VALID
  * (0 for n < 4): where deform_pred_new_ext continues the curvature. */

@@ -36,7 +36,7 @@ static double ext(const float *g, int n, size_t stride, int k)
     return e + (k - (n - 1)) * d;
 }
 
-double deform_edge_curv(const float *g, int n, ptrdiff_t stride)
+double deform_edge_curv(const float *g, int n, ptrdiff_t stride, double t)
 {
     if (n < 4)
         return 0;
@@ -44,19 +44,20 @@ double deform_edge_curv(const float *g, int n, ptrdiff_t stride)
                  c1 = (double)g[stride] - 2.0 * (double)g[2 * stride] + (double)g[3 * stride];
     if (!(c0 * c1 > 0)) /* a change of sign, or none: no curvature to continue */
         return 0;
-    return fabs(c0) < fabs(c1) ? c0 : c1;
+    const double c = fabs(c0) < fabs(c1) ? c0 : c1;
+    return fabs(c) > t ? c - t * t / c : 0;
 }
 
 /* Fill the G ghosts on both sides of a line whose n real samples start at g (stride):
  * point-symmetric, plus at an end with curve_lo / curve_hi k^2 times its limited second
- * difference (up to 2 RPIV_DEFORM_GHOST steps, then held: the prefilter reads that far with a
- * weight below 1e-5 of the edge's). */
-static void ghosts(float *g, int n, size_t stride, int curve_lo, int curve_hi)
+ * difference, threshold t (up to 2 RPIV_DEFORM_GHOST steps, then held: the prefilter reads
+ * that far with a weight below 1e-5 of the edge's). */
+static void ghosts(float *g, int n, size_t stride, int curve_lo, int curve_hi, double t)
 {
     const int G = PAD;
     float *rev = g + (size_t)(n - 1) * stride;
-    const double clo = curve_lo ? deform_edge_curv(g, n, (ptrdiff_t)stride) : 0,
-                 chi = curve_hi ? deform_edge_curv(rev, n, -(ptrdiff_t)stride) : 0;
+    const double clo = curve_lo ? deform_edge_curv(g, n, (ptrdiff_t)stride, t) : 0,
+                 chi = curve_hi ? deform_edge_curv(rev, n, -(ptrdiff_t)stride, t) : 0;
     for (int k = 1; k <= G; k++) {
         const int kk = k < 2 * RPIV_DEFORM_GHOST ? k : 2 * RPIV_DEFORM_GHOST;
         double lo = 2.0 * (double)g[0] - ext(g, n, stride, k) + (double)(kk * kk) * clo;
@@ -91,7 +92,7 @@ static void tap(double t, int n, int *i0, float wt[4])
 rpiv_status rpiv_deform_pred_new(const rpiv_field *f, int w, int h, double shift,
                                  rpiv_deform_pred **out)
 {
-    return deform_pred_new_ext(f, w, h, shift, NULL, out);
+    return deform_pred_new_ext(f, w, h, shift, NULL, NULL, out);
 }
 
 int deform_edge_valid(const unsigned char *flag, size_t k0, ptrdiff_t st, int n)
@@ -105,7 +106,8 @@ int deform_edge_valid(const unsigned char *flag, size_t k0, ptrdiff_t st, int n)
 }
 
 rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
-                                const unsigned char *flag, rpiv_deform_pred **out)
+                                const unsigned char *flag, const double thr[2],
+                                rpiv_deform_pred **out)
 {
     const int G = PAD;
     *out = NULL;
@@ -139,12 +141,13 @@ rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
     for (int c = 0; c < 2; c++) {
         float *g = c ? p->cv : p->cu;
         const float *src = c ? f->v : f->u;
+        const double t = thr ? thr[c] : 0;
         for (int j = 0; j < f->ny; j++) {
             float *row = g + (size_t)(j + G) * snx + G;
             memcpy(row, src + (size_t)j * (size_t)f->nx, (size_t)f->nx * sizeof *row);
             const size_t r = (size_t)j * (size_t)f->nx;
             ghosts(row, f->nx, 1, deform_edge_valid(flag, r, 1, f->nx),
-                   deform_edge_valid(flag, r + (size_t)f->nx - 1, -1, f->nx));
+                   deform_edge_valid(flag, r + (size_t)f->nx - 1, -1, f->nx), t);
         }
         for (int i = 0; i < p->nx; i++) {
             /* the ghost columns (the grid's corners beyond it) continued linearly */
@@ -153,7 +156,8 @@ rpiv_status deform_pred_new_ext(const rpiv_field *f, int w, int h, double shift,
             ghosts(g + (size_t)G * snx + (size_t)i, f->ny, snx,
                    real && deform_edge_valid(flag, (size_t)ic, st, f->ny),
                    real && deform_edge_valid(flag, (size_t)(f->ny - 1) * (size_t)f->nx + (size_t)ic,
-                                             -st, f->ny));
+                                             -st, f->ny),
+                   t);
         }
         rpiv_deform_prefilter(g, p->nx, p->ny, 1);
         for (size_t k = 0; k < n; k++) {

@@ -403,11 +403,15 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
     const int denoise = pv->p.refine_denoise && piv_pred_repeats(pv, predictor);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
-        !(denoise && (st = piv_pred_denoise(pv, f))))
+        !(denoise && (st = piv_pred_denoise(pv, f)))) {
         /* the curvature where the predictor's end nodes were measured (its own flags: f's
-         * replaced ones are taken as valid above) */
-        st = deform_pred_new_ext(f, pv->w, pv->h, shift,
-                                 piv_edge_curved(pv, ensemble) ? predictor->flag : NULL, out);
+         * replaced ones are taken as valid above), where it is above what noise makes */
+        const int curved = piv_edge_curved(pv, ensemble);
+        double thr[2] = {0, 0};
+        if (curved)
+            piv_curv_threshold(f, thr);
+        st = deform_pred_new_ext(f, pv->w, pv->h, shift, curved ? predictor->flag : NULL, thr, out);
+    }
     rpiv_field_free(f);
     return st;
 }

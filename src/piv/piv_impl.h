@@ -107,6 +107,13 @@ int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
  * 2 the second at 1), with thresholds from the field's own noise level (pv: the window of the pass
  * the field's grid belongs to; src/piv/refine_filter.c). */
 RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
+/* The threshold of a curvature continued beyond f's grid (edge_curvature; deform_edge_curv),
+ * u and v: the universal threshold of f's second differences, 4 sigma sqrt(2 ln n), sigma the
+ * denoiser's noise level of their detail at dilation 1 (the smallest over the four grid
+ * directions of the median absolute detail / 0.6745; src/piv/refine_filter.c). Infinite
+ * (nothing continued) where that estimate fails: fewer than 8 details in every direction, or
+ * no memory for it. */
+void piv_curv_threshold(const rpiv_field *f, double thr[2]);
 /* The denoiser's stages a component: its levels, each along x then along y. */
 #define PIV_DENOISE_STAGES 6
 /* piv_pred_denoise on f, which it changes likewise, and *gain (new, PIV_DENOISE_STAGES x 2 x

@@ -305,6 +305,19 @@ static rpiv_status denoise(const rpiv_piv *pv, rpiv_field *f, float *gain)
     return RPIV_OK;
 }
 
+void piv_curv_threshold(const rpiv_field *f, double thr[2])
+{
+    const size_t n = (size_t)f->nx * (size_t)f->ny;
+    double *buf = malloc((n ? n : 1) * sizeof *buf);
+    for (int c = 0; c < 2; c++) {
+        /* the second difference c = -4 d (d the detail, DET2), so its noise is 4 sigma_d */
+        const double s =
+            buf ? noise_sigma(c ? f->v : f->u, f->nx, f->ny, 1, DET2, buf) : (double)INFINITY;
+        thr[c] = 4 * s * sqrt(2.0 * log((double)(n > 1 ? n : 2)));
+    }
+    free(buf);
+}
+
 rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f)
 {
     return denoise(pv, f, NULL);

@@ -756,14 +756,14 @@ rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su, 
 
 /* |second difference| of g along a line of n nodes at the edge node k0 (inward stride st),
  * less what the predictor continued beyond the edge with curved (where its 4 end nodes are
- * valid, as deform_pred_new_ext). */
+ * valid, as deform_pred_new_ext; threshold t). */
 static double edge_curv(const rpiv_field *f, const float *g, int n, size_t k0, ptrdiff_t st,
-                        int curved)
+                        int curved, double t)
 {
     const double c =
         (double)g[k0] - 2 * (double)g[(ptrdiff_t)k0 + st] + (double)g[(ptrdiff_t)k0 + 2 * st];
     curved = curved && deform_edge_valid(f->flag, k0, st, n);
-    return fabs(c - (curved ? deform_edge_curv(g + k0, n, st) : 0));
+    return fabs(c - (curved ? deform_edge_curv(g + k0, n, st, t) : 0));
 }
 
 void unc_edge_bias(const rpiv_field *f, int ww, int wh, int curved, float *su, float *sv)
@@ -771,6 +771,9 @@ void unc_edge_bias(const rpiv_field *f, int ww, int wh, int curved, float *su, f
     const int nx = f->nx, ny = f->ny;
     const float *g[2] = {f->u, f->v};
     float *s[2] = {su, sv};
+    double thr[2] = {0, 0}; /* the engine's threshold, from this field as the proxy */
+    if (curved)
+        piv_curv_threshold(f, thr);
     for (int j = 0; j < ny; j++)
         for (int i = 0; i < nx; i++) {
             const size_t k = (size_t)j * (size_t)nx + (size_t)i;
@@ -782,10 +785,11 @@ void unc_edge_bias(const rpiv_field *f, int ww, int wh, int curved, float *su, f
                 double b = 0;
                 if (ex)
                     b += (double)ww * ww / 24 / (f->dx * f->dx) *
-                         edge_curv(f, g[c], nx, k, i == 0 ? 1 : -1, curved);
+                         edge_curv(f, g[c], nx, k, i == 0 ? 1 : -1, curved, thr[c]);
                 if (ey)
                     b += (double)wh * wh / 24 / (f->dy * f->dy) *
-                         edge_curv(f, g[c], ny, k, j == 0 ? (ptrdiff_t)nx : -(ptrdiff_t)nx, curved);
+                         edge_curv(f, g[c], ny, k, j == 0 ? (ptrdiff_t)nx : -(ptrdiff_t)nx, curved,
+                                   thr[c]);
                 const double t = sqrt((double)s[c][k] * (double)s[c][k] + b * b);
                 s[c][k] = (float)(t < UNC_SIGMA_MAX ? t : UNC_SIGMA_MAX);
             }
