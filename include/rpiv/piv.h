@@ -75,8 +75,9 @@ typedef struct rpiv_piv_params {
                          field they converge to (0; experimental, docs/piv.md) */
     /* The predictor beyond the grid's edge (docs/piv.md, "The grid's edge"): 0 continued
      * linearly, 1 with its curvature (limited, where the 4 end nodes of a grid line are
-     * measured), -1 the curvature for ensembles only (0; experimental: better on synthetic
-     * ensembles, slightly worse on the demo's). */
+     * measured, and shrunk by the field's noise threshold), -1 the curvature for ensembles only
+     * (-1 since session 13: better on synthetic ensembles and neutral on the demo's; single
+     * pairs' noisy edges lose with it). */
     int edge_curvature;
     /* 1: where an ensemble's estimator is the spline, its correction of the 3-point Gaussian is
      * tested against the neighbours' and a vector that fails takes the Gaussian plus their

@@ -36,7 +36,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_denoise_order = 4,
                              .refine_stop = 1,
                              .refine_defer = 0,
-                             .edge_curvature = 0,
+                             .edge_curvature = -1,
                              .spline_check = 1,
                              .prep = rpiv_preprocess_params_default()};
 }

@@ -55,8 +55,9 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
              w, h_px, win, p->overlap, p->step_px, rpiv_subpixel_names[p->subpixel], p->median_thr,
              p->median_eps, p->deform, rpiv_background_names[p->background], p->roi[0], p->roi[1],
              p->roi[2], p->roi[3], p->mask[0] ? p->mask : "none");
-    /* the predictor's continuation beyond the grid shapes the sums (named only when not the
-     * default, so that the checkpoints of earlier versions still resume) */
+    /* the predictor's continuation beyond the grid shapes the sums (named when not 0, the
+     * continuation of the versions before session 13, whose checkpoints then resume only
+     * with edge_curvature 0; -1 is the default since) */
     if (p->edge_curvature)
         snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
                  ", edge curvature %d", p->edge_curvature);
