@@ -210,8 +210,7 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned
             linked = 1;
         }
     }
-    g.denoise =
-        linked && pv->p.refine_denoise && piv_pred_repeats(pv, p) ? pv->p.refine_denoise_order : 0;
+    g.denoise = linked ? piv_pred_denoised(pv, p) : 0;
     {
         float *gain = NULL;
         /* the denoiser's linear part L (docs/uncertainty.md, "The denoiser in the chain": with

@@ -400,7 +400,7 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
         if (f->flag[k] == RPIV_FLAG_REPLACED)
             f->flag[k] = RPIV_FLAG_VALID;
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise) */
-    const int denoise = pv->p.refine_denoise && piv_pred_repeats(pv, predictor);
+    const int denoise = piv_pred_denoised(pv, predictor);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
         !(denoise && (st = piv_pred_denoise(pv, f)))) {

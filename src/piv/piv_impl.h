@@ -102,6 +102,9 @@ void piv_pred_filter_t(double *c, double a, int nx, int ny, int bx0, int bw, int
  * (the grid is that of pass j, and pass j + 1, or the last pass itself, repeats)? Such
  * predictors are denoised with refine_denoise (src/piv/refine_filter.c). */
 int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor);
+/* Is this predictor denoised (refine_denoise on, piv_pred_repeats)? 0 if not, else the
+ * refine_denoise_order it is denoised with. */
+int piv_pred_denoised(const rpiv_piv *pv, const rpiv_field *predictor);
 /* Shrink the detail of a grid field above its smoothing, along x then y, at dilations 1, 2
  * and 4 grid steps (fourth differences at 1 and 2, the second at 4; with refine_denoise_order
  * 2 the second at 1), with thresholds from the field's own noise level (pv: the window of the pass

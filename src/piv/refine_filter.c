@@ -267,14 +267,14 @@ static rpiv_status denoise(const rpiv_piv *pv, rpiv_field *f, float *gain)
     double ratio[LEVELS], noise[2] = {(double)INFINITY, (double)INFINITY};
     for (int lev = 0; lev < LEVELS; lev++)
         ratio[lev] = model_detail(order, lev, order[lev], rx, ry);
-    const double ratio2 = model_detail(order, 0, DET2, rx, ry),
-                 ratio4 = model_detail(order, 0, DET4, rx, ry);
+    /* the first level's deviations of both details (one of them is ratio[0]) */
+    const double ratio2 = order[0] == DET2 ? ratio[0] : model_detail(order, 0, DET2, rx, ry),
+                 ratio4 = order[0] == DET2 ? model_detail(order, 0, DET4, rx, ry) : ratio[0];
     for (int lev = 0, step = 1; lev < LEVELS; lev++, step *= 2)
         for (int comp = 0; comp < 2; comp++) {
             float *g = comp ? f->v : f->u;
             double sigma = noise_sigma(g, nx, ny, step, order[lev], buf);
-            /* the second differences' threshold (DET42's end samples) */
-            double t2 = sigma * universal;
+            double t2 = 0; /* DET42's end samples: the second differences' threshold */
             if (lev == 0) {
                 /* The noise level the coarser caps scale from: a smooth flow's own detail,
                  * which has no direction free of it in a vortex, raises the second
@@ -530,6 +530,13 @@ int piv_pred_repeats(const rpiv_piv *pv, const rpiv_field *predictor)
     const int k = j + 1 < pv->npass ? j + 1 : j; /* the pass it predicts */
     return k > 0 && pv->deforms && pv->pass[k].ww == pv->pass[k - 1].ww &&
            pv->pass[k].wh == pv->pass[k - 1].wh;
+}
+
+int piv_pred_denoised(const rpiv_piv *pv, const rpiv_field *predictor)
+{
+    return predictor && pv->p.refine_denoise && piv_pred_repeats(pv, predictor)
+               ? pv->p.refine_denoise_order
+               : 0;
 }
 
 /* The predictor's low-pass filter: [a/2, 1 - a, a/2] along x, then along y. At the edge of

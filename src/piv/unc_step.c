@@ -83,9 +83,7 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
                                  int refines, rpiv_field *f, const float *cs)
 {
     const piv_pass *ps = &pv->pass[pass];
-    const int denoise = predictor && pv->p.refine_denoise && piv_pred_repeats(pv, predictor)
-                            ? pv->p.refine_denoise_order
-                            : 0;
+    const int denoise = piv_pred_denoised(pv, predictor);
     const unc_geom g = {ps->ox, ps->oy, ps->sx, ps->sy, ps->ww,
                         ps->wh, pv->w,  pv->h,  shift,  denoise};
     const int linked = shift != 0 && unc_chain_links(pv->unc, predictor);
