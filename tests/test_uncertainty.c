@@ -860,6 +860,113 @@ static void noise_field(int c, int nx, int ny, rpiv_field *f)
     }
 }
 
+/* The grid's Nyquist notch (piv_pred_notch; docs/piv.md, "The grid's Nyquist mode"), orders 2,
+ * 4 and 8 on a 23 x 17 grid: (1) a cubic in x and y passes unchanged, ends included; (2) the
+ * Nyquist mode (-1)^(i+j) is removed where the notch's taps stay inside the grid (its ends are
+ * continued by a cubic, which a Nyquist mode is not); (3) a wave of 4 grid steps keeps 1 -
+ * 2^-m of its amplitude there; (4) the transpose the chain uses, <N x, y> = <x, N^T y> on
+ * noise, whole grid, and on a block (nodes 3..14 x 2..11) as the zero-extended whole cut back. */
+static void unc_notch_operator(void)
+{
+    enum { NX = 23, NY = 17 };
+    const int orders[3] = {2, 4, 8};
+    for (int o = 0; o < 3; o++) {
+        const int m[2] = {orders[o], orders[o]};
+        rpiv_field *f = NULL;
+        CHECK_OK(rpiv_field_new(NX, NY, 0, 0, 1, 1, &f));
+        if (!f)
+            return;
+        double worst[3] = {0, 0, 0};
+        for (int test = 0; test < 3; test++) {
+            for (int j = 0; j < NY; j++)
+                for (int i = 0; i < NX; i++) {
+                    const size_t k = (size_t)j * NX + (size_t)i;
+                    const double x = i - 11.3, y = j - 7.9;
+                    f->u[k] = test == 0   ? (float)(0.002 * x * x * x - 0.03 * x * y + 0.5 * y)
+                              : test == 1 ? (float)((i + j) % 2 ? -1 : 1)
+                                          : (float)sin(M_PI * i / 2 + 0.4);
+                    f->v[k] = test == 0 ? (float)(0.001 * y * y * y + 0.01 * x * x - 2) : f->u[k];
+                }
+            rpiv_field *g = NULL;
+            CHECK_OK(rpiv_field_copy(f, &g));
+            if (!g)
+                break;
+            CHECK_OK(piv_pred_notch(g, m));
+            const double keep = 1 - pow(0.5, orders[o]);
+            for (int j = 0; j < NY; j++)
+                for (int i = 0; i < NX; i++) {
+                    const size_t k = (size_t)j * NX + (size_t)i;
+                    const int inside = i >= orders[o] && i < NX - orders[o] && j >= orders[o] &&
+                                       j < NY - orders[o];
+                    if (test == 0)
+                        worst[0] = fmax(worst[0], fmax(fabs((double)(g->u[k] - f->u[k])),
+                                                       fabs((double)(g->v[k] - f->v[k]))));
+                    else if (test == 1 && inside)
+                        worst[1] = fmax(worst[1], fabs(g->u[k]));
+                    else if (test == 2 && inside)
+                        worst[2] = fmax(worst[2], fabs((double)g->u[k] - keep * (double)f->u[k]));
+                }
+            rpiv_field_free(g);
+        }
+        printf("    notch order %d: cubic changed by %.1e, Nyquist mode left %.1e, 4-step wave off "
+               "1 - 2^-m by %.1e\n",
+               orders[o], worst[0], worst[1], worst[2]);
+        CHECK(worst[0] < 2e-5 && worst[1] < 1e-6 && worst[2] < 1e-6);
+        /* the transpose */
+        double *y = malloc(NX * NY * sizeof *y), *t = malloc(NX * NY * sizeof *t);
+        double *yb = malloc(NX * NY * sizeof *yb), *tmp = malloc(NX * NY * sizeof *tmp);
+        if (y && t && yb && tmp) {
+            noise_field(o, NX, NY, f);
+            uint64_t r = 0x2545f4914f6cdd1du + (uint64_t)o;
+            for (int k = 0; k < NX * NY; k++) {
+                r ^= r << 13;
+                r ^= r >> 7;
+                r ^= r << 17;
+                y[k] = (double)(r >> 11) / 9007199254740992.0 - 0.5;
+            }
+            rpiv_field *g = NULL;
+            CHECK_OK(rpiv_field_copy(f, &g));
+            if (g) {
+                CHECK_OK(piv_pred_notch(g, m));
+                memcpy(t, y, NX * NY * sizeof *t);
+                piv_pred_notch_t(t, m, NX, NY, 0, NX, 0, NY, tmp);
+                double a = 0, b = 0, mag = 0;
+                for (int k = 0; k < NX * NY; k++) {
+                    a += (double)g->u[k] * y[k];
+                    b += (double)f->u[k] * t[k];
+                    mag += fabs((double)f->u[k] * t[k]);
+                }
+                /* the block: y zero outside nodes 3..14 x 2..11, N^T, cut back */
+                enum { BX0 = 3, BW = 12, BY0 = 2, BH = 10 };
+                double full = 0;
+                for (int k = 0; k < NX * NY; k++) {
+                    const int i = k % NX, j = k / NX;
+                    t[k] = i >= BX0 && i < BX0 + BW && j >= BY0 && j < BY0 + BH ? y[k] : 0;
+                }
+                for (int j = 0; j < BH; j++)
+                    for (int i = 0; i < BW; i++)
+                        yb[j * BW + i] = y[(BY0 + j) * NX + BX0 + i];
+                piv_pred_notch_t(t, m, NX, NY, 0, NX, 0, NY, tmp);
+                piv_pred_notch_t(yb, m, NX, NY, BX0, BW, BY0, BH, tmp);
+                for (int j = 0; j < BH; j++)
+                    for (int i = 0; i < BW; i++)
+                        full = fmax(full, fabs(yb[j * BW + i] - t[(BY0 + j) * NX + BX0 + i]));
+                printf("    notch order %d: <N x, y> %.6f, <x, N^T y> %.6f; block against the "
+                       "whole %.1e\n",
+                       orders[o], a, b, full);
+                CHECK(fabs(a - b) < 1e-6 * mag);
+                CHECK(full < 1e-12);
+                rpiv_field_free(g);
+            }
+        }
+        free(y);
+        free(t);
+        free(yb);
+        free(tmp);
+        rpiv_field_free(f);
+    }
+}
+
 /* The chain's model of the refinement's denoiser: the linear map A it was on the predictor, its
  * weights held (piv_pred_denoise_weights, piv_pred_denoise_map_t; docs/uncertainty.md, "The
  * denoiser's weights"), A q = D q. (1) On fields of pure noise whose details all fall below
@@ -1146,6 +1253,7 @@ int main(void)
     RUN_TEST(unc_tracks_the_error);
     RUN_TEST(unc_spline_sensitivity);
     RUN_TEST(unc_denoiser_operator);
+    RUN_TEST(unc_notch_operator);
     RUN_TEST(unc_first_pass_error);
     RUN_TEST(unc_whole_run_coverage);
     RUN_TEST(unc_ensemble_deterministic);

@@ -15,6 +15,8 @@
 #include <stdint.h>
 
 #define RPIV_PIV_MAX_PASSES 8
+/* The largest order of the refinement's notch (rpiv_piv_params.refine_notch). */
+#define RPIV_PIV_NOTCH_MAX 8
 
 typedef enum rpiv_background {
     RPIV_BACKGROUND_NONE = 0,
@@ -69,6 +71,11 @@ typedef struct rpiv_piv_params {
      * exact on cubics: a smooth flow's curvature is not taken for noise), 2 the second
      * (session 6's) (4; docs/piv.md, "Refinement at the final size"). */
     int refine_denoise_order;
+    /* The denoised predictor's notch of its grid's Nyquist mode, order 2..8 (response 1 -
+     * 2^-m at 4 grid steps a wavelength), 0 off: a window of 2 grid steps or more does not see
+     * that mode, so the repeats would keep whatever an earlier pass's noise put there (6;
+     * docs/piv.md, "The grid's Nyquist mode"). */
+    int refine_notch;
     int refine_stop;  /* 1: stop when the change has not fallen below its smallest for two
                          repeats; end with the iterate of the smallest change (1) */
     int refine_defer; /* 1: no median test between repeats of the final size, only on the

@@ -184,6 +184,10 @@ static const key_spec keys[] = {
      "refinement: shrink the predictor's detail, threshold from its own noise level", 0},
     {"piv", "refine_denoise_order", KEY_INT, OFF(piv.refine_denoise_order), 2, 4, 1, "-",
      "refinement denoiser's finest detail: 4 fourth difference, 2 second (before session 13)", 0},
+    {"piv", "refine_notch", KEY_INT, OFF(piv.refine_notch), 0, 8, 1, "-",
+     "refinement: order of the denoised predictor's notch of its grid's Nyquist mode, 0 off "
+     "(before session 14)",
+     0},
     {"piv", "refine_stop", KEY_BOOL, OFF(piv.refine_stop), 0, 1, 1, "-",
      "refinement: stop when the change stops falling (keep the field of the smallest change)", 0},
     {"piv", "refine_defer", KEY_BOOL, OFF(piv.refine_defer), 0, 1, 1, "-",

@@ -384,9 +384,10 @@ int piv_edge_curved(const rpiv_piv *pv, int ensemble)
     return pv->p.edge_curvature < 0 ? ensemble != 0 : pv->p.edge_curvature;
 }
 
-rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double shift,
-                         double filter, int ensemble, rpiv_deform_pred **out)
+rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pass, double filter,
+                         int ensemble, rpiv_deform_pred **out)
 {
+    const double shift = piv_shift(pv, pass);
     rpiv_field *f = NULL;
     rpiv_status st = rpiv_field_copy(predictor, &f);
     if (st)
@@ -399,11 +400,15 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, double
     for (size_t k = 0; k < (size_t)f->nx * (size_t)f->ny; k++)
         if (f->flag[k] == RPIV_FLAG_REPLACED)
             f->flag[k] = RPIV_FLAG_VALID;
-    /* a repeat of the final size: its detail shrunk above the noise (refine_denoise) */
+    /* a repeat of the final size: its detail shrunk above the noise (refine_denoise), then its
+     * grid's Nyquist mode, which no repeat would correct, removed (refine_notch) */
     const int denoise = piv_pred_denoised(pv, predictor);
+    int notch[2];
+    piv_pred_notch_orders(pv, pass, denoise, notch);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
-        !(denoise && (st = piv_pred_denoise(pv, f)))) {
+        !(denoise && (st = piv_pred_denoise(pv, f))) &&
+        !((notch[0] || notch[1]) && (st = piv_pred_notch(f, notch)))) {
         /* the curvature where the predictor's end nodes were measured (its own flags: f's
          * replaced ones are taken as valid above), where it is above what noise makes */
         const int curved = piv_edge_curved(pv, ensemble);

@@ -81,13 +81,13 @@ int piv_pass_stopped(const rpiv_piv *pv, int cut, int *stop);
  * on), 0 otherwise. Vectors of the pass sit at their window's centre plus this shift. */
 double piv_shift(const rpiv_piv *pv, int k);
 
-/* Build the interpolant of a predictor field (copied; masked vectors filled with neighbour
- * medians first, rejected ones taken with the values their replacement gave them, then
- * low-pass filtered with weight `filter`, 0 = none), rows evaluated at pixel + shift; beyond
- * the grid continued as piv_edge_curved says for an ensemble's pass or a single pair's. */
-RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor,
-                                        double shift, double filter, int ensemble,
-                                        rpiv_deform_pred **out);
+/* Build the interpolant of pass `pass`'s predictor field (copied; masked vectors filled with
+ * neighbour medians first, rejected ones taken with the values their replacement gave them,
+ * then low-pass filtered with weight `filter`, 0 = none, then denoised and notched where it
+ * serves a repeat), rows evaluated at pixel + piv_shift(pv, pass); beyond the grid continued as
+ * piv_edge_curved says for an ensemble's pass or a single pair's. */
+RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pass,
+                                        double filter, int ensemble, rpiv_deform_pred **out);
 /* 1 when the predictor continues its curvature beyond the grid (params edge_curvature). */
 int piv_edge_curved(const rpiv_piv *pv, int ensemble);
 /* The predictor's low-pass filter [a/2, 1 - a, a/2] along x, then along y, edge nodes kept
@@ -110,6 +110,24 @@ int piv_pred_denoised(const rpiv_piv *pv, const rpiv_field *predictor);
  * 2 the second at 1), with thresholds from the field's own noise level (pv: the window of the pass
  * the field's grid belongs to; src/piv/refine_filter.c). */
 RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
+/* The grid's Nyquist notch (refine_notch; docs/piv.md, "The grid's Nyquist mode"): a wave of
+ * 2 grid steps is not seen by a window of 2 steps or more (its mean over the window is nil), so
+ * a repeat never corrects it and keeps what an earlier pass's noise put there. Each line of a
+ * denoised predictor loses it by U - (-d2 / 4)^m U (response 1 - q^m, q = (1 - cos w) / 2: 0 at
+ * the Nyquist limit, 1 - 2^-m at 4 grid steps a wavelength, m >= 2; cubics pass, the line
+ * continued by the cubic through its 4 end samples). */
+#define PIV_NOTCH_MAX RPIV_PIV_NOTCH_MAX
+/* The notch's order m[0] along x and m[1] along y for a predictor of pass `pass` (denoise:
+ * piv_pred_denoised's result): refine_notch where the predictor is denoised and the pass's
+ * window spans 2 grid steps or more along that axis, else 0. */
+void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, int m[2]);
+/* The notch on f's u and v, order m[0] along x, m[1] along y (0: not along that axis). */
+RPIV_NODISCARD rpiv_status piv_pred_notch(rpiv_field *f, const int m[2]);
+/* c := N^T c for the notch N of piv_pred_notch on an nx x ny grid: c holds the nodes bx0.. (bw) x
+ * by0.. (bh), row after row, and is taken as 0 outside them (what N^T would carry out of the
+ * block is dropped). tmp: bw bh doubles. */
+void piv_pred_notch_t(double *c, const int m[2], int nx, int ny, int bx0, int bw, int by0, int bh,
+                      double *tmp);
 /* The threshold of a curvature continued beyond f's grid (edge_curvature; deform_edge_curv),
  * u and v: the universal threshold of f's second differences, 4 sigma sqrt(2 ln n), sigma the
  * denoiser's noise level of their detail at dilation 1 (the smallest over the four grid

@@ -34,6 +34,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_filter = 0,
                              .refine_denoise = 1,
                              .refine_denoise_order = 4,
+                             .refine_notch = 6,
                              .refine_stop = 1,
                              .refine_defer = 0,
                              .edge_curvature = -1,
@@ -88,6 +89,9 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_stop: %d is not 0 or 1", p->refine_stop);
     if (p->refine_defer != 0 && p->refine_defer != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_defer: %d is not 0 or 1", p->refine_defer);
+    if (p->refine_notch != 0 && (p->refine_notch < 2 || p->refine_notch > RPIV_PIV_NOTCH_MAX))
+        return rpiv_fail(RPIV_EINVAL, "piv.refine_notch: %d is not 0 (off) or 2..%d",
+                         p->refine_notch, RPIV_PIV_NOTCH_MAX);
     if (p->refine_denoise_order != 2 && p->refine_denoise_order != 4)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_denoise_order: %d is not 2 or 4",
                          p->refine_denoise_order);

@@ -151,8 +151,8 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     rpiv_status st;
     /* a repeat of the window size before it (a refinement): its predictor low-passed */
     const int refines = piv_repeats(pv, pass);
-    if (predictor && (st = piv_pred_new(pv, predictor, piv_shift(pv, pass),
-                                        refines ? pv->p.refine_filter : 0, 0, &pred)))
+    if (predictor &&
+        (st = piv_pred_new(pv, predictor, pass, refines ? pv->p.refine_filter : 0, 0, &pred)))
         return st;
     if ((st = rpiv_piv_grid(pv, pass, &f)))
         goto out_free;

@@ -600,3 +600,128 @@ void piv_pred_filter_t(double *c, double a, int nx, int ny, int bx0, int bw, int
         memcpy(c, tmp, nb * sizeof *c);
     }
 }
+
+/* ---- the grid's Nyquist notch (refine_notch; docs/piv.md, "The grid's Nyquist mode") ---- */
+
+/* The notch of order m along a line: U - (-d2 / 4)^m U (d2 the second difference), response
+ * 1 - q^m to a wave of frequency w, q = (1 - cos w) / 2. The line is continued m samples beyond
+ * either end by the cubic through its 4 end samples, so that cubics pass unchanged everywhere.
+ * w[2m + 1]: the taps of (-d2 / 4)^m, (-1)^k C(2m, m + k) / 4^m; ext[m][4]: the weights of the
+ * end samples 0..3 at the continued sample -1 - k (Lagrange). */
+typedef struct notch_taps {
+    int m;
+    double w[2 * PIV_NOTCH_MAX + 1];
+    double ext[PIV_NOTCH_MAX][4];
+} notch_taps;
+
+static void notch_taps_init(notch_taps *t, int m)
+{
+    t->m = m;
+    double c = 1;
+    for (int k = 0; k < m; k++)
+        c *= 0.25;
+    for (int k = -m; k <= m; k++) {
+        double b = 1; /* C(2m, m + k) */
+        for (int j = 1; j <= m + k; j++)
+            b = b * (2 * m - j + 1) / j;
+        t->w[k + m] = ((k + m) % 2 ? -b : b) * c * ((m % 2) ? -1 : 1);
+    }
+    for (int k = 0; k < m; k++) {
+        const double x = -1 - k;
+        t->ext[k][0] = (x - 1) * (x - 2) * (x - 3) / -6.0;
+        t->ext[k][1] = x * (x - 2) * (x - 3) / 2.0;
+        t->ext[k][2] = x * (x - 1) * (x - 3) / -2.0;
+        t->ext[k][3] = x * (x - 1) * (x - 2) / 6.0;
+    }
+}
+
+/* The notch on the n samples of a line g (stride st; n >= 4). line: n + 2m doubles. */
+static void notch_line(const notch_taps *t, float *g, size_t st, int n, double *line)
+{
+    const int m = t->m;
+    for (int i = 0; i < n; i++)
+        line[m + i] = (double)g[(size_t)i * st];
+    for (int k = 0; k < m; k++) {
+        double a = 0, b = 0;
+        for (int j = 0; j < 4; j++) {
+            a += t->ext[k][j] * line[m + j];
+            b += t->ext[k][j] * line[m + n - 1 - j];
+        }
+        line[m - 1 - k] = a;
+        line[m + n + k] = b;
+    }
+    for (int i = 0; i < n; i++) {
+        double d = 0;
+        for (int k = 0; k <= 2 * m; k++)
+            d += t->w[k] * line[i + k];
+        g[(size_t)i * st] = (float)(line[m + i] - d);
+    }
+}
+
+void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, int m[2])
+{
+    const piv_pass *ps = &pv->pass[pass];
+    const int on = denoise && pv->p.refine_notch > 0;
+    m[0] = on && ps->ww >= 2 * ps->sx ? pv->p.refine_notch : 0;
+    m[1] = on && ps->wh >= 2 * ps->sy ? pv->p.refine_notch : 0;
+}
+
+rpiv_status piv_pred_notch(rpiv_field *f, const int m[2])
+{
+    const int nx = f->nx, ny = f->ny, n = nx > ny ? nx : ny;
+    double *line = malloc(((size_t)n + 2 * PIV_NOTCH_MAX) * sizeof *line);
+    if (!line)
+        return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor's notch");
+    notch_taps t[2];
+    notch_taps_init(&t[0], m[0]);
+    notch_taps_init(&t[1], m[1]);
+    for (int comp = 0; comp < 2; comp++) {
+        float *g = comp ? f->v : f->u;
+        for (int j = 0; m[0] > 0 && nx >= 4 && j < ny; j++)
+            notch_line(&t[0], g + (size_t)j * (size_t)nx, 1, nx, line);
+        for (int i = 0; m[1] > 0 && ny >= 4 && i < nx; i++)
+            notch_line(&t[1], g + (size_t)i, (size_t)nx, ny, line);
+    }
+    free(line);
+    return RPIV_OK;
+}
+
+void piv_pred_notch_t(double *c, const int m[2], int nx, int ny, int bx0, int bw, int by0, int bh,
+                      double *tmp)
+{
+    const size_t nb = (size_t)bw * (size_t)bh;
+    for (int axis = 0; axis < 2; axis++) {
+        const int len = axis ? ny : nx, b0 = axis ? by0 : bx0, lim = axis ? bh : bw;
+        if (m[axis] <= 0 || len < 4)
+            continue;
+        notch_taps t;
+        notch_taps_init(&t, m[axis]);
+        const int mm = t.m;
+        const size_t st = axis ? (size_t)bw : 1;
+        memcpy(tmp, c, nb * sizeof *tmp); /* the identity's share */
+        for (int j = 0; j < bh; j++)
+            for (int i = 0; i < bw; i++) {
+                const size_t at = (size_t)j * (size_t)bw + (size_t)i;
+                const double v = c[at];
+                const int pos = axis ? j : i, g = b0 + pos;
+                const size_t line0 = at - (size_t)pos * st; /* the block line's first node */
+                /* output g took -w_k times the continued sample g + k - m */
+                for (int k = 0; k <= 2 * mm; k++) {
+                    const int s = g + k - mm;
+                    const double a = -t.w[k] * v;
+                    if (s >= 0 && s < len) {
+                        if (s - b0 >= 0 && s - b0 < lim)
+                            tmp[line0 + (size_t)(s - b0) * st] += a;
+                        continue;
+                    }
+                    const int e = s < 0 ? -1 - s : s - len; /* which continued sample */
+                    for (int q = 0; q < 4; q++) {
+                        const int node = s < 0 ? q : len - 1 - q;
+                        if (node - b0 >= 0 && node - b0 < lim)
+                            tmp[line0 + (size_t)(node - b0) * st] += a * t.ext[e][q];
+                    }
+                }
+            }
+        memcpy(c, tmp, nb * sizeof *c);
+    }
+}
