@@ -73,8 +73,9 @@ typedef struct rpiv_piv_params {
     int refine_denoise_order;
     /* The denoised predictor's notch of its grid's Nyquist mode, order 2..8 (response 1 -
      * 2^-m at 4 grid steps a wavelength), 0 off: a window of 2 grid steps or more does not see
-     * that mode, so the repeats would keep whatever an earlier pass's noise put there (6;
-     * docs/piv.md, "The grid's Nyquist mode"). */
+     * that mode, so the repeats would keep whatever an earlier pass's noise put there. On the
+     * refinement's repeats only (not the listed passes, nor ensembles, which run those only)
+     * (6; docs/piv.md, "The grid's Nyquist mode"). */
     int refine_notch;
     int refine_stop;  /* 1: stop when the change has not fallen below its smallest for two
                          repeats; end with the iterate of the smallest change (1) */

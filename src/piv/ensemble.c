@@ -18,19 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static uint64_t field_hash(const rpiv_field *f)
-{
-    uint64_t h = HASH0;
-    if (!f)
-        return h;
-    size_t n = (size_t)f->nx * (size_t)f->ny;
-    int dims[2] = {f->nx, f->ny};
-    h = hash_bytes(h, dims, sizeof dims);
-    h = hash_bytes(h, f->u, n * sizeof *f->u);
-    h = hash_bytes(h, f->v, n * sizeof *f->v);
-    return hash_bytes(h, f->flag, n);
-}
-
 void rpiv_ensemble_free(rpiv_ensemble *e)
 {
     if (!e)
@@ -85,7 +72,7 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
             (st = piv_pred_new(pv, predictor, pass, 0, 1, &e->pred)))
             goto out_free;
     }
-    e->pred_hash = field_hash(predictor);
+    e->pred_hash = piv_field_hash(predictor);
     *out = e;
     return RPIV_OK;
 out_free:

@@ -212,7 +212,6 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned
         }
     }
     g.denoise = linked ? piv_pred_denoised(pv, p) : 0;
-    piv_pred_notch_orders(pv, e->pass, g.denoise, g.notch);
     {
         float *gain = NULL;
         /* the denoiser's linear part L (docs/uncertainty.md, "The denoiser in the chain": with

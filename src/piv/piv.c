@@ -369,6 +369,7 @@ rpiv_status rpiv_piv_load(rpiv_piv *pv, const rpiv_image *a, const rpiv_image *b
     if (st)
         return st;
     pv->state = PIV_RAW;
+    pv->final_known = 0; /* a new pair: no refinement repeat yet */
     return RPIV_OK;
 }
 
@@ -403,8 +404,9 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pa
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise), then its
      * grid's Nyquist mode, which no repeat would correct, removed (refine_notch) */
     const int denoise = piv_pred_denoised(pv, predictor);
-    int notch[2];
-    piv_pred_notch_orders(pv, pass, denoise, notch);
+    int notch[2] = {0, 0};
+    if (!ensemble)
+        piv_pred_notch_orders(pv, pass, denoise, predictor, notch);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
         !(denoise && (st = piv_pred_denoise(pv, f))) &&

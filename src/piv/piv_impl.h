@@ -41,6 +41,10 @@ struct rpiv_piv {
     struct unc_chain *unc; /* the passes' uncertainty (uncertainty_impl.h), or NULL */
     int unc_no_total;      /* 1: the final pass's step leaves its field's sigma out (a
                               refinement iterate that is not the one returned, refine.c) */
+    uint64_t final_hash;   /* piv_field_hash of the field the final pass last returned for the
+                              loaded pair (final_known 1): a predictor equal to it makes a step a
+                              refinement repeat, notched (refine_notch) */
+    int final_known;
 };
 
 /* What a pass correlates: frames (stride w) whose first row is image row row0, and the
@@ -117,10 +121,15 @@ RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
  * the Nyquist limit, 1 - 2^-m at 4 grid steps a wavelength, m >= 2; cubics pass, the line
  * continued by the cubic through its 4 end samples). */
 #define PIV_NOTCH_MAX RPIV_PIV_NOTCH_MAX
-/* The notch's order m[0] along x and m[1] along y for a predictor of pass `pass` (denoise:
- * piv_pred_denoised's result): refine_notch where the predictor is denoised and the pass's
- * window spans 2 grid steps or more along that axis, else 0. */
-void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, int m[2]);
+/* A field's identity: a hash of its grid size and u, v (HASH0 for NULL). */
+uint64_t piv_field_hash(const rpiv_field *f);
+/* The notch's order m[0] along x and m[1] along y for the predictor of a single pair's pass
+ * `pass` (denoise: piv_pred_denoised's result): refine_notch where the predictor is denoised and
+ * the step is a refinement repeat, the final pass run on the field it last returned for this
+ * pair (pv->final_hash; so the listed passes, and ensembles, which run those only, are as
+ * before), and the pass's window spans 2 grid steps or more along that axis; else 0. */
+void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
+                           int m[2]);
 /* The notch on f's u and v, order m[0] along x, m[1] along y (0: not along that axis). */
 RPIV_NODISCARD rpiv_status piv_pred_notch(rpiv_field *f, const int m[2]);
 /* c := N^T c for the notch N of piv_pred_notch on an nx x ny grid: c holds the nodes bx0.. (bw) x

@@ -198,6 +198,10 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
         goto out_free;
     if (cs && (st = piv_step_uncertainty(pv, pass, piv_shift(pv, pass), predictor, refines, f, cs)))
         goto out_free;
+    if (pass == pv->npass - 1) { /* a step on this field is a refinement repeat */
+        pv->final_hash = piv_field_hash(f);
+        pv->final_known = 1;
+    }
     *out = f;
     f = NULL;
 out_free:

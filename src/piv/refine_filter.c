@@ -658,10 +658,12 @@ static void notch_line(const notch_taps *t, float *g, size_t st, int n, double *
     }
 }
 
-void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, int m[2])
+void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
+                           int m[2])
 {
     const piv_pass *ps = &pv->pass[pass];
-    const int on = denoise && pv->p.refine_notch > 0;
+    const int on = denoise && pv->p.refine_notch > 0 && pass == pv->npass - 1 && predictor &&
+                   pv->final_known && piv_field_hash(predictor) == pv->final_hash;
     m[0] = on && ps->ww >= 2 * ps->sx ? pv->p.refine_notch : 0;
     m[1] = on && ps->wh >= 2 * ps->sy ? pv->p.refine_notch : 0;
 }

@@ -108,15 +108,6 @@ void unc_chain_free(unc_chain *c)
     free(c);
 }
 
-uint64_t unc_field_hash(const rpiv_field *f)
-{
-    size_t n = (size_t)f->nx * (size_t)f->ny;
-    int dims[2] = {f->nx, f->ny};
-    uint64_t h = hash_bytes(HASH0, dims, sizeof dims);
-    h = hash_bytes(h, f->u, n * sizeof *f->u);
-    return hash_bytes(h, f->v, n * sizeof *f->v);
-}
-
 /* One axis of the map: the previous grid has pn nodes at p0 + k pd; this level's n windows
  * start at pixel w0 + i st and are ww wide; the predictor is the spline of the previous field
  * filtered by [a/2, 1 - a, a/2] (the engine's pred_filter: edge nodes unfiltered), sampled at
@@ -345,13 +336,13 @@ rpiv_status unc_chain_first_error(unc_chain *c, const rpiv_field *f, int img_w, 
 void unc_chain_set_hash(unc_chain *c, const rpiv_field *f)
 {
     if (c)
-        c->hash = unc_field_hash(f);
+        c->hash = piv_field_hash(f);
 }
 
 int unc_chain_links(const unc_chain *c, const rpiv_field *predictor)
 {
     return c && c->n && predictor && c->lv[c->n - 1].nx == predictor->nx &&
-           c->lv[c->n - 1].ny == predictor->ny && c->hash == unc_field_hash(predictor);
+           c->lv[c->n - 1].ny == predictor->ny && c->hash == piv_field_hash(predictor);
 }
 
 /* The first level's measured error carried into a vector (expand_var): eh = sum_k cf_k fe_k

@@ -87,7 +87,7 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
     const int denoise = piv_pred_denoised(pv, predictor);
     unc_geom g = {ps->ox, ps->oy, ps->sx, ps->sy,  ps->ww, ps->wh,
                   pv->w,  pv->h,  shift,  denoise, {0, 0}};
-    piv_pred_notch_orders(pv, pass, denoise, g.notch);
+    piv_pred_notch_orders(pv, pass, denoise, predictor, g.notch);
     const int linked = shift != 0 && unc_chain_links(pv->unc, predictor);
     const double filter = refines ? pv->p.refine_filter : 0;
     float *gain = NULL;

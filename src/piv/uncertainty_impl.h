@@ -123,8 +123,6 @@ void unc_chain_set_hash(unc_chain *c, const rpiv_field *f);
 /* Is predictor the field the newest level of c returned? */
 int unc_chain_links(const unc_chain *c, const rpiv_field *predictor);
 
-uint64_t unc_field_hash(const rpiv_field *f);
-
 /* The total random uncertainty of the valid vectors of f (the newest level's field): its own
  * window noise and the predictors' noise carried through the levels, into su, sv. */
 RPIV_NODISCARD rpiv_status unc_chain_total(const unc_chain *c, const rpiv_field *f, float *su,

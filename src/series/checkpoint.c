@@ -66,11 +66,6 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     if (p->refine_denoise && p->refine_denoise_order != 2)
         snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
                  ", denoise order %d", p->refine_denoise_order);
-    /* the denoised predictor's Nyquist notch (session 14): checkpoints from before resume with
-     * refine_notch 0 */
-    if (p->refine_denoise && p->refine_notch)
-        snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan), ", notch %d",
-                 p->refine_notch);
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
     h = hash_bytes(HASH0, id->plan, strlen(id->plan));
     h = hash_bytes(h, exact, sizeof exact);
