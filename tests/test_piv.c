@@ -288,13 +288,17 @@ static void piv_refinement_recovers_a_shear(void)
 
 /* ---- Lamb-Oseen vortex -------------------------------------------------------------------- */
 
-/* Swirl u_theta(r) = a * g(r / rc) / g_max, g(s) = (1 - exp(-s^2)) / s; the peak a = 6 px is
- * reached at r = 1.1209 rc. */
+/* Swirl u_theta(r) = a * g(r / rc) / g_max, g(s) = (1 - exp(-s^2)) / s; the peak a is
+ * reached at r = 1.1209 rc; the core turns by a / (g_max rc) rad between the frames. */
+typedef struct vortex {
+    double cx, cy, a, rc;
+} vortex;
+
 static void oseen(void *user, double x, double y, double *u, double *v)
 {
-    const double *c = user; /* cx, cy */
-    const double a = 6, rc = 48, gmax = 0.6381726863;
-    double dx = x - c[0], dy = y - c[1], r = sqrt(dx * dx + dy * dy);
+    const vortex *c = user;
+    const double a = c->a, rc = c->rc, gmax = 0.6381726863;
+    double dx = x - c->cx, dy = y - c->cy, r = sqrt(dx * dx + dy * dy);
     if (r < 1e-9) {
         *u = *v = 0;
         return;
@@ -306,7 +310,7 @@ static void oseen(void *user, double x, double y, double *u, double *v)
 
 static void piv_lamb_oseen_vortex_has_few_outliers(void)
 {
-    double c[2] = {191.37, 160.81};
+    vortex c[1] = {{191.37, 160.81, 6, 48}};
     ti_params tp = base(384, 320, 555);
     pair p;
     pair_make(&p, &tp, oseen, c);
@@ -346,36 +350,23 @@ static void piv_lamb_oseen_vortex_has_few_outliers(void)
  * node to node is not seen by a window of two grid steps: without the notch the repeats keep
  * it. Six seeds: the RMS error over them, the notch (refine_notch 6, the default) against none
  * (session 13): measured 0.0084 px (worst pair 0.0123) against 0.0314 (worst 0.0520). */
-static void oseen5(void *user, double x, double y, double *u, double *v)
-{
-    const double *c = user;
-    const double a = 5, rc = 40, gmax = 0.6381726863;
-    double dx = x - c[0], dy = y - c[1], r = sqrt(dx * dx + dy * dy);
-    if (r < 1e-9) {
-        *u = *v = 0;
-        return;
-    }
-    double s = r / rc, ut = a * (1 - exp(-s * s)) / s / gmax;
-    *u = -ut * dy / r;
-    *v = ut * dx / r;
-}
-
 static void piv_vortex_core_keeps_no_grid_mode(void)
 {
     enum { NS = 6 };
-    double c[2] = {192.37, 191.79}, se[2] = {0, 0}, worst[2] = {0, 0};
+    vortex c[1] = {{192.37, 191.79, 5, 40}};
+    double se[2] = {0, 0}, worst[2] = {0, 0};
     int n = 0;
     for (int k = 0; k < NS; k++) {
         ti_params tp = base(384, 384, 900 + (uint64_t)k);
         tp.d_tau = 2.2;
         pair p;
-        pair_make(&p, &tp, oseen5, c);
+        pair_make(&p, &tp, oseen, c);
         rpiv_piv_params prm[2] = {rpiv_piv_params_default(), rpiv_piv_params_default()};
         prm[1].refine_notch = 0;
         for (int q = 0; q < 2; q++) {
             rpiv_field *f = run(&prm[q], &p);
             if (f) {
-                errs e = field_errors(f, oseen5, c);
+                errs e = field_errors(f, oseen, c);
                 se[q] += (e.rms_u * e.rms_u + e.rms_v * e.rms_v) * e.n;
                 worst[q] = fmax(worst[q], fmax(e.rms_u, e.rms_v));
                 n += q == 0 ? e.n : 0;

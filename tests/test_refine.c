@@ -296,6 +296,7 @@ static void refine_response_table(void)
     rpiv_piv_params cfg[3] = {rpiv_piv_params_default(), rpiv_piv_params_default(),
                               rpiv_piv_params_default()};
     cfg[1].refine_denoise_order = 2;
+    cfg[1].refine_notch = 0;
     cfg[2].refine_max = 0;
     cfg[2].refine_denoise = 0;
     cfg[2].median_lines = 0;
