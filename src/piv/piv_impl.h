@@ -121,7 +121,7 @@ RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
  * the Nyquist limit, 1 - 2^-m at 4 grid steps a wavelength, m >= 2; cubics pass, the line
  * continued by the cubic through its 4 end samples). */
 #define PIV_NOTCH_MAX RPIV_PIV_NOTCH_MAX
-/* A field's identity: a hash of its grid size and u, v (HASH0 for NULL). */
+/* A field's identity: a hash of its grid size, u, v and flags (HASH0 for NULL). */
 uint64_t piv_field_hash(const rpiv_field *f);
 /* The notch's order m[0] along x and m[1] along y for the predictor of a single pair's pass
  * `pass` (denoise: piv_pred_denoised's result): refine_notch where the predictor is denoised and
