@@ -458,7 +458,7 @@ static void piv_search_near_the_predictor_on_weak_peaks(void)
  * window pairs among threads), on an odd number of grid columns (a lone window per row). */
 static void piv_results_identical_for_1_and_2_threads(void)
 {
-    double c[2] = {128.3, 101.9};
+    vortex c[1] = {{128.3, 101.9, 6, 48}};
     ti_params tp = base(256, 208, 31);
     tp.noise = 0.02;
     pair p;
