@@ -860,18 +860,23 @@ static void noise_field(int c, int nx, int ny, rpiv_field *f)
     }
 }
 
-/* The grid's Nyquist notch (piv_pred_notch; docs/piv.md, "The grid's Nyquist mode"), orders 2,
- * 4 and 8 on a 23 x 17 grid: (1) a cubic in x and y passes unchanged, ends included; (2) the
- * Nyquist mode (-1)^(i+j) is removed where the notch's taps stay inside the grid (its ends are
- * continued by a cubic, which a Nyquist mode is not); (3) a wave of 4 grid steps keeps 1 -
- * 2^-m of its amplitude there; (4) the transpose the chain uses, <N x, y> = <x, N^T y> on
- * noise, whole grid, and on a block (nodes 3..14 x 2..11) as the zero-extended whole cut back. */
+/* The grid's Nyquist notch (piv_pred_notch; docs/piv.md, "The grid's Nyquist mode") on a 41 x
+ * 37 grid, orders 2, 4 and 8 at dilation 1 and order 6 at dilations 1 and 2 (a window of 4 grid
+ * steps): (1) a cubic in x and y passes unchanged, ends included; (2) the Nyquist mode
+ * (-1)^(i+j) is removed where the taps stay inside the grid (the ends are continued by a cubic,
+ * which a Nyquist mode is not); (3) a wave of 4 grid steps keeps 1 - 2^-m of its amplitude
+ * there with dilation 1 alone, nothing with dilation 2 too; (4) the transpose the chain uses,
+ * <N x, y> = <x, N^T y> on noise, whole grid, and on a block (nodes 3..20 x 2..15) as the
+ * zero-extended whole cut back (with two dilations, what the first stage's transpose carries out
+ * of the block is dropped, as the chain's block maps do: there the block's nodes within the
+ * second stage's reach, m, of its inner edges are left out). */
 static void unc_notch_operator(void)
 {
-    enum { NX = 23, NY = 17 };
-    const int orders[3] = {2, 4, 8};
-    for (int o = 0; o < 3; o++) {
-        const int m[2] = {orders[o], orders[o]};
+    enum { NX = 41, NY = 37, NC = 4 };
+    const int orders[NC] = {2, 4, 8, 6}, levels[NC] = {1, 1, 1, 2};
+    for (int o = 0; o < NC; o++) {
+        const piv_notch m = {{orders[o], orders[o]}, {levels[o], levels[o]}};
+        const int reach = orders[o] * ((1 << levels[o]) - 1); /* the stages' reaches summed */
         rpiv_field *f = NULL;
         CHECK_OK(rpiv_field_new(NX, NY, 0, 0, 1, 1, &f));
         if (!f)
@@ -881,23 +886,22 @@ static void unc_notch_operator(void)
             for (int j = 0; j < NY; j++)
                 for (int i = 0; i < NX; i++) {
                     const size_t k = (size_t)j * NX + (size_t)i;
-                    const double x = i - 11.3, y = j - 7.9;
-                    f->u[k] = test == 0   ? (float)(0.002 * x * x * x - 0.03 * x * y + 0.5 * y)
+                    const double x = i - 20.3, y = j - 17.9;
+                    f->u[k] = test == 0   ? (float)(0.0002 * x * x * x - 0.03 * x * y + 0.5 * y)
                               : test == 1 ? (float)((i + j) % 2 ? -1 : 1)
                                           : (float)sin(M_PI * i / 2 + 0.4);
-                    f->v[k] = test == 0 ? (float)(0.001 * y * y * y + 0.01 * x * x - 2) : f->u[k];
+                    f->v[k] = test == 0 ? (float)(0.0001 * y * y * y + 0.01 * x * x - 2) : f->u[k];
                 }
             rpiv_field *g = NULL;
             CHECK_OK(rpiv_field_copy(f, &g));
             if (!g)
                 break;
-            CHECK_OK(piv_pred_notch(g, m));
-            const double keep = 1 - pow(0.5, orders[o]);
+            CHECK_OK(piv_pred_notch(g, &m));
+            const double keep = levels[o] > 1 ? 0 : 1 - pow(0.5, orders[o]);
             for (int j = 0; j < NY; j++)
                 for (int i = 0; i < NX; i++) {
                     const size_t k = (size_t)j * NX + (size_t)i;
-                    const int inside = i >= orders[o] && i < NX - orders[o] && j >= orders[o] &&
-                                       j < NY - orders[o];
+                    const int inside = i >= reach && i < NX - reach && j >= reach && j < NY - reach;
                     if (test == 0)
                         worst[0] = fmax(worst[0], fmax(fabs((double)(g->u[k] - f->u[k])),
                                                        fabs((double)(g->v[k] - f->v[k]))));
@@ -908,9 +912,10 @@ static void unc_notch_operator(void)
                 }
             rpiv_field_free(g);
         }
-        printf("    notch order %d: cubic changed by %.1e, Nyquist mode left %.1e, 4-step wave off "
-               "1 - 2^-m by %.1e\n",
-               orders[o], worst[0], worst[1], worst[2]);
+        printf("    notch order %d, %d dilation(s): cubic changed by %.1e, Nyquist mode left "
+               "%.1e, 4-step wave off %.3f of it by %.1e\n",
+               orders[o], levels[o], worst[0], worst[1],
+               levels[o] > 1 ? 0 : 1 - pow(0.5, orders[o]), worst[2]);
         CHECK(worst[0] < 2e-5 && worst[1] < 1e-6 && worst[2] < 1e-6);
         /* the transpose */
         double *y = malloc(NX * NY * sizeof *y), *t = malloc(NX * NY * sizeof *t);
@@ -927,17 +932,17 @@ static void unc_notch_operator(void)
             rpiv_field *g = NULL;
             CHECK_OK(rpiv_field_copy(f, &g));
             if (g) {
-                CHECK_OK(piv_pred_notch(g, m));
+                CHECK_OK(piv_pred_notch(g, &m));
                 memcpy(t, y, NX * NY * sizeof *t);
-                piv_pred_notch_t(t, m, NX, NY, 0, NX, 0, NY, tmp);
+                piv_pred_notch_t(t, &m, NX, NY, 0, NX, 0, NY, tmp);
                 double a = 0, b = 0, mag = 0;
                 for (int k = 0; k < NX * NY; k++) {
                     a += (double)g->u[k] * y[k];
                     b += (double)f->u[k] * t[k];
                     mag += fabs((double)f->u[k] * t[k]);
                 }
-                /* the block: y zero outside nodes 3..14 x 2..11, N^T, cut back */
-                enum { BX0 = 3, BW = 12, BY0 = 2, BH = 10 };
+                /* the block: y zero outside nodes 3..20 x 2..15, N^T, cut back */
+                enum { BX0 = 3, BW = 18, BY0 = 2, BH = 14 };
                 double full = 0;
                 for (int k = 0; k < NX * NY; k++) {
                     const int i = k % NX, j = k / NX;
@@ -946,14 +951,15 @@ static void unc_notch_operator(void)
                 for (int j = 0; j < BH; j++)
                     for (int i = 0; i < BW; i++)
                         yb[j * BW + i] = y[(BY0 + j) * NX + BX0 + i];
-                piv_pred_notch_t(t, m, NX, NY, 0, NX, 0, NY, tmp);
-                piv_pred_notch_t(yb, m, NX, NY, BX0, BW, BY0, BH, tmp);
-                for (int j = 0; j < BH; j++)
-                    for (int i = 0; i < BW; i++)
+                piv_pred_notch_t(t, &m, NX, NY, 0, NX, 0, NY, tmp);
+                piv_pred_notch_t(yb, &m, NX, NY, BX0, BW, BY0, BH, tmp);
+                const int margin = levels[o] > 1 ? orders[o] : 0;
+                for (int j = margin; j < BH - margin; j++)
+                    for (int i = margin; i < BW - margin; i++)
                         full = fmax(full, fabs(yb[j * BW + i] - t[(BY0 + j) * NX + BX0 + i]));
-                printf("    notch order %d: <N x, y> %.6f, <x, N^T y> %.6f; block against the "
-                       "whole %.1e\n",
-                       orders[o], a, b, full);
+                printf("    notch order %d, %d dilation(s): <N x, y> %.6f, <x, N^T y> %.6f; block "
+                       "against the whole %.1e\n",
+                       orders[o], levels[o], a, b, full);
                 CHECK(fabs(a - b) < 1e-6 * mag);
                 CHECK(full < 1e-12);
                 rpiv_field_free(g);

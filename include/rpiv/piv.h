@@ -73,7 +73,8 @@ typedef struct rpiv_piv_params {
     int refine_denoise_order;
     /* The denoised predictor's notch of its grid's Nyquist mode, order 2..8 (response 1 -
      * 2^-m at 4 grid steps a wavelength), 0 off: a window of 2 grid steps or more does not see
-     * that mode, so the repeats would keep whatever an earlier pass's noise put there. On the
+     * that mode (nor, with 4 grid steps or more, the wave of 4 steps, notched too), so the repeats
+     * would keep whatever an earlier pass's noise put there. On the
      * refinement's repeats only (not the listed passes, nor ensembles, which run those only)
      * (6; docs/piv.md, "The grid's Nyquist mode"). */
     int refine_notch;

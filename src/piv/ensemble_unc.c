@@ -191,9 +191,10 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned
         cs[e->nwin + w] =
             (float)unc_cs_sigma((double)s[4], (double)s[5], (double)s[6], (double)s[7]);
     }
-    unc_geom g = {
-        ps->ox, ps->oy, ps->sx, ps->sy, ps->ww, ps->wh, pv->w, pv->h, piv_shift(pv, e->pass),
-        0,      {0, 0}};
+    unc_geom g = {ps->ox, ps->oy,          ps->sx,
+                  ps->sy, ps->ww,          ps->wh,
+                  pv->w,  pv->h,           piv_shift(pv, e->pass),
+                  0,      {{0, 0}, {0, 0}}};
     /* the predictor's noise: its sigmas, taken as the noise of its own windows */
     rpiv_field *p = e->predictor;
     const float *pu = p ? unc_quantity(p, "sigma_u") : NULL;
@@ -202,10 +203,10 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned
     if (pu && pvv && e->pass > 0 && g.shift != 0) {
         const piv_pass *pp = &pv->pass[e->pass - 1];
         if (pp->nx == p->nx && pp->ny == p->ny) {
-            const unc_geom gp = {pp->ox, pp->oy, pp->sx,
-                                 pp->sy, pp->ww, pp->wh,
-                                 pv->w,  pv->h,  piv_shift(pv, e->pass - 1),
-                                 0,      {0, 0}};
+            const unc_geom gp = {pp->ox, pp->oy,          pp->sx,
+                                 pp->sy, pp->ww,          pp->wh,
+                                 pv->w,  pv->h,           piv_shift(pv, e->pass - 1),
+                                 0,      {{0, 0}, {0, 0}}};
             if ((st = unc_chain_push(&c, 0, &gp, 0, p, pu, pvv, NULL)))
                 goto out_free;
             linked = 1;
@@ -225,7 +226,7 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned
     if (linked && e->pass == pv->npass - 1 && p->nx == f->nx && p->ny == f->ny) {
         /* the predictor's error as this pass corrected it (unc_chain_pred_error) */
         rpiv_field *pe = NULL;
-        if (!(st = unc_pred_error(pv, p, g.denoise, g.notch, f, &pe)))
+        if (!(st = unc_pred_error(pv, p, g.denoise, &g.notch, f, &pe)))
             st = unc_chain_pred_error(c, &g, pe);
         rpiv_field_free(pe);
         if (st)

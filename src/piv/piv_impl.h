@@ -116,27 +116,34 @@ int piv_pred_denoised(const rpiv_piv *pv, const rpiv_field *predictor);
 RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
 /* The grid's Nyquist notch (refine_notch; docs/piv.md, "The grid's Nyquist mode"): a wave of
  * 2 grid steps is not seen by a window of 2 steps or more (its mean over the window is nil), so
- * a repeat never corrects it and keeps what an earlier pass's noise put there. Each line of a
- * denoised predictor loses it by U - (-d2 / 4)^m U (response 1 - q^m, q = (1 - cos w) / 2: 0 at
- * the Nyquist limit, 1 - 2^-m at 4 grid steps a wavelength, m >= 2; cubics pass, the line
+ * a repeat never corrects it and keeps what an earlier pass's noise put there; with a window of
+ * 4 steps or more (75 % overlap) the same holds for the wave of 4 steps. Each line of a denoised
+ * predictor loses them by U - (-d2 / 4)^m U, on the line itself and, for the wave of 4 steps,
+ * on its two interleaved sub-lines of every other node (response 1 - q^m, q = (1 - cos d w) / 2
+ * at dilation d: 0 at 2 d grid steps a wavelength; m >= 2; cubics pass, each (sub-)line
  * continued by the cubic through its 4 end samples). */
-#define PIV_NOTCH_MAX RPIV_PIV_NOTCH_MAX
+#define PIV_NOTCH_MAX       RPIV_PIV_NOTCH_MAX
+#define PIV_NOTCH_DILATIONS 4 /* the largest dilation: waves of 8 grid steps (87.5 % overlap) */
+typedef struct piv_notch {
+    int m[2];      /* the order along x and y, 0: none                             */
+    int levels[2]; /* dilations 1, 2, .. 2^(levels - 1) along x and y             */
+} piv_notch;
 /* A field's identity: a hash of its grid size, u, v and flags (HASH0 for NULL). */
 uint64_t piv_field_hash(const rpiv_field *f);
-/* The notch's order m[0] along x and m[1] along y for the predictor of a single pair's pass
- * `pass` (denoise: piv_pred_denoised's result): refine_notch where the predictor is denoised and
- * the step is a refinement repeat, the final pass run on the field it last returned for this
- * pair (pv->final_hash; so the listed passes, and ensembles, which run those only, are as
- * before), and the pass's window spans 2 grid steps or more along that axis; else 0. */
+/* The notch for the predictor of a single pair's pass `pass` (denoise: piv_pred_denoised's
+ * result), where the predictor is denoised and the step is a refinement repeat, the final pass
+ * run on the field it last returned for this pair (pv->final_hash; so the listed passes, and
+ * ensembles, which run those only, are as before): along each axis the order refine_notch and
+ * the dilations d = 1, 2, 4 with the pass's window spanning 2 d grid steps or more; else none. */
 void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
-                           int m[2]);
-/* The notch on f's u and v, order m[0] along x, m[1] along y (0: not along that axis). */
-RPIV_NODISCARD rpiv_status piv_pred_notch(rpiv_field *f, const int m[2]);
+                           piv_notch *n);
+/* The notch n on f's u and v. */
+RPIV_NODISCARD rpiv_status piv_pred_notch(rpiv_field *f, const piv_notch *n);
 /* c := N^T c for the notch N of piv_pred_notch on an nx x ny grid: c holds the nodes bx0.. (bw) x
  * by0.. (bh), row after row, and is taken as 0 outside them (what N^T would carry out of the
  * block is dropped). tmp: bw bh doubles. */
-void piv_pred_notch_t(double *c, const int m[2], int nx, int ny, int bx0, int bw, int by0, int bh,
-                      double *tmp);
+void piv_pred_notch_t(double *c, const piv_notch *n, int nx, int ny, int bx0, int bw, int by0,
+                      int bh, double *tmp);
 /* The threshold of a curvature continued beyond f's grid (edge_curvature; deform_edge_curv),
  * u and v: the universal threshold of f's second differences, 4 sigma sqrt(2 ln n), sigma the
  * denoiser's noise level of their detail at dilation 1 (the smallest over the four grid

@@ -659,71 +659,98 @@ static void notch_line(const notch_taps *t, float *g, size_t st, int n, double *
 }
 
 void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
-                           int m[2])
+                           piv_notch *n)
 {
     const piv_pass *ps = &pv->pass[pass];
     const int on = denoise && pv->p.refine_notch > 0 && pass == pv->npass - 1 && predictor &&
                    pv->final_known && piv_field_hash(predictor) == pv->final_hash;
-    m[0] = on && ps->ww >= 2 * ps->sx ? pv->p.refine_notch : 0;
-    m[1] = on && ps->wh >= 2 * ps->sy ? pv->p.refine_notch : 0;
+    const int w[2] = {ps->ww, ps->wh}, st[2] = {ps->sx, ps->sy};
+    for (int a = 0; a < 2; a++) {
+        n->levels[a] = 0;
+        for (int d = 1; on && d <= PIV_NOTCH_DILATIONS && w[a] >= 2 * d * st[a]; d *= 2)
+            n->levels[a]++;
+        n->m[a] = n->levels[a] ? pv->p.refine_notch : 0;
+    }
 }
 
-rpiv_status piv_pred_notch(rpiv_field *f, const int m[2])
+/* The dilations of level k: 1, 2, 4, ... */
+#define NOTCH_DIL(k) (1 << (k))
+
+rpiv_status piv_pred_notch(rpiv_field *f, const piv_notch *n)
 {
-    const int nx = f->nx, ny = f->ny, n = nx > ny ? nx : ny;
-    double *line = malloc(((size_t)n + 2 * PIV_NOTCH_MAX) * sizeof *line);
+    const int nx = f->nx, ny = f->ny, len = nx > ny ? nx : ny;
+    double *line = malloc(((size_t)len + 2 * PIV_NOTCH_MAX) * sizeof *line);
     if (!line)
         return rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the predictor's notch");
-    notch_taps t[2];
-    notch_taps_init(&t[0], m[0]);
-    notch_taps_init(&t[1], m[1]);
-    for (int comp = 0; comp < 2; comp++) {
-        float *g = comp ? f->v : f->u;
-        for (int j = 0; m[0] > 0 && nx >= 4 && j < ny; j++)
-            notch_line(&t[0], g + (size_t)j * (size_t)nx, 1, nx, line);
-        for (int i = 0; m[1] > 0 && ny >= 4 && i < nx; i++)
-            notch_line(&t[1], g + (size_t)i, (size_t)nx, ny, line);
+    for (int a = 0; a < 2; a++) {
+        if (n->m[a] <= 0)
+            continue;
+        notch_taps t;
+        notch_taps_init(&t, n->m[a]);
+        const int lines = a ? nx : ny, along = a ? ny : nx;
+        const size_t step = a ? (size_t)nx : 1, across = a ? 1 : (size_t)nx;
+        for (int comp = 0; comp < 2; comp++) {
+            float *g = comp ? f->v : f->u;
+            for (int k = 0; k < n->levels[a]; k++) {
+                const int d = NOTCH_DIL(k);
+                for (int j = 0; j < lines; j++)
+                    for (int r = 0; r < d && r < along; r++) {
+                        const int sub = (along - 1 - r) / d + 1; /* the sub-line's length */
+                        if (sub >= 4)
+                            notch_line(&t, g + (size_t)j * across + (size_t)r * step,
+                                       (size_t)d * step, sub, line);
+                    }
+            }
+        }
     }
     free(line);
     return RPIV_OK;
 }
 
-void piv_pred_notch_t(double *c, const int m[2], int nx, int ny, int bx0, int bw, int by0, int bh,
-                      double *tmp)
+void piv_pred_notch_t(double *c, const piv_notch *n, int nx, int ny, int bx0, int bw, int by0,
+                      int bh, double *tmp)
 {
     const size_t nb = (size_t)bw * (size_t)bh;
     for (int axis = 0; axis < 2; axis++) {
         const int len = axis ? ny : nx, b0 = axis ? by0 : bx0, lim = axis ? bh : bw;
-        if (m[axis] <= 0 || len < 4)
+        if (n->m[axis] <= 0)
             continue;
         notch_taps t;
-        notch_taps_init(&t, m[axis]);
+        notch_taps_init(&t, n->m[axis]);
         const int mm = t.m;
         const size_t st = axis ? (size_t)bw : 1;
-        memcpy(tmp, c, nb * sizeof *tmp); /* the identity's share */
-        for (int j = 0; j < bh; j++)
-            for (int i = 0; i < bw; i++) {
-                const size_t at = (size_t)j * (size_t)bw + (size_t)i;
-                const double v = c[at];
-                const int pos = axis ? j : i, g = b0 + pos;
-                const size_t line0 = at - (size_t)pos * st; /* the block line's first node */
-                /* output g took -w_k times the continued sample g + k - m */
-                for (int k = 0; k <= 2 * mm; k++) {
-                    const int s = g + k - mm;
-                    const double a = -t.w[k] * v;
-                    if (s >= 0 && s < len) {
-                        if (s - b0 >= 0 && s - b0 < lim)
-                            tmp[line0 + (size_t)(s - b0) * st] += a;
+        /* the forward applies dilation 1 first: its transpose last */
+        for (int k = n->levels[axis] - 1; k >= 0; k--) {
+            const int d = NOTCH_DIL(k);
+            memcpy(tmp, c, nb * sizeof *tmp); /* the identity's share */
+            for (int j = 0; j < bh; j++)
+                for (int i = 0; i < bw; i++) {
+                    const size_t at = (size_t)j * (size_t)bw + (size_t)i;
+                    const int pos = axis ? j : i, g = b0 + pos, r = g % d;
+                    const int sub = (len - 1 - r) / d + 1, p = (g - r) / d;
+                    if (sub < 4)
                         continue;
-                    }
-                    const int e = s < 0 ? -1 - s : s - len; /* which continued sample */
-                    for (int q = 0; q < 4; q++) {
-                        const int node = s < 0 ? q : len - 1 - q;
-                        if (node - b0 >= 0 && node - b0 < lim)
-                            tmp[line0 + (size_t)(node - b0) * st] += a * t.ext[e][q];
+                    const double v = c[at];
+                    const size_t line0 = at - (size_t)pos * st; /* the block line's first node */
+                    /* output p of the sub-line took -w_k times its continued sample p + k - m */
+                    for (int q = 0; q <= 2 * mm; q++) {
+                        const int s = p + q - mm;
+                        const double a = -t.w[q] * v;
+                        if (s >= 0 && s < sub) {
+                            const int node = r + s * d;
+                            if (node - b0 >= 0 && node - b0 < lim)
+                                tmp[line0 + (size_t)(node - b0) * st] += a;
+                            continue;
+                        }
+                        const int e = s < 0 ? -1 - s : s - sub; /* which continued sample */
+                        for (int h = 0; h < 4; h++) {
+                            const int node = r + (s < 0 ? h : sub - 1 - h) * d;
+                            if (node - b0 >= 0 && node - b0 < lim)
+                                tmp[line0 + (size_t)(node - b0) * st] += a * t.ext[e][h];
+                        }
                     }
                 }
-            }
-        memcpy(c, tmp, nb * sizeof *c);
+            memcpy(c, tmp, nb * sizeof *c);
+        }
     }
 }

@@ -56,10 +56,10 @@ typedef struct unc_level {
      * window's alone (G0), and the predictor's errors reach it through the filter [fa/2, 1 -
      * fa, fa/2] and the denoiser as the linear map A it was on this predictor (dw: its weights
      * on the level before's grid, piv_pred_denoise_weights; dorder its refine_denoise_order):
-     * G = G0 N A F, N the grid's Nyquist notch of orders notch[2] (piv_pred_notch; 0: none) */
+     * G = G0 N A F, N the grid's Nyquist notch (piv_pred_notch; m 0: none) */
     float *dw;
     int dorder;
-    int notch[2];
+    piv_notch notch;
     double fa;
 } unc_level;
 
@@ -234,8 +234,8 @@ rpiv_status unc_chain_push(unc_chain **chain, int linked, const unc_geom *g, dou
             memcpy(l->dw, weights, ng * sizeof *l->dw);
         l->fa = adaptive ? filter : 0;
         l->dorder = adaptive ? g->denoise : 0;
-        l->notch[0] = adaptive ? g->notch[0] : 0;
-        l->notch[1] = adaptive ? g->notch[1] : 0;
+        if (adaptive)
+            l->notch = g->notch;
         if (!l->hx || !l->ax || !l->hy || !l->ay || (adaptive && !l->dw))
             st = rpiv_fail(RPIV_ENOMEM, "piv: out of memory for the uncertainty");
         if (!st)
@@ -508,7 +508,8 @@ static int level_back(const unc_level *l, double *const cf[2], int bx0, int bw, 
     }
     /* G0^T cf on the block widened by the denoiser's and the notch's reach, then N^T, A^T and
      * F^T there, cut back */
-    const int rx = UNC_DENOISE_REACH + l->notch[0], ry = UNC_DENOISE_REACH + l->notch[1];
+    const int rx = UNC_DENOISE_REACH + l->notch.m[0] * (1 << l->notch.levels[0]),
+              ry = UNC_DENOISE_REACH + l->notch.m[1] * (1 << l->notch.levels[1]);
     const int ex0 = kx0 - rx < 0 ? 0 : kx0 - rx;
     const int ey0 = ky0 - ry < 0 ? 0 : ky0 - ry;
     const int ex1 = kx0 + kw - 1 + rx > l->pnx - 1 ? l->pnx - 1 : kx0 + kw - 1 + rx;
@@ -533,8 +534,8 @@ static int level_back(const unc_level *l, double *const cf[2], int bx0, int bw, 
             }
         }
         memcpy(e, b, ne * sizeof *e);
-        if (l->notch[0] || l->notch[1])
-            piv_pred_notch_t(e, l->notch, l->pnx, l->pny, ex0, ew, ey0, eh, tmp);
+        if (l->notch.m[0] || l->notch.m[1])
+            piv_pred_notch_t(e, &l->notch, l->pnx, l->pny, ex0, ew, ey0, eh, tmp);
         if (piv_pred_denoise_map_t(l->dw, l->dorder, l->pnx, l->pny, q, e, ex0, ew, ey0, eh, tmp)) {
             free(e);
             return -1;

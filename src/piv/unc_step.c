@@ -28,14 +28,14 @@ static rpiv_status unc_prepared(const rpiv_field *src, rpiv_field **out)
 }
 
 rpiv_status unc_pred_error(const rpiv_piv *pv, const rpiv_field *predictor, int denoise,
-                           const int notch[2], const rpiv_field *f, rpiv_field **out)
+                           const piv_notch *notch, const rpiv_field *f, rpiv_field **out)
 {
     rpiv_field *q = NULL, *d = NULL;
     rpiv_status st;
     *out = NULL;
     if ((st = unc_prepared(predictor, &q)) || (st = unc_prepared(f, &d)) ||
         (denoise && (st = piv_pred_denoise(pv, q))) ||
-        ((notch[0] || notch[1]) && (st = piv_pred_notch(q, notch)))) {
+        (notch && (notch->m[0] || notch->m[1]) && (st = piv_pred_notch(q, notch)))) {
         rpiv_field_free(q);
         rpiv_field_free(d);
         return st;
@@ -73,7 +73,7 @@ rpiv_status unc_pred_weights(const rpiv_piv *pv, const rpiv_field *predictor, do
 static rpiv_status unc_shrink(const rpiv_piv *pv, const rpiv_field *predictor, const unc_geom *g)
 {
     rpiv_field *d = NULL;
-    rpiv_status st = unc_pred_error(pv, predictor, 1, g->notch, predictor, &d);
+    rpiv_status st = unc_pred_error(pv, predictor, 1, &g->notch, predictor, &d);
     if (!st)
         st = unc_chain_pred_error(pv->unc, g, d);
     rpiv_field_free(d);
@@ -85,9 +85,9 @@ rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpi
 {
     const piv_pass *ps = &pv->pass[pass];
     const int denoise = piv_pred_denoised(pv, predictor);
-    unc_geom g = {ps->ox, ps->oy, ps->sx, ps->sy,  ps->ww, ps->wh,
-                  pv->w,  pv->h,  shift,  denoise, {0, 0}};
-    piv_pred_notch_orders(pv, pass, denoise, predictor, g.notch);
+    unc_geom g = {ps->ox, ps->oy, ps->sx, ps->sy,  ps->ww,          ps->wh,
+                  pv->w,  pv->h,  shift,  denoise, {{0, 0}, {0, 0}}};
+    piv_pred_notch_orders(pv, pass, denoise, predictor, &g.notch);
     const int linked = shift != 0 && unc_chain_links(pv->unc, predictor);
     const double filter = refines ? pv->p.refine_filter : 0;
     float *gain = NULL;

@@ -4,6 +4,8 @@
 #ifndef RPIV_SRC_UNCERTAINTY_IMPL_H
 #define RPIV_SRC_UNCERTAINTY_IMPL_H
 
+#include "piv_impl.h"
+
 #include "rpiv/field.h"
 #include "rpiv/peak.h"
 #include "rpiv/piv.h"
@@ -62,8 +64,8 @@ typedef struct unc_chain unc_chain;
 typedef struct unc_geom {
     int wx0, wy0, sx, sy, ww, wh, img_w, img_h;
     double shift;
-    int denoise;  /* 0, or the predictor's refine_denoise_order (piv_pred_denoised)      */
-    int notch[2]; /* the predictor's notch orders along x and y (piv_pred_notch_orders) */
+    int denoise;     /* 0, or the predictor's refine_denoise_order (piv_pred_denoised)      */
+    piv_notch notch; /* the predictor's notch (piv_pred_notch_orders) */
 } unc_geom;
 
 /* The weights of the refinement's denoiser on the predictor built from field predictor
@@ -96,10 +98,10 @@ RPIV_NODISCARD rpiv_status unc_chain_pred_error(unc_chain *c, const unc_geom *g,
 /* The error of the predictor of a final field f, at the nodes of the field `predictor` it was
  * built from (f on the same grid), as the final pass measured it: the predictor's nodes as
  * piv_pred_new prepares them (the replaced vectors as they are, the masked ones filled),
- * through the refinement's denoiser if `denoise` and the notch of orders notch[2] (0: none),
+ * through the refinement's denoiser if `denoise` and the notch `notch` (NULL or m 0: none),
  * minus f (prepared alike). *out: a new field. */
 RPIV_NODISCARD rpiv_status unc_pred_error(const rpiv_piv *pv, const rpiv_field *predictor,
-                                          int denoise, const int notch[2], const rpiv_field *f,
+                                          int denoise, const piv_notch *notch, const rpiv_field *f,
                                           rpiv_field **out);
 
 /* The chain's first level is a pass without deformation (no predictor, or window offsets):
