@@ -76,7 +76,7 @@ static rpiv_field *ensemble(const rpiv_experiment *ex, const run *r, rpiv_subpix
         if (e && pred && !g_nostudy && getenv("SHEAR_AREA") && k == rpiv_piv_npass(pv) - 1) {
             rpiv_deform_pred_free(g_dpred);
             g_dpred = NULL;
-            CHECK_OK(piv_pred_new(pv, pred, piv_shift(pv, k), 0, 1, &g_dpred));
+            CHECK_OK(piv_pred_new(pv, pred, k, 0, NULL, 1, &g_dpred));
         }
         if (e && !g_nostudy && getenv("SHEAR_PLANE") && k == rpiv_piv_npass(pv) - 1) {
             size_t nd = 0;

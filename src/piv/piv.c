@@ -386,7 +386,7 @@ int piv_edge_curved(const rpiv_piv *pv, int ensemble)
 }
 
 rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pass, double filter,
-                         int ensemble, rpiv_deform_pred **out)
+                         const piv_notch *notch, int ensemble, rpiv_deform_pred **out)
 {
     const double shift = piv_shift(pv, pass);
     rpiv_field *f = NULL;
@@ -404,13 +404,10 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pa
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise), then its
      * grid's Nyquist mode, which no repeat would correct, removed (refine_notch) */
     const int denoise = piv_pred_denoised(pv, predictor);
-    piv_notch notch = {{0, 0}, {0, 0}};
-    if (!ensemble)
-        piv_pred_notch_orders(pv, pass, denoise, predictor, &notch);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
         !(denoise && (st = piv_pred_denoise(pv, f))) &&
-        !((notch.m[0] || notch.m[1]) && (st = piv_pred_notch(f, &notch)))) {
+        !(notch && (notch->m[0] || notch->m[1]) && (st = piv_pred_notch(f, notch)))) {
         /* the curvature where the predictor's end nodes were measured (its own flags: f's
          * replaced ones are taken as valid above), where it is above what noise makes */
         const int curved = piv_edge_curved(pv, ensemble);

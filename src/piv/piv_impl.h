@@ -85,13 +85,20 @@ int piv_pass_stopped(const rpiv_piv *pv, int cut, int *stop);
  * on), 0 otherwise. Vectors of the pass sit at their window's centre plus this shift. */
 double piv_shift(const rpiv_piv *pv, int k);
 
+/* The notch of a predictor's grid modes a window does not see (piv_pred_notch_orders). */
+typedef struct piv_notch {
+    int m[2];      /* the order along x and y, 0: none                             */
+    int levels[2]; /* dilations 1, 2, .. 2^(levels - 1) along x and y             */
+} piv_notch;
 /* Build the interpolant of pass `pass`'s predictor field (copied; masked vectors filled with
  * neighbour medians first, rejected ones taken with the values their replacement gave them,
- * then low-pass filtered with weight `filter`, 0 = none, then denoised and notched where it
- * serves a repeat), rows evaluated at pixel + piv_shift(pv, pass); beyond the grid continued as
- * piv_edge_curved says for an ensemble's pass or a single pair's. */
+ * then low-pass filtered with weight `filter`, 0 = none, then denoised where it serves a repeat,
+ * then notched by `notch`, NULL or m 0 = none: piv_pred_notch_orders), rows evaluated at pixel +
+ * piv_shift(pv, pass); beyond the grid continued as piv_edge_curved says for an ensemble's pass
+ * or a single pair's. */
 RPIV_NODISCARD rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pass,
-                                        double filter, int ensemble, rpiv_deform_pred **out);
+                                        double filter, const piv_notch *notch, int ensemble,
+                                        rpiv_deform_pred **out);
 /* 1 when the predictor continues its curvature beyond the grid (params edge_curvature). */
 int piv_edge_curved(const rpiv_piv *pv, int ensemble);
 /* The predictor's low-pass filter [a/2, 1 - a, a/2] along x, then along y, edge nodes kept
@@ -124,10 +131,6 @@ RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
  * continued by the cubic through its 4 end samples). */
 #define PIV_NOTCH_MAX       RPIV_PIV_NOTCH_MAX
 #define PIV_NOTCH_DILATIONS 4 /* the largest dilation: waves of 8 grid steps (87.5 % overlap) */
-typedef struct piv_notch {
-    int m[2];      /* the order along x and y, 0: none                             */
-    int levels[2]; /* dilations 1, 2, .. 2^(levels - 1) along x and y             */
-} piv_notch;
 /* A field's identity: a hash of its grid size, u, v and flags (HASH0 for NULL). */
 uint64_t piv_field_hash(const rpiv_field *f);
 /* The notch for the predictor of a single pair's pass `pass` (denoise: piv_pred_denoised's
@@ -220,11 +223,12 @@ RPIV_NODISCARD rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *pr
 /* The uncertainty of the vectors of pass `pass` (f, validated; cs its windows' own sigmas, u
  * then v; shift: piv_shift's): the level joins the chain of the passes before it when its
  * predictor is the field the last one returned (`refines`: a repeat, its predictor
- * low-passed); the final pass gets sigma_u, sigma_v (unc_step.c). cs: the windows' own
- * sigmas u, v, then their 3-point curvatures x, y (unc_cs), nwin floats each. */
+ * low-passed; `notch`: the notch piv_step gave it); the final pass gets sigma_u, sigma_v
+ * (unc_step.c). cs: the windows' own sigmas u, v, then their 3-point curvatures x, y (unc_cs), nwin
+ * floats each. */
 RPIV_NODISCARD rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift,
-                                                const rpiv_field *predictor, int refines,
-                                                rpiv_field *f, const float *cs);
+                                                const rpiv_field *predictor, const piv_notch *notch,
+                                                int refines, rpiv_field *f, const float *cs);
 
 /* Correlation-based correction (piv_cbc.c; piv.cbc): the planes of a pass's windows kept
  * around the predicted shift, then each window's peak chosen on its plane combined with its

@@ -151,8 +151,12 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
     rpiv_status st;
     /* a repeat of the window size before it (a refinement): its predictor low-passed */
     const int refines = piv_repeats(pv, pass);
-    if (predictor &&
-        (st = piv_pred_new(pv, predictor, pass, refines ? pv->p.refine_filter : 0, 0, &pred)))
+    /* a refinement repeat's predictor is notched (refine_notch); decided once for the step */
+    piv_notch notch = {{0, 0}, {0, 0}};
+    if (predictor)
+        piv_pred_notch_orders(pv, pass, piv_pred_denoised(pv, predictor), predictor, &notch);
+    if (predictor && (st = piv_pred_new(pv, predictor, pass, refines ? pv->p.refine_filter : 0,
+                                        &notch, 0, &pred)))
         return st;
     if ((st = rpiv_piv_grid(pv, pass, &f)))
         goto out_free;
@@ -196,7 +200,8 @@ rpiv_status piv_step(rpiv_piv *pv, int pass, const rpiv_field *predictor, int de
             }
     } else if ((st = piv_validate(pv, f)))
         goto out_free;
-    if (cs && (st = piv_step_uncertainty(pv, pass, piv_shift(pv, pass), predictor, refines, f, cs)))
+    if (cs && (st = piv_step_uncertainty(pv, pass, piv_shift(pv, pass), predictor, &notch, refines,
+                                         f, cs)))
         goto out_free;
     if (pass == pv->npass - 1) { /* a step on this field is a refinement repeat */
         pv->final_hash = piv_field_hash(f);

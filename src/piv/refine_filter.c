@@ -624,7 +624,7 @@ static void notch_taps_init(notch_taps *t, int m)
         double b = 1; /* C(2m, m + k) */
         for (int j = 1; j <= m + k; j++)
             b = b * (2 * m - j + 1) / j;
-        t->w[k + m] = ((k + m) % 2 ? -b : b) * c * ((m % 2) ? -1 : 1);
+        t->w[k + m] = (k % 2 ? -b : b) * c; /* (-1)^k */
     }
     for (int k = 0; k < m; k++) {
         const double x = -1 - k;

@@ -81,13 +81,13 @@ static rpiv_status unc_shrink(const rpiv_piv *pv, const rpiv_field *predictor, c
 }
 
 rpiv_status piv_step_uncertainty(rpiv_piv *pv, int pass, double shift, const rpiv_field *predictor,
-                                 int refines, rpiv_field *f, const float *cs)
+                                 const piv_notch *notch, int refines, rpiv_field *f,
+                                 const float *cs)
 {
     const piv_pass *ps = &pv->pass[pass];
     const int denoise = piv_pred_denoised(pv, predictor);
-    unc_geom g = {ps->ox, ps->oy, ps->sx, ps->sy,  ps->ww,          ps->wh,
-                  pv->w,  pv->h,  shift,  denoise, {{0, 0}, {0, 0}}};
-    piv_pred_notch_orders(pv, pass, denoise, predictor, &g.notch);
+    const unc_geom g = {ps->ox, ps->oy, ps->sx, ps->sy,  ps->ww, ps->wh,
+                        pv->w,  pv->h,  shift,  denoise, *notch};
     const int linked = shift != 0 && unc_chain_links(pv->unc, predictor);
     const double filter = refines ? pv->p.refine_filter : 0;
     float *gain = NULL;

@@ -21,6 +21,7 @@ with |error| <= sigma, the RMS error, the median sigma and its ratio to the RMS 
 tests/tools/othergen_sweep.sh runs the 45 cases of docs/uncertainty.md.
 """
 import math
+import os
 import sys
 
 import numpy as np
@@ -66,7 +67,6 @@ def write_pgm(path, q, full):
     with open(path + ".tmp", "wb") as f:
         f.write(b"P5\n%d %d\n%d\n" % (q.shape[1], q.shape[0], full))
         f.write((q.astype(">u2") if full > 255 else q.astype(np.uint8)).tobytes())
-    import os
     os.replace(path + ".tmp", path)
 
 

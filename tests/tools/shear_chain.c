@@ -73,7 +73,7 @@ static rpiv_field *ensemble(const rpiv_experiment *ex, int w, int h, int npairs,
                 return NULL;
         }
         if (k == rpiv_piv_npass(pv) - 1) {
-            if (pred && piv_pred_new(pv, pred, piv_shift(pv, k), 0, 1, &g_dpred))
+            if (pred && piv_pred_new(pv, pred, k, 0, NULL, 1, &g_dpred))
                 return NULL;
             size_t nd = 0;
             const float *d = rpiv_ensemble_data(e, &nd);

@@ -333,7 +333,7 @@ int main(int argc, char **argv)
                 rpiv_piv_step(pv, 1, f0, &f1) || rpiv_piv_step(pv, 2, f1, &f))
                 return 3;
             rpiv_deform_pred *p = NULL;
-            if (piv_pred_new(pv, f1, 0.25, 0, 0, &p))
+            if (piv_pred_new(pv, f1, 2, 0, NULL, 0, &p))
                 return 4;
             static double SA = 0, SH = 0;
             if (SA == 0) { /* white unit noise on the final grid: variance of H e and of (H - A) e
