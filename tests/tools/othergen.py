@@ -12,6 +12,8 @@ Gaussian noise of NOISE (a fraction of full scale), scaled by 0.8 and quantised 
 
   othergen.py make FLOW SIZE D NOISE SEED PREFIX [BITS]   -> PREFIX_a.pgm, PREFIX_b.pgm
   othergen.py cover FLOW SIZE FILE...                     coverage of rpiv's text output(s)
+  othergen.py where FLOW SIZE FILE...                     the same by ring of grid nodes from
+                                                          the grid's edge (0: the edge nodes)
 
 FLOW: uniform (3.27, -1.61) px; rot (solid body, 0.02 rad a frame about the centre); tg
 (Taylor-Green cells of 128 px, 2.5 px); oseen (Lamb-Oseen, 5 px at most, core radius 40 px, a
@@ -118,12 +120,43 @@ def cover(name, n, paths):
     print("n=%d  %s" % (len(err[0]), " | ".join(out)))
 
 
+def where(name, n, paths):
+    """Error and sigma by ring: the nodes' distance in grid steps from the grid's nearest edge."""
+    rings = {}
+    for p in paths:
+        f = read_field(p)
+        ok = f["flag"] == 0
+        ix = np.searchsorted(np.unique(f["x"]), f["x"])
+        iy = np.searchsorted(np.unique(f["y"]), f["y"])
+        nx, ny = ix.max() + 1, iy.max() + 1
+        ring = np.minimum(np.minimum(ix, nx - 1 - ix), np.minimum(iy, ny - 1 - iy))
+        u, v = flow(name, f["x"], f["y"], n)
+        for c, (t, q) in enumerate(((u, "u"), (v, "v"))):
+            for r in np.unique(ring[ok]):
+                m = ok & (ring == r)
+                acc = rings.setdefault((c, int(r)), ([], []))
+                acc[0].extend(f[q][m] - t[m])
+                acc[1].extend(f["sigma_" + q][m])
+    for c in range(2):
+        total = sum(np.sum(np.array(e) ** 2) for (cc, _), (e, _) in rings.items() if cc == c)
+        for (cc, r), (e, s) in sorted(rings.items()):
+            if cc != c:
+                continue
+            e, s = np.array(e), np.array(s)
+            print("%s ring %2d n %5d rms %.4f mean %+.4f rms-sigma %.4f cov %.2f share %.2f"
+                  % ("uv"[c], r, len(e), math.sqrt(np.mean(e * e)), np.mean(e),
+                     math.sqrt(np.mean(s * s)), np.mean(np.abs(e) <= s),
+                     np.sum(e * e) / total if total > 0 else 0))
+
+
 def main(argv):
     if len(argv) >= 7 and argv[0] == "make":
         make(argv[1], int(argv[2]), float(argv[3]), float(argv[4]), int(argv[5]), argv[6],
              int(argv[7]) if len(argv) > 7 else 8)
     elif len(argv) >= 4 and argv[0] == "cover":
         cover(argv[1], int(argv[2]), argv[3:])
+    elif len(argv) >= 4 and argv[0] == "where":
+        where(argv[1], int(argv[2]), argv[3:])
     else:
         raise SystemExit(__doc__)
 
