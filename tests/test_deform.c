@@ -485,8 +485,10 @@ static void deform_blocks_match_per_pixel_path(void)
             double c = RPIV_DEFORM_SHIFT, hx = 0.5 * (double)pu[x], hy = 0.5 * (double)pv[x];
             float sa = rpiv_deform_sample(ca, W, H, x + c - hx, y + c - hy, fa);
             float sb = rpiv_deform_sample(cb, W, H, x + c + hx, y + c + hy, fb);
-            if (sa == fa || sb == fb)
-                continue; /* within rounding of the border the two may choose differently */
+            /* rpiv_deform_sample takes [-0.5, w - 0.5], the deformation [1, w - 2] (deform_takes);
+             * within rounding of the border the two may choose differently */
+            if (sa == fa || sb == fb || (o[0][i] == fa && o[1][i] == fb))
+                continue;
             esam = fmax(esam, fabs((double)o[0][i] - (double)sa) / cmax);
             esam = fmax(esam, fabs((double)o[1][i] - (double)sb) / cmax);
         }

@@ -73,8 +73,9 @@ void rpiv_deform_pred_row(const rpiv_deform_pred *p, int y, int x0, int x1, floa
  * harmonic cancels (measured: below 0.003 px). docs/piv.md gives the figures.
  *
  * out_a and out_b are w x h images; only the rectangle is written. Where either sample falls
- * outside its frame, both outputs take their fill value (fill_a, fill_b: the callers pass
- * the frames' mean grey level, so after the windows' mean removal those pixels add
+ * outside [1, w - 2] x [1, h - 2] of its frame (beyond it the interpolant reads taps the
+ * prefilter's mirror boundary made up), both outputs take their fill value (fill_a, fill_b: the
+ * callers pass the frames' mean grey level, so after the windows' mean removal those pixels add
  * nothing): a particle there has no partner in the other frame and would only add noise.
  * nthreads as in prefilter. */
 RPIV_NODISCARD rpiv_status rpiv_deform_run(const float *coef_a, const float *coef_b, int w, int h,

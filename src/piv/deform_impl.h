@@ -14,6 +14,15 @@
  * where its effect on the evaluated range (RPIV_DEFORM_GHOST steps) is below 1e-6. */
 #define PAD 16
 
+/* Does rpiv_deform_run take a frame's sample at coordinate t (its n pixels' centres at
+ * 0..n-1)? Where every tap of the cubic B-spline with a non-zero weight is one of its pixels,
+ * 1 <= t <= n - 2, none made up by the prefilter's mirror boundary (deform.c, `inside`, the
+ * same rule on a located point). */
+static inline int deform_takes(double t, int n)
+{
+    return t >= 1.0 && t <= (double)n - 2.0;
+}
+
 /* rpiv_deform_pred_new; with flag (f's nx x ny node flags, or those of the field it was
  * prepared from), the ghost nodes also continue the field's curvature at each end of each grid
  * line whose 4 end nodes are RPIV_FLAG_VALID (measured), k^2 times deform_edge_curv with the

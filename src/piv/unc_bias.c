@@ -12,6 +12,7 @@
  * product, each weighted by the window's share of pixel pairs at the shift, 1 - |k| / w;
  * the engine's estimator (rpiv_peak_find) is run on it: bias = estimate - (d - p).
  * s comes from the measured peak: the model's estimator curvature matched to the field's. */
+#include "deform_impl.h"
 #include "peak_impl.h"
 #include "rpiv/deform.h"
 #include "rpiv/peak.h"
@@ -163,11 +164,12 @@ enum {
  * `span` px of the window's first pixel (from `reach` px before it), EPOS per px, each
  * pixel-integrated (s px) and cut by the frame as the camera cuts it, at x - d/2 and x + d/2;
  * both frames turned into B-spline coefficients (mirror boundaries) and sampled at
- * x + c -+ p/2 as rpiv_deform_run does, a pixel whose either sample leaves the frame adding
- * nothing (it takes the frame's mean), the pairs of pixels within the window (the circular
- * correlation's other pairs are unrelated particles). The model frame ends a few px beyond
- * what these particles reach (the same place relative to the window whatever o, so that end
- * cancels between two o). 0 if it would be longer than EL. */
+ * x + c -+ p/2 as rpiv_deform_run does, a pixel whose either sample it does not take
+ * (deform_takes: within 1 px of the frame's edge) adding nothing (it takes the frame's mean), the
+ * pairs of pixels within the window (the circular correlation's other pairs are unrelated
+ * particles). The model frame ends a few px beyond what these particles reach (the same place
+ * relative to the window whatever o, so that end cancels between two o). 0 if it would be longer
+ * than EL. */
 static int edge_part(double s, double d, double p, double c, int o, int ww, int k0, double reach,
                      double span, double C[2 * MR + 1])
 {
@@ -183,7 +185,7 @@ static int edge_part(double s, double d, double p, double c, int o, int ww, int 
     for (int y = 0; y < Y; y++) {
         ta[y] = o + y + c - 0.5 * p;
         tb[y] = o + y + c + 0.5 * p;
-        ok[y] = ta[y] >= -0.5 && ta[y] <= L - 0.5 && tb[y] >= -0.5 && tb[y] <= L - 0.5;
+        ok[y] = deform_takes(ta[y], L) && deform_takes(tb[y], L);
     }
     memset(C, 0, (2 * MR + 1) * sizeof *C);
     const int np = (int)ceil((span + reach) * EPOS);
