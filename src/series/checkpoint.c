@@ -66,6 +66,12 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     if (p->refine_denoise && p->refine_denoise_order != 2)
         snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
                  ", denoise order %d", p->refine_denoise_order);
+    /* the deformation's samples only where their B-spline taps are pixels (session 15,
+     * deform_takes: the edge windows' sums differ): checkpoints of the versions before it,
+     * whose plan does not say so, are refused as another plan */
+    if (p->deform)
+        snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
+                 ", samples in [1, w - 2]");
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
     h = hash_bytes(HASH0, id->plan, strlen(id->plan));
     h = hash_bytes(h, exact, sizeof exact);
