@@ -17,7 +17,8 @@ Gaussian noise of NOISE (a fraction of full scale), scaled by 0.8 and quantised 
 
 FLOW: uniform (3.27, -1.61) px; rot (solid body, 0.02 rad a frame about the centre); tg
 (Taylor-Green cells of 128 px, 2.5 px); oseen (Lamb-Oseen, 5 px at most, core radius 40 px, a
-core turning 0.2 rad a frame); jet (u = 1 + 3 sech^2((y - c) / 30) px). `cover` reads files of
+core turning 0.2 rad a frame); jet (u = 1 + 3 sech^2((y - c) / 30) px); cosx, sinx, cosxy
+(v = 2.5 cos(k x), u = 2.5 sin(k x), v = 2.5 cos(k x) cos(k y), k = 2 pi / 256). `cover` reads files of
 `rpiv piv --uncertainty -o F.txt` and prints, for u and v over their valid vectors: the share
 with |error| <= sigma, the RMS error, the median sigma and its ratio to the RMS error.
 tests/tools/othergen_sweep.sh runs the 45 cases of docs/uncertainty.md.
@@ -45,7 +46,15 @@ def flow(name, x, y, n):
         return -ut * dy / r, ut * dx / r
     if name == "jet":
         return 1.0 + 3.0 / np.cosh((y - c) / 30.0) ** 2, 0 * y
-    raise SystemExit("othergen.py: unknown flow %r (uniform, rot, tg, oseen, jet)" % name)
+    k = 2 * np.pi / 256  # profiles curved up to the edge (docs/uncertainty.md, "Session 15")
+    if name == "cosx":
+        return 0 * x, 2.5 * np.cos(k * x)
+    if name == "sinx":
+        return 2.5 * np.sin(k * x), 0 * y
+    if name == "cosxy":
+        return 0 * x, 2.5 * np.cos(k * x) * np.cos(k * y)
+    raise SystemExit("othergen.py: unknown flow %r (uniform, rot, tg, oseen, jet, cosx, sinx, "
+                     "cosxy)" % name)
 
 
 _erf = np.vectorize(math.erf)
