@@ -180,15 +180,17 @@ static stats acc_end(acc *c)
  * pairs of flow fl (seeds seed, seed + 1, ...); the statistics over their valid vectors. */
 /* Diagnostics: RPIV_UNC_EDGE sets piv.edge_curvature, RPIV_UNC_DENOISE piv.refine_denoise
  * (0, 1), RPIV_UNC_ORDER piv.refine_denoise_order (2, 4) and RPIV_UNC_NPASS the number of passes
- * (those after the third of 32 px: an ensemble's final pass repeated) for every run of the
+ * (those after the third with its window: an ensemble's final pass repeated) for every run of the
  * cases. */
 static void unc_params_env(rpiv_piv_params *prm)
 {
     if (getenv("RPIV_UNC_NPASS")) { /* diagnostics: the last window repeated */
         const int n = atoi(getenv("RPIV_UNC_NPASS"));
         prm->npass = n > 0 && n <= RPIV_PIV_MAX_PASSES ? n : prm->npass;
-        for (int k = 3; k < prm->npass; k++)
-            prm->win_w[k] = prm->win_h[k] = 32;
+        for (int k = 3; k < prm->npass; k++) { /* the third pass's window repeated */
+            prm->win_w[k] = prm->win_w[2];
+            prm->win_h[k] = prm->win_h[2];
+        }
     }
     if (getenv("RPIV_UNC_EDGE"))
         prm->edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));

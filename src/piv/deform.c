@@ -73,8 +73,8 @@ static inline spos locate(int xi, int yi, float ox, float oy)
  * uniform flow had errors of 0.01-0.02 px on noise-free images (docs/piv.md). */
 static inline int inside(const spos *p, int w, int h)
 {
-    return p->ix >= 1 && (p->ix < w - 2 || (p->ix == w - 2 && !(p->tx > 0.0f))) && p->iy >= 1 &&
-           (p->iy < h - 2 || (p->iy == h - 2 && !(p->ty > 0.0f)));
+    return deform_takes((double)p->ix + (double)p->tx, w) &&
+           deform_takes((double)p->iy + (double)p->ty, h);
 }
 
 /* The interpolant at a located point inside the image with the tap weights wx, wy: 4 x 4 taps,

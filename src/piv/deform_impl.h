@@ -16,8 +16,8 @@
 
 /* Does rpiv_deform_run take a frame's sample at coordinate t (its n pixels' centres at
  * 0..n-1)? Where every tap of the cubic B-spline with a non-zero weight is one of its pixels,
- * 1 <= t <= n - 2, none made up by the prefilter's mirror boundary (deform.c, `inside`, the
- * same rule on a located point). */
+ * 1 <= t <= n - 2, none made up by the prefilter's mirror boundary (deform.c's `inside` on a
+ * located point, unc_bias.c's edge model). */
 static inline int deform_takes(double t, int n)
 {
     return t >= 1.0 && t <= (double)n - 2.0;

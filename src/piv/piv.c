@@ -406,8 +406,7 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pa
     const int denoise = piv_pred_denoised(pv, predictor);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
-        !(denoise && (st = piv_pred_denoise(pv, f))) &&
-        !(notch && (notch->m[0] || notch->m[1]) && (st = piv_pred_notch(f, notch)))) {
+        !(denoise && (st = piv_pred_denoise(pv, f))) && !(st = piv_pred_notch(f, notch))) {
         /* the curvature where the predictor's end nodes were measured (its own flags: f's
          * replaced ones are taken as valid above), where it is above what noise makes */
         const int curved = piv_edge_curved(pv, ensemble);

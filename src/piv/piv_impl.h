@@ -140,7 +140,7 @@ uint64_t piv_field_hash(const rpiv_field *f);
  * the dilations d = 1, 2, 4 with the pass's window spanning 2 d grid steps or more; else none. */
 void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
                            piv_notch *n);
-/* The notch n on f's u and v. */
+/* The notch n on f's u and v (NULL or orders 0: nothing). */
 RPIV_NODISCARD rpiv_status piv_pred_notch(rpiv_field *f, const piv_notch *n);
 /* c := N^T c for the notch N of piv_pred_notch on an nx x ny grid: c holds the nodes bx0.. (bw) x
  * by0.. (bh), row after row, and is taken as 0 outside them (what N^T would carry out of the

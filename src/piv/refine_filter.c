@@ -678,6 +678,8 @@ void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv
 
 rpiv_status piv_pred_notch(rpiv_field *f, const piv_notch *n)
 {
+    if (!n || (n->m[0] <= 0 && n->m[1] <= 0))
+        return RPIV_OK;
     const int nx = f->nx, ny = f->ny, len = nx > ny ? nx : ny;
     double *line = malloc(((size_t)len + 2 * PIV_NOTCH_MAX) * sizeof *line);
     if (!line)

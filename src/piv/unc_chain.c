@@ -534,8 +534,7 @@ static int level_back(const unc_level *l, double *const cf[2], int bx0, int bw, 
             }
         }
         memcpy(e, b, ne * sizeof *e);
-        if (l->notch.m[0] || l->notch.m[1])
-            piv_pred_notch_t(e, &l->notch, l->pnx, l->pny, ex0, ew, ey0, eh, tmp);
+        piv_pred_notch_t(e, &l->notch, l->pnx, l->pny, ex0, ew, ey0, eh, tmp);
         if (piv_pred_denoise_map_t(l->dw, l->dorder, l->pnx, l->pny, q, e, ex0, ew, ey0, eh, tmp)) {
             free(e);
             return -1;

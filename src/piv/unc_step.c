@@ -34,8 +34,7 @@ rpiv_status unc_pred_error(const rpiv_piv *pv, const rpiv_field *predictor, int 
     rpiv_status st;
     *out = NULL;
     if ((st = unc_prepared(predictor, &q)) || (st = unc_prepared(f, &d)) ||
-        (denoise && (st = piv_pred_denoise(pv, q))) ||
-        (notch && (notch->m[0] || notch->m[1]) && (st = piv_pred_notch(q, notch)))) {
+        (denoise && (st = piv_pred_denoise(pv, q))) || (st = piv_pred_notch(q, notch))) {
         rpiv_field_free(q);
         rpiv_field_free(d);
         return st;
