@@ -178,17 +178,24 @@ static int stop_after(void *user, size_t done, size_t total)
     return done >= *(size_t *)user;
 }
 
-static void resume_after_any_pair_is_bit_identical(void)
+/* Stopped after any pair of any pass (with `repeats` repeats of the final pass, tolerance 0 so
+ * that they all run) and resumed: the same bits as the run in one go. */
+static void resume_check(int repeats)
 {
     rpiv_pairs *pp = pairs_of(GOOD);
-    rpiv_piv *pv = plan();
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.threads = 2;
+    prm.ensemble_refine = repeats;
+    prm.ensemble_refine_tol_px = 0;
+    rpiv_piv *pv = NULL;
     rpiv_field *ref = NULL;
     char ck[300];
     snprintf(ck, sizeof ck, "%s/run.ck", dir);
+    CHECK_OK(rpiv_piv_new(&prm, W, H, NULL, &pv));
     if (!pv || !pp)
         goto out;
     CHECK_OK(rpiv_series_ensemble(pv, pp, NULL, &ref));
-    int npass = rpiv_piv_npass(pv), bad = 0;
+    int npass = rpiv_piv_npass(pv) + repeats, bad = 0;
     for (size_t stop = 1; stop < (size_t)(NP * npass); stop++) {
         rpiv_batch_params p = rpiv_batch_params_default();
         rpiv_progress pr = {stop_after, &stop};
@@ -215,10 +222,32 @@ static void resume_after_any_pair_is_bit_identical(void)
         rpiv_batch_free(b);
     }
     CHECK(bad == 0);
+    if (repeats) { /* the repeats ran and changed the field */
+        rpiv_piv_params off = prm;
+        off.ensemble_refine = 0;
+        rpiv_piv *pv0 = NULL;
+        rpiv_field *f0 = NULL;
+        CHECK_OK(rpiv_piv_new(&off, W, H, NULL, &pv0));
+        if (pv0)
+            CHECK_OK(rpiv_series_ensemble(pv0, pp, NULL, &f0));
+        CHECK(f0 && ref && !same_field(f0, ref));
+        rpiv_field_free(f0);
+        rpiv_piv_free(pv0);
+    }
 out:
     rpiv_field_free(ref);
     rpiv_piv_free(pv);
     rpiv_pairs_free(pp);
+}
+
+static void resume_after_any_pair_is_bit_identical(void)
+{
+    resume_check(0);
+}
+
+static void resume_in_a_repeat_of_the_final_pass_is_bit_identical(void)
+{
+    resume_check(2);
 }
 
 typedef struct skips {
@@ -423,6 +452,7 @@ int main(void)
     RUN_TEST(mpi_team_of_one);
     RUN_TEST(ensemble_equals_ensemble_run_and_the_shift);
     RUN_TEST(resume_after_any_pair_is_bit_identical);
+    RUN_TEST(resume_in_a_repeat_of_the_final_pass_is_bit_identical);
     RUN_TEST(unreadable_pairs_are_skipped_and_listed);
     RUN_TEST(series_calls_the_sinks_in_order);
     RUN_TEST(ensemble_over_a_source_equals_the_files);

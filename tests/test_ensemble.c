@@ -147,6 +147,82 @@ out:
     free(b);
 }
 
+/* A shear layer across the rows (docs/uncertainty.md's sweep, on 96 x 256 px): 0.05 px/px at
+ * most, its curvature at its largest 30 px from its centre. */
+static void shear_layer(void *user, double x, double y, double *u, double *v)
+{
+    (void)user;
+    (void)x;
+    *u = 2.3 + 2.0 * tanh((y - 128.3) / 40.0);
+    *v = -0.35;
+}
+
+/* The ensemble of 12 noise-free pairs of the shear layer, the passes run as
+ * rpiv_batch_ensemble runs them (the final one again while rpiv_ensemble_again says so);
+ * *npass the passes run, the RMS error of u at the valid vectors returned. */
+static double shear_ensemble_error(int repeats, int *npass)
+{
+    rpiv_piv_params prm = rpiv_piv_params_default();
+    prm.ensemble_refine = repeats;
+    prm.ensemble_refine_tol_px = 0.002;
+    rpiv_piv *pv = NULL;
+    float *a = malloc(sizeof(float) * W * H), *b = malloc(sizeof(float) * W * H);
+    rpiv_image ia = {W, H, 16, a}, ib = {W, H, 16, b};
+    rpiv_field *pred = NULL;
+    double se = 0;
+    int n = 0, listed = 0;
+    *npass = 0;
+    CHECK_OK(rpiv_piv_new(&prm, W, H, NULL, &pv));
+    listed = pv ? rpiv_piv_npass(pv) : 0;
+    for (int k = 0, more = listed > 0; more; k++) {
+        const int pass = k < listed ? k : listed - 1;
+        rpiv_ensemble *e = NULL;
+        rpiv_field *f = NULL;
+        CHECK_OK(rpiv_ensemble_new(pv, pass, pred, &e));
+        for (int i = 0; e && i < 12; i++) {
+            ti_params tp = {W, H, 0.03, 3.0, 1000, 0, 0, 0x5eed00ULL + (uint64_t)i};
+            ti_pair(&tp, shear_layer, NULL, a, b);
+            CHECK_OK(rpiv_ensemble_add(e, &ia, &ib));
+        }
+        if (e)
+            CHECK_OK(rpiv_ensemble_finish(e, &f));
+        rpiv_ensemble_free(e);
+        more = f && (k < listed - 1 || rpiv_ensemble_again(pv, pred, f, k - pass));
+        rpiv_field_free(pred);
+        pred = f;
+        *npass = k + 1;
+    }
+    for (int j = 0; pred && j < pred->ny; j++)
+        for (int i = 0; i < pred->nx; i++) {
+            const size_t k = (size_t)j * (size_t)pred->nx + (size_t)i;
+            double u, v;
+            shear_layer(NULL, pred->x0 + i * pred->dx, pred->y0 + j * pred->dy, &u, &v);
+            if (pred->flag[k] != RPIV_FLAG_VALID)
+                continue;
+            se += pow((double)pred->u[k] - u, 2);
+            n++;
+        }
+    rpiv_field_free(pred);
+    rpiv_piv_free(pv);
+    free(a);
+    free(b);
+    return n ? sqrt(se / n) : 1e9;
+}
+
+/* ensemble_refine: the listed passes (64, 32, 32 px) leave a shear layer's ensemble unconverged
+ * (each 32 px pass removes about two thirds of its predictor's error: docs/piv.md); repeating
+ * the final pass until the change is below 5 mpx more than halves its error. */
+static void ensemble_refine_converges_a_shear_layer(void)
+{
+    int n0 = 0, n1 = 0;
+    const double e0 = shear_ensemble_error(0, &n0), e1 = shear_ensemble_error(6, &n1);
+    printf("    shear layer ensemble, 12 pairs: RMS error of u %.4f px in %d passes, %.4f px in "
+           "%d with ensemble_refine\n",
+           e0, n0, e1, n1);
+    CHECK(n0 == 3 && n1 > 3 && n1 <= 9);
+    CHECK(e1 < 0.5 * e0);
+}
+
 /* Accumulate pairs [i0, i1) of pass k (predictor pred) with a plan of `threads` threads. */
 static rpiv_ensemble *accumulate(rpiv_piv *pv, int k, const rpiv_field *pred, int i0, int i1)
 {
@@ -592,6 +668,7 @@ int main(void)
     RUN_TEST(ensemble_recovers_parabolic_profile_from_sparse_pairs);
     RUN_TEST(ensemble_sums_identical_for_1_and_2_threads);
     RUN_TEST(ensemble_of_one_pair_is_the_instantaneous_field);
+    RUN_TEST(ensemble_refine_converges_a_shear_layer);
     RUN_TEST(ensemble_spline_on_narrow_images);
     RUN_TEST(ensemble_merge_save_and_load);
     RUN_TEST(checkpoint_block_predictor_and_older_formats);

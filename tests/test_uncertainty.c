@@ -194,6 +194,9 @@ static void unc_params_env(rpiv_piv_params *prm)
     }
     if (getenv("RPIV_UNC_EDGE"))
         prm->edge_curvature = atoi(getenv("RPIV_UNC_EDGE"));
+    if (getenv("RPIV_UNC_ENS_REFINE")) /* ensemble_refine, and its tolerance after a comma */
+        sscanf(getenv("RPIV_UNC_ENS_REFINE"), "%d,%lf", &prm->ensemble_refine,
+               &prm->ensemble_refine_tol_px);
     if (getenv("RPIV_UNC_DENOISE"))
         prm->refine_denoise = atoi(getenv("RPIV_UNC_DENOISE"));
     if (getenv("RPIV_UNC_ORDER"))
@@ -619,6 +622,33 @@ static rpiv_status ens_done(void *user, size_t k, rpiv_status st, int loaded)
 static int g_ens_passes;        /* > 0: ens_run stops after this many passes (diagnostics) */
 static int g_ens_subpixel = -1; /* >= 0: the ensembles' estimator (diagnostics) */
 
+/* Diagnostics: the RMS change of a pass's field from the pass before (same grid) and its RMS
+ * error, over the valid vectors. */
+static void ens_pass_change(const flow *fl, int k, const rpiv_field *prev, const rpiv_field *f)
+{
+    double sc = 0, se = 0;
+    int n = 0;
+    const int same = prev && prev->nx == f->nx && prev->ny == f->ny;
+    for (int j = 0; j < f->ny; j++)
+        for (int i = 0; i < f->nx; i++) {
+            const size_t q = (size_t)j * (size_t)f->nx + (size_t)i;
+            if (f->flag[q] != RPIV_FLAG_VALID)
+                continue;
+            double t[2];
+            fl->fn(fl->user, f->x0 + i * f->dx, f->y0 + j * f->dy, &t[0], &t[1]);
+            const double eu = (double)f->u[q] - t[0], ev = (double)f->v[q] - t[1];
+            se += eu * eu + ev * ev;
+            if (same) {
+                const double cu = (double)f->u[q] - (double)prev->u[q],
+                             cv = (double)f->v[q] - (double)prev->v[q];
+                sc += cu * cu + cv * cv;
+            }
+            n++;
+        }
+    printf("      pass %d: RMS change %.5f px, RMS error %.5f px\n", k, same ? sqrt(sc / n) : -1.0,
+           sqrt(se / n));
+}
+
 static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const char *ckpt)
 {
     rpiv_piv_params prm = rpiv_piv_params_default();
@@ -634,10 +664,13 @@ static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const ch
     const int npass = pv && g_ens_passes > 0 && g_ens_passes < rpiv_piv_npass(pv)
                           ? g_ens_passes
                           : (pv ? rpiv_piv_npass(pv) : 0);
-    for (int k = 0; k < npass; k++) {
+    /* the listed passes, then the final one again while rpiv_ensemble_again says so (as
+     * rpiv_batch_ensemble runs them) */
+    for (int k = 0, more = npass > 0; more; k++) {
+        const int pass = k < npass ? k : npass - 1;
         rpiv_ensemble *e = NULL;
         rpiv_field *f = NULL;
-        CHECK_OK(rpiv_ensemble_new(pv, k, pred, &e));
+        CHECK_OK(rpiv_ensemble_new(pv, pass, pred, &e));
         const int last = k == npass - 1, half = ckpt && last ? npairs / 2 : npairs;
         if (e)
             CHECK_OK(rpiv_ensemble_add_pairs(e, (size_t)half, ens_load, ens_done, (void *)src));
@@ -657,6 +690,9 @@ static rpiv_field *ens_run(const ens_src *src, int npairs, int threads, const ch
         if (e)
             CHECK_OK(rpiv_ensemble_finish(e, &f));
         rpiv_ensemble_free(e);
+        if (getenv("RPIV_UNC_ENS_CHANGE") && f) /* diagnostics: each pass's change and error */
+            ens_pass_change(src->fl, k, pred, f);
+        more = k < npass - 1 || (pv && rpiv_ensemble_again(pv, pred, f, k - pass));
         rpiv_field_free(pred);
         pred = f;
     }
@@ -681,13 +717,15 @@ static stats ens_case(const flow *fl, double noise, double d_tau, int nens, int 
 
 /* Where an ensemble's error is: per grid row, the mean and RMS error, the RMS sigma and the
  * coverage of u and v over nens ensembles (RPIV_UNC_ROWS="flow noise d_tau nens passes"). */
+static int g_ens_size = 128; /* the ensembles' image size (RPIV_UNC_ENS_SIZE, diagnostics) */
+
 static void unc_ensemble_rows(const flow *fl, double noise, double d_tau, int nens)
 {
     enum { NR = 64 };
     double me[2][NR] = {{0}}, se[2][NR] = {{0}}, ss[2][NR] = {{0}}, sc[2][NR] = {{0}};
     int nr[NR] = {0}, ny = 0;
     for (int q = 0; q < nens; q++) {
-        ens_src src = {fl, noise, d_tau, 128, 5000 + 1000 * (uint64_t)q};
+        ens_src src = {fl, noise, d_tau, g_ens_size, 5000 + 1000 * (uint64_t)q};
         rpiv_field *f = ens_run(&src, 20, 1, NULL);
         const rpiv_quantity *qs[2] = {f ? rpiv_field_quantity(f, "sigma_u") : NULL,
                                       f ? rpiv_field_quantity(f, "sigma_v") : NULL};
@@ -720,15 +758,33 @@ static void unc_ensemble_rows(const flow *fl, double noise, double d_tau, int ne
                    sqrt(ss[1][j] / nr[j]), sc[1][j] / nr[j]);
 }
 
-static void unc_ensemble_sweep(void)
+/* The ensemble sweep: 40 ensembles of 20 pairs of 128 x 128 px, uniform and shear flows (there
+ * the shear layer's centre is on the image's bottom edge); with wide set, 10 ensembles of
+ * 256 x 256 px, the instantaneous sweep's images, and the three flows. */
+static void ensemble_sweep(int wide)
 {
     const double noises[] = {0, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
-    for (size_t q = 0; q < 2; q++)
+    const char *only = getenv("RPIV_UNC_FLOW");
+    for (size_t q = 0; q < (wide ? 3u : 2u); q++) {
+        if (only && (size_t)atoi(only) != q)
+            continue;
         for (size_t t = 0; t < 3; t++)
             for (size_t k = 0; k < 3; k++) {
-                stats s = ens_case(&flows[q], noises[k], taus[t], 40, 20, 128);
+                stats s =
+                    ens_case(&flows[q], noises[k], taus[t], wide ? 10 : 40, 20, wide ? 256 : 128);
                 print_case(flows[q].name, noises[k], taus[t], &s);
             }
+    }
+}
+
+static void unc_ensemble_sweep(void)
+{
+    ensemble_sweep(0);
+}
+
+static void unc_ensemble_sweep_256(void)
+{
+    ensemble_sweep(1);
 }
 
 static int within(double x, double ref, double factor)
@@ -1227,8 +1283,11 @@ int main(void)
     const char *one = getenv("RPIV_UNC_ENS");
     int q, nens;
     double nz, tau;
-    if (one && sscanf(one, "%d %lf %lf %d", &q, &nz, &tau, &nens) == 4 && q >= 0 && q < 2) {
-        stats s = ens_case(&flows[q], nz, tau, nens, 20, 128);
+    if (getenv("RPIV_UNC_ENS_SIZE"))
+        g_ens_size =
+            atoi(getenv("RPIV_UNC_ENS_SIZE")) >= 64 ? atoi(getenv("RPIV_UNC_ENS_SIZE")) : 128;
+    if (one && sscanf(one, "%d %lf %lf %d", &q, &nz, &tau, &nens) == 4 && q >= 0 && q < 3) {
+        stats s = ens_case(&flows[q], nz, tau, nens, 20, g_ens_size);
         print_case(flows[q].name, nz, tau, &s);
         return check_summary();
     }
@@ -1259,7 +1318,7 @@ int main(void)
     }
     const char *rows = getenv("RPIV_UNC_ROWS");
     if (rows && sscanf(rows, "%d %lf %lf %d %d", &q, &nz, &tau, &nens, &g_ens_passes) == 5 &&
-        q >= 0 && q < 2) {
+        q >= 0 && q < 3) {
         unc_ensemble_rows(&flows[q], nz, tau, nens);
         return check_summary();
     }
@@ -1288,5 +1347,7 @@ int main(void)
         RUN_TEST(unc_sys_instantaneous);
     if (slow && (slow[0] == '1' || slow[0] == 'e'))
         RUN_TEST(unc_ensemble_sweep);
+    if (slow && slow[0] == 'E') /* the ensembles on the instantaneous sweep's images */
+        RUN_TEST(unc_ensemble_sweep_256);
     return check_summary();
 }

@@ -85,6 +85,15 @@ size_t rpiv_ensemble_npairs(const rpiv_ensemble *e);
 void rpiv_ensemble_set_npairs(rpiv_ensemble *e, size_t npairs);
 int rpiv_ensemble_pass(const rpiv_ensemble *e);
 
+/* After the ensemble field f of the final pass (or of a repeat of it, repeats done so far),
+ * made with the field prev as its predictor: 1 if the final pass is due once more
+ * (rpiv_piv_params.ensemble_refine): fewer than ensemble_refine repeats are done, and prev is
+ * on another grid (the final size has not been iterated yet) or the RMS change of u, v over the
+ * vectors valid in both is above ensemble_refine_tol_px. 0 otherwise. A caller running the
+ * passes itself runs the plan's last pass again with f as its predictor while this says so. */
+int rpiv_ensemble_again(const rpiv_piv *pv, const rpiv_field *prev, const rpiv_field *f,
+                        int repeats);
+
 /* The predictor the accumulator was made with (its copy), NULL for none. */
 const rpiv_field *rpiv_ensemble_predictor(const rpiv_ensemble *e);
 

@@ -92,6 +92,14 @@ typedef struct rpiv_piv_params {
      * tested against the neighbours' and a vector that fails takes the Gaussian plus their
      * median correction (docs/piv.md, "The spline's correction checked") (1). */
     int spline_check;
+    /* Ensembles: the final pass repeated, each time deformed by the ensemble field of the one
+     * before, while the RMS change of the field between two passes of the final size is above
+     * ensemble_refine_tol_px, at most ensemble_refine times (0: the listed passes only). An
+     * ensemble's noise is that of one pair over the square root of its pairs, so its change is
+     * the convergence of the deformation, not noise (docs/piv.md, "Ensembles: the final pass
+     * repeated") (0). */
+    int ensemble_refine;           /* 0..20 (0) */
+    double ensemble_refine_tol_px; /* RMS change, px (0.002) */
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;

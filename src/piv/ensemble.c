@@ -12,6 +12,7 @@
 #include "base/hash.h"
 
 #include <errno.h>
+#include <math.h>
 #include <omp.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -78,6 +79,26 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
 out_free:
     rpiv_ensemble_free(e);
     return st;
+}
+
+int rpiv_ensemble_again(const rpiv_piv *pv, const rpiv_field *prev, const rpiv_field *f,
+                        int repeats)
+{
+    if (!f || repeats >= pv->p.ensemble_refine)
+        return 0;
+    if (!prev || prev->nx != f->nx || prev->ny != f->ny || prev->x0 != f->x0 || prev->y0 != f->y0 ||
+        prev->dx != f->dx || prev->dy != f->dy)
+        return 1; /* the final size not iterated yet: no change to measure */
+    double s = 0;
+    size_t n = 0, nv = (size_t)f->nx * (size_t)f->ny;
+    for (size_t k = 0; k < nv; k++)
+        if (f->flag[k] == RPIV_FLAG_VALID && prev->flag[k] == RPIV_FLAG_VALID) {
+            const double du = (double)f->u[k] - (double)prev->u[k],
+                         dv = (double)f->v[k] - (double)prev->v[k];
+            s += du * du + dv * dv;
+            n++;
+        }
+    return n > 0 && sqrt(s / (double)n) > pv->p.ensemble_refine_tol_px;
 }
 
 static void add_plane(void *ctx, const float *plane, const float *colmax, size_t win, double ea,

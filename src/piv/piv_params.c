@@ -39,6 +39,8 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .refine_defer = 0,
                              .edge_curvature = -1,
                              .spline_check = 1,
+                             .ensemble_refine = 0,
+                             .ensemble_refine_tol_px = 0.002,
                              .prep = rpiv_preprocess_params_default()};
 }
 
@@ -95,6 +97,11 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
     if (p->refine_denoise_order != 2 && p->refine_denoise_order != 4)
         return rpiv_fail(RPIV_EINVAL, "piv.refine_denoise_order: %d is not 2 or 4",
                          p->refine_denoise_order);
+    if (p->ensemble_refine < 0 || p->ensemble_refine > 20)
+        return rpiv_fail(RPIV_EINVAL, "piv.ensemble_refine: %d outside 0..20", p->ensemble_refine);
+    if (!(p->ensemble_refine_tol_px >= 0 && p->ensemble_refine_tol_px <= 10))
+        return rpiv_fail(RPIV_EINVAL, "piv.ensemble_refine_tol_px: %g outside 0..10",
+                         p->ensemble_refine_tol_px);
     if (p->spline_check != 0 && p->spline_check != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.spline_check: %d is not 0 or 1", p->spline_check);
     if (p->edge_curvature < -1 || p->edge_curvature > 1)

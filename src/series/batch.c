@@ -167,7 +167,7 @@ typedef struct pass_run {
     rpiv_batch *b;
     const rpiv_piv *pv;
     rpiv_ensemble *e;
-    int pass;
+    int pass, stage; /* the plan's pass; the stage: pass, or npass - 1 + its repeat */
     const ck_ident *id;
     int npass;
     const rpiv_progress *progress;
@@ -184,12 +184,12 @@ static rpiv_status after_pair(pass_run *c, size_t i, int added)
     rpiv_status st = RPIV_OK;
     c->since += (size_t)added;
     if (b->ckpt && b->p.checkpoint_every && c->since >= b->p.checkpoint_every) {
-        *c->saved_ok = !(st = ck_save(b, c->id, c->npass, c->e));
+        *c->saved_ok = !(st = ck_save(b, c->id, c->npass, c->stage - c->pass, c->e));
         c->since = 0;
     }
     if (!st && rpiv_progress_report(c->progress, ++*c->done, c->total))
         st = rpiv_fail(RPIV_EINTR, "ensemble: interrupted in pass %d after %zu of %zu pairs",
-                       c->pass + 1, i / (size_t)rpiv_mpi_size(b->mpi) + 1, c->nmine);
+                       c->stage + 1, i / (size_t)rpiv_mpi_size(b->mpi) + 1, c->nmine);
     return st;
 }
 
@@ -308,28 +308,36 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
         nmine++;
         done += (b->state[i] & (DONE | BAD)) != 0;
     }
-    size_t total = nmine * (size_t)npass;
+    /* stage k: the plan's pass k, then (ensemble_refine) repeats of its last pass while
+     * rpiv_ensemble_again says so; the progress's total grows by a pass with each repeat */
+    size_t total = nmine * (size_t)(pass0 < npass ? npass : pass0 + 1);
     done += nmine * (size_t)pass0;
-    for (int k = pass0; k < npass; k++) {
+    for (int k = pass0, more = 1; more; k++) {
+        const int pass = k < npass ? k : npass - 1;
         if (!e) {
             for (size_t i = 0; i < N; i++)
                 b->state[i] &= BAD;
-            if (!(st = rpiv_ensemble_new(pv, k, pred, &e)) && b->ckpt)
-                saved_ok = !(st = ck_save(b, &id, npass, e));
+            if (!(st = rpiv_ensemble_new(pv, pass, pred, &e)) && b->ckpt)
+                saved_ok = !(st = ck_save(b, &id, npass, k - pass, e));
         }
         if ((st = rpiv_mpi_agree(m, st)))
             break;
-        pass_run run = {b, pv, e, k, &id, npass, progress, &done, total, nmine, 0, &saved_ok, NULL};
+        pass_run run = {b,        pv,    e,     pass,  k, &id,       npass,
+                        progress, &done, total, nmine, 0, &saved_ok, NULL};
         st = b->src ? run_made(&run) : run_files(&run);
         if ((st = rpiv_mpi_agree(m, st))) {
             if (b->ckpt && saved_ok)
-                st = ck_stop(b, &id, npass, e, st);
+                st = ck_stop(b, &id, npass, k - pass, e, st);
             break;
         }
         rpiv_field *f = NULL;
         st = finish_pass(b, e, k, &f);
         rpiv_ensemble_free(e);
         e = NULL;
+        /* the same decision on every rank: the fields are the reduced sums' */
+        more = !st && (k < npass - 1 || rpiv_ensemble_again(pv, pred, f, k - pass));
+        if (more && k >= npass - 1)
+            total += nmine;
         rpiv_field_free(pred);
         pred = f;
         if (st)

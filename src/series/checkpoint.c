@@ -15,10 +15,12 @@
 #include <string.h>
 #include <unistd.h>
 
-/* The batch's block in a checkpoint: the rank, the run's identity (ck_ident), then one state
- * byte per pair (DONE: summed in the checkpoint's pass; BAD: unreadable). */
+/* The batch's block in a checkpoint: the rank, the run's identity (ck_ident), the repeat of the
+ * final pass the sums are (ensemble_refine; 0 for a listed pass, and in the files of the
+ * versions before it, where this was padding), then one state byte per pair (DONE: summed in
+ * the checkpoint's pass; BAD: unreadable). */
 typedef struct ck_block {
-    int32_t rank, nranks, npass, pad;
+    int32_t rank, nranks, npass, repeat;
     uint64_t npairs, series_hash, plan_hash;
     char series[256], plan[768];
 } ck_block;
@@ -72,13 +74,19 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     if (p->deform)
         snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
                  ", samples in [1, w - 2]");
+    /* the final pass's repeats (their count decides where the run stops) */
+    if (p->ensemble_refine)
+        snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
+                 ", ensemble refine %d (tol %.6g px)", p->ensemble_refine,
+                 p->ensemble_refine_tol_px);
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
     h = hash_bytes(HASH0, id->plan, strlen(id->plan));
     h = hash_bytes(h, exact, sizeof exact);
     id->plan_hash = rpiv_piv_hash_frames(pv, h);
 }
 
-rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, const rpiv_ensemble *e)
+rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, int repeat,
+                    const rpiv_ensemble *e)
 {
     size_t n = b->pairs->n;
     unsigned char *buf = malloc(sizeof(ck_block) + n);
@@ -89,6 +97,7 @@ rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, const rp
     bk.rank = rpiv_mpi_rank(b->mpi);
     bk.nranks = rpiv_mpi_size(b->mpi);
     bk.npass = npass;
+    bk.repeat = repeat;
     bk.npairs = n;
     bk.series_hash = id->series_hash;
     bk.plan_hash = id->plan_hash;
@@ -133,13 +142,14 @@ typedef struct ck_want {
     rpiv_batch *b;
     const rpiv_piv *pv;
     const ck_ident *id;
+    int repeat; /* out: the block's repeat of the final pass */
 } ck_want;
 
 /* The block of this rank's checkpoint (rpiv_ensemble_block_fn): refuse one of another rank,
  * series or plan, naming what differs; else take the pair states. */
 static rpiv_status check_block(void *user, const void *block, size_t nblock)
 {
-    const ck_want *cw = user;
+    ck_want *cw = user;
     rpiv_batch *b = cw->b;
     const char *path = b->ckpt;
     int K = rpiv_mpi_size(b->mpi), r = rpiv_mpi_rank(b->mpi);
@@ -167,8 +177,10 @@ static rpiv_status check_block(void *user, const void *block, size_t nblock)
                          hd.plan, cw->id->plan,
                          strcmp(hd.plan, cw->id->plan) ? ""
                                                        : " (the mask or background frames differ)");
-    if (nblock != sizeof hd + b->pairs->n)
+    if (nblock != sizeof hd + b->pairs->n || hd.repeat < 0 ||
+        hd.repeat > rpiv_piv_params_of(cw->pv)->ensemble_refine)
         return rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (identity block)", path);
+    cw->repeat = hd.repeat;
     memcpy(b->state, (const unsigned char *)block + sizeof hd, b->pairs->n);
     return RPIV_OK;
 }
@@ -183,12 +195,13 @@ static rpiv_status ck_load(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id, cons
     *e = NULL;
     if (access(b->ckpt, F_OK) != 0 && errno == ENOENT)
         return ck_missing(b, user_path);
-    ck_want cw = {b, pv, id};
+    ck_want cw = {b, pv, id, 0};
     rpiv_status st = rpiv_ensemble_load_new(pv, b->ckpt, check_block, &cw, e);
     if (!st) {
         const rpiv_field *p = rpiv_ensemble_predictor(*e);
-        *pass = rpiv_ensemble_pass(*e);
-        if ((p != NULL) != (*pass > 0))
+        *pass = rpiv_ensemble_pass(*e) + cw.repeat; /* the stage */
+        if ((p != NULL) != (*pass > 0) ||
+            (cw.repeat && rpiv_ensemble_pass(*e) != rpiv_piv_npass(pv) - 1))
             st = rpiv_fail(RPIV_EFORMAT, "%s: corrupt checkpoint (pass %d of %d)", b->ckpt,
                            *pass + 1, rpiv_piv_npass(pv));
         else if (p)
@@ -263,12 +276,12 @@ out_fail:
 }
 
 /* A failed run keeps its checkpoint: save the state and say so after the message. */
-rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, const rpiv_ensemble *e,
-                    rpiv_status st)
+rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, int repeat,
+                    const rpiv_ensemble *e, rpiv_status st)
 {
     char msg[1024];
     snprintf(msg, sizeof msg, "%s", rpiv_errmsg());
-    rpiv_status cs = ck_save(b, id, npass, e);
+    rpiv_status cs = ck_save(b, id, npass, repeat, e);
     if (cs) {
         char cmsg[512];
         snprintf(cmsg, sizeof cmsg, "%s", rpiv_errmsg());
@@ -277,6 +290,6 @@ rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, const rp
     return rpiv_fail(st,
                      "%s; checkpoint %s saved (pass %d, %zu pair%s summed there by this "
                      "process)",
-                     msg, b->ckpt, rpiv_ensemble_pass(e) + 1, rpiv_ensemble_npairs(e),
+                     msg, b->ckpt, rpiv_ensemble_pass(e) + repeat + 1, rpiv_ensemble_npairs(e),
                      rpiv_ensemble_npairs(e) == 1 ? "" : "s");
 }

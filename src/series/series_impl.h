@@ -75,20 +75,22 @@ typedef struct ck_ident {
 /* The identity of the run of plan pv over b's pairs. */
 void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id);
 /* Write this rank's state to its checkpoint b->ckpt: the identity block (the rank, id, npass,
- * the pair states) and the accumulator e (its pass, predictor, sums and their pair count), in
- * the accumulator's file format (rpiv_ensemble_save_block). */
-RPIV_NODISCARD rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass,
+ * the repeat of the final pass e is, 0 for a listed pass, the pair states) and the accumulator
+ * e (its pass, predictor, sums and their pair count), in the accumulator's file format
+ * (rpiv_ensemble_save_block). */
+RPIV_NODISCARD rpiv_status ck_save(const rpiv_batch *b, const ck_ident *id, int npass, int repeat,
                                    const rpiv_ensemble *e);
 /* Is there a file at path? */
 int ck_exists(const char *path);
-/* Resume from the ranks' checkpoints (collective): *pass0 the pass to continue, *pred its
+/* Resume from the ranks' checkpoints (collective): *pass0 the stage to continue (the pass, or
+ * npass - 1 plus the repeat of the final pass), *pred its
  * predictor and *e this rank's sums (NULL if this rank starts the pass afresh). */
 RPIV_NODISCARD rpiv_status ck_resume(rpiv_batch *b, rpiv_piv *pv, const ck_ident *id,
                                      const char *user_path, int *pass0, rpiv_field **pred,
                                      rpiv_ensemble **e);
 /* A failed run keeps its checkpoint: save the state (ck_save) and say so after the message of
  * st, which is returned. */
-RPIV_NODISCARD rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass,
+RPIV_NODISCARD rpiv_status ck_stop(const rpiv_batch *b, const ck_ident *id, int npass, int repeat,
                                    const rpiv_ensemble *e, rpiv_status st);
 
 #endif /* RPIV_SERIES_IMPL_H */
