@@ -100,6 +100,13 @@ typedef struct rpiv_piv_params {
      * repeated") (0). */
     int ensemble_refine;           /* 0..20 (0) */
     double ensemble_refine_tol_px; /* RMS change, px (0.002) */
+    /* 1: an ensemble's predictor of the final size is denoised as a pair's repeats are
+     * (refine_denoise); 0: not denoised but notched (refine_notch). The denoiser's threshold
+     * comes from the field's own detail, which in an ensemble of many pairs is mostly the
+     * flow's: it shrinks a curved flow (a vortex's ensemble, 3 px images: 0.0106 px of error
+     * with it, 0.0044 without, both with ensemble_refine), while an ensemble of few noisy pairs
+     * needs it (docs/piv.md, "Ensembles: the final pass repeated") (1). */
+    int ensemble_denoise;
     /* Image preprocessing applied to both frames of every pair on loading, after the
      * background subtraction (rpiv/preprocess.h; ops "" = none, the default). */
     rpiv_preprocess_params prep;

@@ -180,6 +180,8 @@ static const key_spec keys[] = {
      "ensembles: repeats of the final pass while the field changes (0 = the listed passes)", 0},
     {"piv", "ensemble_refine_tol_px", KEY_DOUBLE, OFF(piv.ensemble_refine_tol_px), 0, 10, 1, "px",
      "ensembles: converged when the RMS change between two final passes is below this", 0},
+    {"piv", "ensemble_denoise", KEY_BOOL, OFF(piv.ensemble_denoise), 0, 1, 1, "-",
+     "ensembles: denoise the final size's predictor (0: notch it only)", 0},
     {"piv", "refine_tol_px", KEY_DOUBLE, OFF(piv.refine_tol_px), 0, 10, 1, "px",
      "refinement converged: RMS change between iterations below this", 0},
     {"piv", "refine_filter", KEY_DOUBLE, OFF(piv.refine_filter), 0, 0.5, 1, "-",

@@ -8,6 +8,8 @@
 #include "rpiv/ensemble.h"
 #include "rpiv/xcorr.h"
 
+#include "piv_impl.h"
+
 #include <stdint.h>
 
 struct rpiv_ensemble {
@@ -15,6 +17,7 @@ struct rpiv_ensemble {
     int pass;
     rpiv_field *predictor;  /* copy, NULL for none */
     rpiv_deform_pred *pred; /* its interpolant     */
+    piv_notch notch;        /* the interpolant's notch (piv_pred_notch_ensemble) */
     uint64_t pred_hash;
     size_t plane; /* floats per plane    */
     size_t nwin;

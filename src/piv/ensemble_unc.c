@@ -212,7 +212,9 @@ rpiv_status ens_unc_finish(const rpiv_ensemble *e, rpiv_field *f, const unsigned
             linked = 1;
         }
     }
-    g.denoise = linked ? piv_pred_denoised(pv, p) : 0;
+    g.denoise = linked ? piv_pred_denoised_ensemble(pv, p) : 0;
+    if (linked)
+        g.notch = e->notch;
     {
         float *gain = NULL;
         /* the denoiser's linear part L (docs/uncertainty.md, "The denoiser in the chain": with

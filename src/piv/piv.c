@@ -403,7 +403,8 @@ rpiv_status piv_pred_new(const rpiv_piv *pv, const rpiv_field *predictor, int pa
             f->flag[k] = RPIV_FLAG_VALID;
     /* a repeat of the final size: its detail shrunk above the noise (refine_denoise), then its
      * grid's Nyquist mode, which no repeat would correct, removed (refine_notch) */
-    const int denoise = piv_pred_denoised(pv, predictor);
+    const int denoise =
+        ensemble ? piv_pred_denoised_ensemble(pv, predictor) : piv_pred_denoised(pv, predictor);
     if (!(st = rpiv_validate_replace(f, 1, NULL)) &&
         !(filter > 0 && (st = piv_pred_filter(f, filter))) &&
         !(denoise && (st = piv_pred_denoise(pv, f))) && !(st = piv_pred_notch(f, notch))) {

@@ -140,6 +140,14 @@ uint64_t piv_field_hash(const rpiv_field *f);
  * the dilations d = 1, 2, 4 with the pass's window spanning 2 d grid steps or more; else none. */
 void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
                            piv_notch *n);
+/* An ensemble's predictor of the final size (a pass whose predictor is on its own grid): with
+ * ensemble_denoise, denoised as piv_pred_denoised says and not notched; without, not denoised
+ * (an ensemble's detail is mostly the flow's, and the denoiser's threshold, taken from that
+ * detail, shrinks it) but notched as a pair's repeats are (piv_pred_notch_orders) (docs/piv.md,
+ * "Ensembles: the final pass repeated"). */
+int piv_pred_denoised_ensemble(const rpiv_piv *pv, const rpiv_field *predictor);
+void piv_pred_notch_ensemble(const rpiv_piv *pv, int pass, const rpiv_field *predictor,
+                             piv_notch *n);
 /* The notch n on f's u and v (NULL or orders 0: nothing). */
 RPIV_NODISCARD rpiv_status piv_pred_notch(rpiv_field *f, const piv_notch *n);
 /* c := N^T c for the notch N of piv_pred_notch on an nx x ny grid: c holds the nodes bx0.. (bw) x

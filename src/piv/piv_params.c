@@ -41,6 +41,7 @@ rpiv_piv_params rpiv_piv_params_default(void)
                              .spline_check = 1,
                              .ensemble_refine = 0,
                              .ensemble_refine_tol_px = 0.002,
+                             .ensemble_denoise = 1,
                              .prep = rpiv_preprocess_params_default()};
 }
 
@@ -102,6 +103,9 @@ rpiv_status rpiv_piv_params_check(const rpiv_piv_params *p)
     if (!(p->ensemble_refine_tol_px >= 0 && p->ensemble_refine_tol_px <= 10))
         return rpiv_fail(RPIV_EINVAL, "piv.ensemble_refine_tol_px: %g outside 0..10",
                          p->ensemble_refine_tol_px);
+    if (p->ensemble_denoise != 0 && p->ensemble_denoise != 1)
+        return rpiv_fail(RPIV_EINVAL, "piv.ensemble_denoise: %d is not 0 or 1",
+                         p->ensemble_denoise);
     if (p->spline_check != 0 && p->spline_check != 1)
         return rpiv_fail(RPIV_EINVAL, "piv.spline_check: %d is not 0 or 1", p->spline_check);
     if (p->edge_curvature < -1 || p->edge_curvature > 1)

@@ -673,6 +673,26 @@ void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv
     }
 }
 
+int piv_pred_denoised_ensemble(const rpiv_piv *pv, const rpiv_field *predictor)
+{
+    return pv->p.ensemble_denoise ? piv_pred_denoised(pv, predictor) : 0;
+}
+
+void piv_pred_notch_ensemble(const rpiv_piv *pv, int pass, const rpiv_field *predictor,
+                             piv_notch *n)
+{
+    const piv_pass *ps = &pv->pass[pass];
+    const int on = !pv->p.ensemble_denoise && pv->p.refine_notch > 0 && predictor &&
+                   piv_pred_repeats(pv, predictor);
+    const int w[2] = {ps->ww, ps->wh}, st[2] = {ps->sx, ps->sy};
+    for (int a = 0; a < 2; a++) {
+        n->levels[a] = 0;
+        for (int d = 1; on && d <= PIV_NOTCH_DILATIONS && w[a] >= 2 * d * st[a]; d *= 2)
+            n->levels[a]++;
+        n->m[a] = n->levels[a] ? pv->p.refine_notch : 0;
+    }
+}
+
 /* The dilations of level k: 1, 2, 4, ... */
 #define NOTCH_DIL(k) (1 << (k))
 

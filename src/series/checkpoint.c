@@ -74,6 +74,10 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     if (p->deform)
         snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
                  ", samples in [1, w - 2]");
+    /* the final size's predictor notched instead of denoised (the sums differ) */
+    if (!p->ensemble_denoise)
+        snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
+                 ", ensemble denoise 0");
     /* the final pass's repeats (their count decides where the run stops) */
     if (p->ensemble_refine)
         snprintf(id->plan + strlen(id->plan), sizeof id->plan - strlen(id->plan),
