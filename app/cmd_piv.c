@@ -109,6 +109,16 @@ static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const rp
                                                             : pairs->pair[i0].path_b,
                 (sa.min == sa.max ? sa.max : sb.max) == 0 ? "empty" : "constant",
                 sa.min == sa.max ? sa.max : sb.max);
+    double change;
+    const int reps = p->ensemble ? rpiv_batch_repeats(batch, &change) : 0;
+    if (p->ensemble && p->ensemble_refine > 0 && reps >= p->ensemble_refine &&
+        change > p->ensemble_refine_tol_px)
+        fprintf(stderr,
+                "rpiv piv: warning: the ensemble's final pass was repeated %d time%s and its "
+                "field still changed by %.4f px RMS in the last (ensemble_refine_tol_px %g): "
+                "not converged; raise piv.ensemble_refine (up to 20)%s\n",
+                reps, reps == 1 ? "" : "s", change, p->ensemble_refine_tol_px,
+                p->ensemble_denoise ? "" : ", or set piv.ensemble_denoise = 1 for a noisy series");
     if (!r->nvec || (double)r->nreplaced <= 0.10 * (double)r->nvec)
         return;
     double med = f ? median_peak_ratio(f) : 0;

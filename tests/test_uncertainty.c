@@ -791,9 +791,12 @@ static void ensemble_sweep(int wide)
     }
 }
 
+/* RPIV_UNC_ENS_ITERATED set: either sweep with g_ens_iterated */
 static void unc_ensemble_sweep(void)
 {
+    g_ens_iterated = getenv("RPIV_UNC_ENS_ITERATED") != NULL;
     ensemble_sweep(0);
+    g_ens_iterated = 0;
 }
 
 static void unc_ensemble_sweep_256(void)

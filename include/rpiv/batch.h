@@ -119,6 +119,13 @@ size_t rpiv_batch_skipped(const rpiv_batch *b, size_t k);
  * it was in and the pairs (all ranks) already summed in that pass; 0 if the run began anew. */
 int rpiv_batch_resumed(const rpiv_batch *b, int *pass, size_t *done);
 
+/* After rpiv_batch_ensemble: the repeats of the final pass it ran (piv.ensemble_refine), and
+ * in *change (may be NULL) the RMS change of the field in its last pass of the final size
+ * (rpiv_ensemble_change; -1 where the pass before was on another grid). A run whose repeats
+ * reached ensemble_refine with the change still above ensemble_refine_tol_px has not
+ * converged: rpiv piv says so. */
+int rpiv_batch_repeats(const rpiv_batch *b, double *change);
+
 /* The number of pairs summed in the last ensemble pass (all ranks). */
 size_t rpiv_batch_npairs(const rpiv_batch *b);
 

@@ -93,6 +93,9 @@ int rpiv_ensemble_pass(const rpiv_ensemble *e);
  * passes itself runs the plan's last pass again with f as its predictor while this says so. */
 int rpiv_ensemble_again(const rpiv_piv *pv, const rpiv_field *prev, const rpiv_field *f,
                         int repeats);
+/* The RMS change of u, v from prev to f over the vectors valid in both, px; -1 if either is
+ * NULL, they are on different grids or no vector is valid in both. */
+double rpiv_ensemble_change(const rpiv_field *prev, const rpiv_field *f);
 
 /* The predictor the accumulator was made with (its copy), NULL for none. */
 const rpiv_field *rpiv_ensemble_predictor(const rpiv_ensemble *e);

@@ -82,14 +82,17 @@ out_free:
     return st;
 }
 
-int rpiv_ensemble_again(const rpiv_piv *pv, const rpiv_field *prev, const rpiv_field *f,
-                        int repeats)
+/* prev and f on the same grid */
+static int same_grid(const rpiv_field *prev, const rpiv_field *f)
 {
-    if (!f || repeats >= pv->p.ensemble_refine)
-        return 0;
-    if (!prev || prev->nx != f->nx || prev->ny != f->ny || prev->x0 != f->x0 || prev->y0 != f->y0 ||
-        prev->dx != f->dx || prev->dy != f->dy)
-        return 1; /* the final size not iterated yet: no change to measure */
+    return prev && f && prev->nx == f->nx && prev->ny == f->ny && prev->x0 == f->x0 &&
+           prev->y0 == f->y0 && prev->dx == f->dx && prev->dy == f->dy;
+}
+
+double rpiv_ensemble_change(const rpiv_field *prev, const rpiv_field *f)
+{
+    if (!same_grid(prev, f))
+        return -1;
     double s = 0;
     size_t n = 0, nv = (size_t)f->nx * (size_t)f->ny;
     for (size_t k = 0; k < nv; k++)
@@ -99,7 +102,18 @@ int rpiv_ensemble_again(const rpiv_piv *pv, const rpiv_field *prev, const rpiv_f
             s += du * du + dv * dv;
             n++;
         }
-    return n > 0 && sqrt(s / (double)n) > pv->p.ensemble_refine_tol_px;
+    return n ? sqrt(s / (double)n) : -1;
+}
+
+int rpiv_ensemble_again(const rpiv_piv *pv, const rpiv_field *prev, const rpiv_field *f,
+                        int repeats)
+{
+    if (!f || repeats >= pv->p.ensemble_refine)
+        return 0;
+    if (!same_grid(prev, f))
+        return 1; /* the final size not iterated yet: no change to measure */
+    const double c = rpiv_ensemble_change(prev, f);
+    return c > pv->p.ensemble_refine_tol_px; /* -1: no vector valid in both */
 }
 
 static void add_plane(void *ctx, const float *plane, const float *colmax, size_t win, double ea,

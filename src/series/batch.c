@@ -132,6 +132,13 @@ size_t rpiv_batch_npairs(const rpiv_batch *b)
     return b->npairs_last;
 }
 
+int rpiv_batch_repeats(const rpiv_batch *b, double *change)
+{
+    if (change)
+        *change = b->last_change;
+    return b->repeats;
+}
+
 /* ---- the ensemble run -------------------------------------------------------------------- */
 
 /* Pair i of a source (b->src) into the batch's images, added to e, then the source's hook:
@@ -290,6 +297,8 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
     for (size_t i = 0; i < N; i++)
         b->state[i] &= BAD;
     b->resumed = 0;
+    b->repeats = 0;
+    b->last_change = -1;
     if (b->ckpt) {
         atomic_remove_stale(b->ckpt);
         /* an interrupted run's checkpoint is not overwritten by a new run by mistake */
@@ -336,6 +345,10 @@ rpiv_status rpiv_batch_ensemble(rpiv_batch *b, rpiv_piv *pv, const rpiv_progress
         e = NULL;
         /* the same decision on every rank: the fields are the reduced sums' */
         more = !st && (k < npass - 1 || rpiv_ensemble_again(pv, pred, f, k - pass));
+        if (!st && k >= npass - 1) {
+            b->repeats = k - pass;
+            b->last_change = rpiv_ensemble_change(pred, f);
+        }
         if (more && k >= npass - 1)
             total += nmine;
         rpiv_field_free(pred);

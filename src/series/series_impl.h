@@ -38,6 +38,8 @@ struct rpiv_batch {
     size_t *skipped, nskipped;
     int resumed, resume_pass;
     size_t resume_done, npairs_last;
+    int repeats;        /* the last ensemble run's repeats of its final pass     */
+    double last_change; /* and the RMS change of its last pass of the final size */
     batch_first *first; /* the pair rpiv_batch_size read, kept for its first use */
 };
 
