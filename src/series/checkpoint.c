@@ -86,6 +86,8 @@ void ck_ident_of(const rpiv_batch *b, const rpiv_piv *pv, ck_ident *id)
     double exact[3] = {p->overlap, p->median_thr, p->median_eps};
     h = hash_bytes(HASH0, id->plan, strlen(id->plan));
     h = hash_bytes(h, exact, sizeof exact);
+    if (p->ensemble_refine) /* the tolerance itself, not its 6 digits */
+        h = hash_bytes(h, &p->ensemble_refine_tol_px, sizeof p->ensemble_refine_tol_px);
     id->plan_hash = rpiv_piv_hash_frames(pv, h);
 }
 

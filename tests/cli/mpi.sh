@@ -61,6 +61,16 @@ grep -q '^# mpi_ranks = 2$' two.txt && ok || ko "rank count not in the header"
 # spline estimator on these 6 pairs, 0.050 px with --subpixel gauss)
 rows two.txt | awk '{du = $3 - 2.3187; dv = $4 + 1.1471; e += du * du + dv * dv; n++}
     END {exit !(sqrt(e / n) < 0.06)}' && ok || ko "2-rank field is not (2.3187, -1.1471)"
+# the final pass repeated (piv.ensemble_refine, tolerance 0: every repeat runs): every rank
+# takes the same decisions from the same reduced field
+ref=(-S piv.ensemble_refine=2 -S piv.ensemble_refine_tol_px=0 -S piv.ensemble_denoise=0)
+"$bin" piv --ensemble -q "${ref[@]}" 's1/pair_*_[ab].tif' -o oner.txt && ok || ko "refined, one process"
+mpi 2 "$bin" piv --ensemble -q "${ref[@]}" 's1/pair_*_[ab].tif' -o twor.txt 2>err && ok ||
+    ko "refined, 2 ranks: $(cat err)"
+read -r d nf nbad <<<"$(maxdiff oner.txt twor.txt)"
+[ "$nbad" -eq 0 ] && [ "$nf" -eq 0 ] && awk -v d="$d" 'BEGIN {exit !(d <= 1e-6)}' && ok ||
+    ko "refined ensemble, 2 ranks differ from one process by $d px ($nf flags)"
+! cmp -s <(rows oner.txt) <(rows one.txt) && ok || ko "the repeats changed nothing"
 mpi 1 "$bin" piv --ensemble -q --threads 1 's1/pair_*_[ab].tif' -o np1.txt &&
     "$bin" piv --ensemble -q --threads 1 's1/pair_*_[ab].tif' -o plain.txt && cmp -s np1.txt plain.txt \
     && ok || ko "mpirun -np 1 differs from a plain run"
