@@ -210,6 +210,11 @@ rpiv_status cmdpiv_add_meta(rpiv_meta *m, const rpiv_piv_params *p, const rpiv_p
         (st = rpiv_meta_add(m, "median_eps_px", "%g", p->median_eps)) ||
         (st = rpiv_meta_add(m, "search_radius_px", "%d", p->search_radius)) ||
         (p->cbc && (st = rpiv_meta_add(m, "cbc", "%d", p->cbc))) ||
+        (p->ensemble && p->ensemble_refine &&
+         (st = rpiv_meta_add(m, "ensemble_refine", "%d (tol %g px)", p->ensemble_refine,
+                             p->ensemble_refine_tol_px))) ||
+        (p->ensemble && !p->ensemble_denoise &&
+         (st = rpiv_meta_add(m, "ensemble_denoise", "0 (the final predictor notched)"))) ||
         (st = rpiv_meta_add(m, "background", "%s", bg[p->background])) ||
         (st = rpiv_meta_add(m, "mask", "%s", p->mask[0] ? p->mask : "none")) ||
         (st = rpiv_meta_add(m, "roi", "%d,%d,%d,%d", p->roi[0], p->roi[1], p->roi[2], p->roi[3])) ||

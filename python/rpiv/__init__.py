@@ -231,7 +231,8 @@ def _piv_params_attrs(exp, pv):
     """rpiv's parameters as global attributes (the keys of [piv])."""
     attrs = {}
     keys = ["windows", "overlap", "step_px", "subpixel", "median_threshold", "median_eps_px",
-            "search_radius_px", "cbc",
+            "search_radius_px", "cbc", "ensemble_refine", "ensemble_refine_tol_px",
+            "ensemble_denoise",
             "background", "roi", "mask", "deform", "scale_mm_per_px", "dt_s"]
     text = _config_text(exp)
     for k in keys:

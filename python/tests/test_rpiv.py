@@ -68,6 +68,25 @@ def test_ensemble_matches_cli(series, tmp_path):
     assert np.array_equal(glob.u.values, ens.u.values)
 
 
+def test_ensemble_refine_matches_cli(series, tmp_path):
+    """[piv] ensemble_refine and ensemble_denoise as keyword options: the CLI's field, recorded
+    in the attributes; the progress counts the repeats' passes too."""
+    out = tmp_path / "ensr.txt"
+    run_cli("piv", "-q", "--ensemble", "-S", "piv.ensemble_refine=2", "-S",
+            "piv.ensemble_refine_tol_px=0", "-S", "piv.ensemble_denoise=0",
+            str(series / "*.tif"), "-o", out)
+    cli = rpiv.load(out)
+    calls = []
+    ens = rpiv.ensemble(str(series / "*.tif"), ensemble_refine=2, ensemble_refine_tol_px=0,
+                        ensemble_denoise=0, progress=lambda d, t: calls.append((d, t)))
+    assert float(abs(ens.u - cli.u).max()) <= 1e-6
+    assert float(abs(ens.v - cli.v).max()) <= 1e-6
+    assert str(ens.attrs["ensemble_refine"]) == "2" and str(ens.attrs["ensemble_denoise"]) == "0"
+    assert calls[-1] == (15, 15)  # 3 pairs x (3 passes + 2 repeats)
+    plain = rpiv.ensemble(str(series / "*.tif"))
+    assert float(abs(plain.u - ens.u).max()) > 1e-4
+
+
 def test_ensemble_sheet_bias_matches_cli(tmp_path):
     """sheet_bias=True: the CCM's bias of every vector, as `rpiv piv --sheet-bias` writes it,
     on a duct flow (its velocity varies across the sheet's depth: a bias that is not 0)."""

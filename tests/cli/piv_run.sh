@@ -47,6 +47,8 @@ grep -q '^# mode = ensemble$' "$tmp/ens.txt" && ok || ko "ensemble mode not reco
     "$tmp/pairs.txt" -o "$tmp/ensr.txt" 2>"$tmp/ensr.err" || ko "ensemble_refine"
 grep -q 'warning: the ensemble.s final pass was repeated 1 time and .*not converged' \
     "$tmp/ensr.err" && ok || ko "ensemble_refine: no warning: $(cat "$tmp/ensr.err")"
+grep -q '^# ensemble_refine = 1 (tol 0.002 px)$' "$tmp/ensr.txt" &&
+    grep -q '^# ensemble_denoise = 0' "$tmp/ensr.txt" && ok || ko "ensemble_refine not recorded"
 "$bin" piv --quiet --ensemble "$tmp/pairs.txt" -o "$tmp/ens0.txt" 2>"$tmp/ens0.err" \
     && ! grep -q 'not converged' "$tmp/ens0.err" && ok || ko "default ensemble warns: $(cat "$tmp/ens0.err")"
 ! cmp -s <(rows "$tmp/ensr.txt") <(rows "$tmp/ens0.txt") && ok || ko "ensemble_refine changed nothing"
