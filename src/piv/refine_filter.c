@@ -658,12 +658,11 @@ static void notch_line(const notch_taps *t, float *g, size_t st, int n, double *
     }
 }
 
-void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
-                           piv_notch *n)
+/* The notch of pass `pass`'s predictor when on: along each axis the dilations d = 1, 2, 4 with
+ * the window spanning 2 d grid steps or more, of order refine_notch; none when off. */
+static void notch_of(const rpiv_piv *pv, int pass, int on, piv_notch *n)
 {
     const piv_pass *ps = &pv->pass[pass];
-    const int on = denoise && pv->p.refine_notch > 0 && pass == pv->npass - 1 && predictor &&
-                   pv->final_known && piv_field_hash(predictor) == pv->final_hash;
     const int w[2] = {ps->ww, ps->wh}, st[2] = {ps->sx, ps->sy};
     for (int a = 0; a < 2; a++) {
         n->levels[a] = 0;
@@ -671,6 +670,15 @@ void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv
             n->levels[a]++;
         n->m[a] = n->levels[a] ? pv->p.refine_notch : 0;
     }
+}
+
+void piv_pred_notch_orders(const rpiv_piv *pv, int pass, int denoise, const rpiv_field *predictor,
+                           piv_notch *n)
+{
+    notch_of(pv, pass,
+             denoise && pv->p.refine_notch > 0 && pass == pv->npass - 1 && predictor &&
+                 pv->final_known && piv_field_hash(predictor) == pv->final_hash,
+             n);
 }
 
 int piv_pred_denoised_ensemble(const rpiv_piv *pv, const rpiv_field *predictor)
@@ -681,16 +689,10 @@ int piv_pred_denoised_ensemble(const rpiv_piv *pv, const rpiv_field *predictor)
 void piv_pred_notch_ensemble(const rpiv_piv *pv, int pass, const rpiv_field *predictor,
                              piv_notch *n)
 {
-    const piv_pass *ps = &pv->pass[pass];
-    const int on = !pv->p.ensemble_denoise && pv->p.refine_notch > 0 && predictor &&
-                   piv_pred_repeats(pv, predictor);
-    const int w[2] = {ps->ww, ps->wh}, st[2] = {ps->sx, ps->sy};
-    for (int a = 0; a < 2; a++) {
-        n->levels[a] = 0;
-        for (int d = 1; on && d <= PIV_NOTCH_DILATIONS && w[a] >= 2 * d * st[a]; d *= 2)
-            n->levels[a]++;
-        n->m[a] = n->levels[a] ? pv->p.refine_notch : 0;
-    }
+    notch_of(pv, pass,
+             !pv->p.ensemble_denoise && pv->p.refine_notch > 0 && predictor &&
+                 piv_pred_repeats(pv, predictor),
+             n);
 }
 
 /* The dilations of level k: 1, 2, 4, ... */
