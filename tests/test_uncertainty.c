@@ -991,7 +991,7 @@ static void unc_notch_operator(void)
                         worst[0] = fmax(worst[0], fmax(fabs((double)(g->u[k] - f->u[k])),
                                                        fabs((double)(g->v[k] - f->v[k]))));
                     else if (test == 1 && inside)
-                        worst[1] = fmax(worst[1], fabs(g->u[k]));
+                        worst[1] = fmax(worst[1], fabs((double)g->u[k]));
                     else if (test == 2 && inside)
                         worst[2] = fmax(worst[2], fabs((double)g->u[k] - keep * (double)f->u[k]));
                 }
