@@ -69,8 +69,8 @@ rpiv_status rpiv_ensemble_new(rpiv_piv *pv, int pass, const rpiv_field *predicto
         goto out_free;
     }
     if (predictor) {
+        piv_pred_notch_ensemble(pv, pass, predictor, &e->notch);
         if ((st = rpiv_field_copy(predictor, &e->predictor)) ||
-            (piv_pred_notch_ensemble(pv, pass, predictor, &e->notch), 0) ||
             (st = piv_pred_new(pv, predictor, pass, 0, &e->notch, 1, &e->pred)))
             goto out_free;
     }
