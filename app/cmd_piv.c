@@ -119,6 +119,14 @@ static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const rp
                 "not converged; raise piv.ensemble_refine (up to 20)%s\n",
                 reps, reps == 1 ? "" : "s", change, p->ensemble_refine_tol_px,
                 p->ensemble_denoise ? "" : ", or set piv.ensemble_denoise = 1 for a noisy series");
+    else if (p->ensemble && !p->ensemble_refine && change > p->refine_tol_px)
+        fprintf(stderr,
+                "rpiv piv: warning: the ensemble's final pass still changed its field by %.4f px "
+                "RMS (more than a pair's convergence, refine_tol_px %g): the listed passes did "
+                "not converge it, and its error (which --uncertainty does not include) can be "
+                "as large; for planar PIV of a thin sheet, -S piv.ensemble_refine=6 repeats the "
+                "final pass (docs/piv.md, \"Ensembles: the final pass repeated\")\n",
+                change, p->refine_tol_px);
     if (!r->nvec || (double)r->nreplaced <= 0.10 * (double)r->nvec)
         return;
     double med = f ? median_peak_ratio(f) : 0;
