@@ -109,7 +109,7 @@ static void warn_run(const rpiv_piv_params *p, const rpiv_pairs *pairs, const rp
                                                             : pairs->pair[i0].path_b,
                 (sa.min == sa.max ? sa.max : sb.max) == 0 ? "empty" : "constant",
                 sa.min == sa.max ? sa.max : sb.max);
-    double change;
+    double change = -1;
     const int reps = p->ensemble ? rpiv_batch_repeats(batch, &change) : 0;
     if (p->ensemble && p->ensemble_refine > 0 && reps >= p->ensemble_refine &&
         change > p->ensemble_refine_tol_px)

@@ -779,6 +779,7 @@ static void ensemble_sweep(int wide)
 {
     const double noises[] = {0, 0.05, 0.10}, taus[] = {1.5, 2.0, 3.0};
     const char *only = getenv("RPIV_UNC_FLOW");
+    g_ens_iterated = getenv("RPIV_UNC_ENS_ITERATED") != NULL; /* either sweep, iterated */
     for (size_t q = 0; q < (wide ? 3u : 2u); q++) {
         if (only && (size_t)atoi(only) != q)
             continue;
@@ -789,21 +790,17 @@ static void ensemble_sweep(int wide)
                 print_case(flows[q].name, noises[k], taus[t], &s);
             }
     }
+    g_ens_iterated = 0;
 }
 
-/* RPIV_UNC_ENS_ITERATED set: either sweep with g_ens_iterated */
 static void unc_ensemble_sweep(void)
 {
-    g_ens_iterated = getenv("RPIV_UNC_ENS_ITERATED") != NULL;
     ensemble_sweep(0);
-    g_ens_iterated = 0;
 }
 
 static void unc_ensemble_sweep_256(void)
 {
-    g_ens_iterated = getenv("RPIV_UNC_ENS_ITERATED") != NULL;
     ensemble_sweep(1);
-    g_ens_iterated = 0;
 }
 
 static int within(double x, double ref, double factor)
@@ -1322,9 +1319,8 @@ int main(void)
     double nz, tau;
     if (getenv("RPIV_UNC_ENS_PAIRS") && atoi(getenv("RPIV_UNC_ENS_PAIRS")) > 0)
         g_ens_pairs = atoi(getenv("RPIV_UNC_ENS_PAIRS"));
-    if (getenv("RPIV_UNC_ENS_SIZE"))
-        g_ens_size =
-            atoi(getenv("RPIV_UNC_ENS_SIZE")) >= 64 ? atoi(getenv("RPIV_UNC_ENS_SIZE")) : 128;
+    const int ens_size = getenv("RPIV_UNC_ENS_SIZE") ? atoi(getenv("RPIV_UNC_ENS_SIZE")) : 0;
+    g_ens_size = ens_size >= 64 ? ens_size : 128;
     if (one && sscanf(one, "%d %lf %lf %d", &q, &nz, &tau, &nens) == 4 && q >= 0 && q < 3) {
         stats s = ens_case(&flows[q], nz, tau, nens, g_ens_pairs, g_ens_size);
         print_case(flows[q].name, nz, tau, &s);

@@ -12,7 +12,6 @@
 #include "base/hash.h"
 
 #include <errno.h>
-#include <math.h>
 #include <omp.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -93,16 +92,9 @@ double rpiv_ensemble_change(const rpiv_field *prev, const rpiv_field *f)
 {
     if (!same_grid(prev, f))
         return -1;
-    double s = 0;
-    size_t n = 0, nv = (size_t)f->nx * (size_t)f->ny;
-    for (size_t k = 0; k < nv; k++)
-        if (f->flag[k] == RPIV_FLAG_VALID && prev->flag[k] == RPIV_FLAG_VALID) {
-            const double du = (double)f->u[k] - (double)prev->u[k],
-                         dv = (double)f->v[k] - (double)prev->v[k];
-            s += du * du + dv * dv;
-            n++;
-        }
-    return n ? sqrt(s / (double)n) : -1;
+    size_t n;
+    const double c = piv_field_change(f, prev, 1, &n);
+    return n ? c : -1;
 }
 
 int rpiv_ensemble_again(const rpiv_piv *pv, const rpiv_field *prev, const rpiv_field *f,

@@ -133,6 +133,10 @@ RPIV_NODISCARD rpiv_status piv_pred_denoise(const rpiv_piv *pv, rpiv_field *f);
 #define PIV_NOTCH_DILATIONS 4 /* the largest dilation: waves of 8 grid steps (87.5 % overlap) */
 /* A field's identity: a hash of its grid size, u, v and flags (HASH0 for NULL). */
 uint64_t piv_field_hash(const rpiv_field *f);
+/* RMS difference of u, v of two fields on the same grid, over the vectors not masked in a
+ * (valid = 0: a pair's refinement) or valid in both (valid = 1: an ensemble's repeats,
+ * rpiv_ensemble_change); *count (may be NULL) the vectors counted, 0 returned with none. */
+double piv_field_change(const rpiv_field *a, const rpiv_field *b, int valid, size_t *count);
 /* The notch for the predictor of a single pair's pass `pass` (denoise: piv_pred_denoised's
  * result), where the predictor is denoised and the step is a refinement repeat, the final pass
  * run on the field it last returned for this pair (pv->final_hash; so the listed passes, and

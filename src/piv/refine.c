@@ -9,18 +9,20 @@
 
 #include <math.h>
 
-/* RMS difference of the vectors of two fields on the same grid (masked ones left out). */
-static double field_change(const rpiv_field *a, const rpiv_field *b)
+double piv_field_change(const rpiv_field *a, const rpiv_field *b, int valid, size_t *count)
 {
     size_t n = (size_t)a->nx * (size_t)a->ny, m = 0;
     double s = 0;
     for (size_t k = 0; k < n; k++) {
-        if (a->flag[k] == RPIV_FLAG_MASKED)
+        if (valid ? a->flag[k] != RPIV_FLAG_VALID || b->flag[k] != RPIV_FLAG_VALID
+                  : a->flag[k] == RPIV_FLAG_MASKED)
             continue;
         double du = (double)a->u[k] - (double)b->u[k], dv = (double)a->v[k] - (double)b->v[k];
         s += du * du + dv * dv;
         m++;
     }
+    if (count)
+        *count = m;
     return m ? sqrt(s / (double)m) : 0;
 }
 
@@ -100,7 +102,7 @@ static rpiv_status passes(rpiv_piv *pv, int k0, rpiv_field *prev, rpiv_field **o
             goto out_free;
         /* the listed passes may already end with a repeat of the final size */
         if (k == last && piv_repeats(pv, k))
-            change = field_change(f, prev);
+            change = piv_field_change(f, prev, 0, NULL);
         rpiv_field_free(prev);
         prev = f;
         f = NULL;
@@ -129,7 +131,7 @@ static rpiv_status passes(rpiv_piv *pv, int k0, rpiv_field *prev, rpiv_field **o
         if ((st = piv_step(pv, last, prev, pv->p.refine_defer, &f)))
             goto out_free;
         deferred = pv->p.refine_defer;
-        double now = field_change(f, prev);
+        double now = piv_field_change(f, prev, 0, NULL);
         /* the noise floor: the change has not fallen below its smallest for two repeats,
          * the repeats only stir the measurement noise (docs/piv.md): end with the iterate
          * that came with the smallest change */
